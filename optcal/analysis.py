@@ -1,0 +1,186 @@
+"""Observability, Cramér-Rao bounds and goodness of fit of a calibration problem.
+
+The norm ‖A‖ does not change when the body frame rotates, so with the norm cost only six of the nine
+entries of diag(K)·T are observable (DESIGN §3): ``seed15`` holds three unobservable directions, which
+only the small nonlinear terms tie down. They show up here as near-zero singular values of the Jacobian,
+after each column is put in natural units (relative scale change, g, rad, ...), so that the threshold
+does not depend on the sensor's output units.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy import stats
+
+from .model import Model
+from .presets import family
+from .problem import CalibrationProblem
+
+
+def natural_units(problem: CalibrationProblem, x_full: np.ndarray) -> np.ndarray:
+    """One 'natural' unit per parameter: a change of one unit moves residuals by O(1) g."""
+    model: Model = problem.model
+    K = np.abs(x_full[model.groups()["scale"]])
+    out = np.ones(model.n_params)
+    for k, n in enumerate(model.names):
+        f = family(n)
+        if f in ("K", "K2", "K3"):
+            out[k] = K["xyz".index(n[-1])]
+        elif f in ("beta", "gamma") and problem.ctx.dtemp is not None:
+            out[k] = 1.0 / max(np.std(problem.ctx.dtemp), 1e-12)
+        elif f == "d" and problem.ctx.dt is not None:
+            out[k] = 1.0 / max(np.std(problem.ctx.dt), 1e-12)
+    return out
+
+
+@dataclass(frozen=True)
+class Observability:
+    names: tuple[str, ...]
+    rank: int
+    singular_values: np.ndarray  # of the Jacobian in natural units, relative to the largest
+    null_space: np.ndarray  # (p, p - rank) directions in natural units, sparse basis
+    rtol: float
+
+    @property
+    def n_parameters(self) -> int:
+        return len(self.names)
+
+    @property
+    def unobservable(self) -> list[list[dict]]:
+        """Each unobservable direction as a list of {name, weight} (weights of unit norm, largest first)."""
+        out = []
+        for v in self.null_space.T:
+            idx = [i for i in np.argsort(-np.abs(v)) if abs(v[i]) > 1e-3]
+            out.append([{"name": self.names[i], "weight": round(float(v[i]), 6)} for i in idx])
+        return out
+
+    def observable_mask(self) -> np.ndarray:
+        """True for parameters that the data determine on their own (no weight in any null direction)."""
+        if self.null_space.size == 0:
+            return np.ones(len(self.names), bool)
+        return np.max(np.abs(self.null_space), axis=1) < 1e-3
+
+    def to_dict(self) -> dict:
+        return {"rank": self.rank, "n_parameters": self.n_parameters, "unobservable": self.unobservable}
+
+    def describe(self) -> str:
+        if self.rank == self.n_parameters:
+            return f"all {self.n_parameters} parameters observable (rank {self.rank})"
+        lines = [f"rank {self.rank} of {self.n_parameters}: {self.n_parameters - self.rank} unobservable "
+                 "direction(s), set by the presets, not by the data:"]
+        for d in self.unobservable:
+            lines.append("  " + " ".join(f"{w['weight']:+.3f}·{w['name']}" for w in d))
+        return "\n".join(lines)
+
+
+def _sparse_basis(V: np.ndarray) -> np.ndarray:
+    """A sparse basis of span(V) (columns): Gauss-Jordan elimination of Vᵀ with full pivoting, so each
+    direction is led by the parameter it moves most; columns of unit norm."""
+    R = V.T.copy()
+    free = np.ones(R.shape[1], bool)
+    for r in range(R.shape[0]):
+        sub = np.abs(R[r:]) * free
+        i, c = np.unravel_index(int(np.argmax(sub)), sub.shape)
+        R[[r, r + i]] = R[[r + i, r]]
+        R[r] /= R[r, c]
+        others = np.arange(R.shape[0]) != r
+        R[others] -= np.outer(R[others, c], R[r])
+        free[c] = False
+    R[np.abs(R) < 1e-9] = 0.0
+    B = R.T
+    return B / np.linalg.norm(B, axis=0, keepdims=True)
+
+
+def observability(problem: CalibrationProblem, x_full: np.ndarray | None = None, rtol: float = 1e-3) -> Observability:
+    """Rank and null space of the residual Jacobian at ``x_full`` (default: the problem's centre).
+
+    A direction is unobservable when its singular value, in natural units, is below ``rtol`` times the
+    largest (Fisher information below rtol² of the best-determined direction).
+    """
+    x = problem.centre if x_full is None else np.asarray(x_full, float)
+    u = natural_units(problem, x)
+    J = problem.jacobian_full(x) * u
+    _, s, vt = np.linalg.svd(J, full_matrices=True)
+    s_full = np.zeros(J.shape[1])
+    s_full[: len(s)] = s
+    rel = s_full / s_full[0]
+    rank = int(np.sum(rel > rtol))
+    null = vt[rank:].T
+    return Observability(problem.model.names, rank, rel, _sparse_basis(null) if null.size else null, rtol)
+
+
+def fisher(problem: CalibrationProblem, x_full: np.ndarray, sigma_g: float) -> np.ndarray:
+    J = problem.jacobian_full(x_full)
+    return J.T @ J / sigma_g**2
+
+
+def crlb(problem: CalibrationProblem, x_full: np.ndarray | None = None, sigma_g: float | None = None,
+         rtol: float = 1e-3) -> tuple[np.ndarray, np.ndarray]:
+    """Cramér-Rao standard deviations of every parameter, and a mask of those that are observable.
+
+    Noise is white, input-referred, ``sigma_g`` (g) per axis on each position's mean, so each norm
+    residual has SD sigma_g. Unobservable directions are projected out (the bound is that of the gauge
+    the presets fix); parameters with weight in them are marked not observable and their SD is NaN.
+    """
+    x = problem.centre if x_full is None else np.asarray(x_full, float)
+    sigma = sigma_g if sigma_g is not None else problem.noise_g
+    if sigma is None:
+        raise ValueError("crlb needs the noise level: give sigma_g or data with n and sx, sy, sz")
+    obs = observability(problem, x, rtol)
+    u = natural_units(problem, x)
+    J = problem.jacobian_full(x) * u
+    F = J.T @ J / sigma**2
+    if obs.null_space.size:
+        P = np.eye(len(u)) - obs.null_space @ np.linalg.pinv(obs.null_space)
+        F = P @ F @ P
+        cov = np.linalg.pinv(F, rcond=rtol**2)
+    else:
+        cov = np.linalg.inv(F)
+    sd = np.sqrt(np.clip(np.diag(cov), 0, None)) * u
+    mask = obs.observable_mask()
+    sd[~mask] = np.nan
+    return sd, mask
+
+
+def covariance(problem: CalibrationProblem, x_full: np.ndarray, sigma_g: float) -> np.ndarray:
+    """Parameter covariance σ²(JᵀJ)⁻¹ (pseudo-inverse over observable directions)."""
+    u = natural_units(problem, x_full)
+    J = problem.jacobian_full(x_full) * u
+    cov = np.linalg.pinv(J.T @ J, rcond=1e-12) * sigma_g**2
+    return cov * np.outer(u, u)
+
+
+@dataclass(frozen=True)
+class GoodnessOfFit:
+    rms_g: float
+    cost: float
+    dof: int
+    sigma_g: float  # noise used (given, or estimated from the residuals)
+    chi2: float | None
+    p_value: float | None
+
+    def to_dict(self) -> dict:
+        return {k: getattr(self, k) for k in ("rms_g", "cost", "dof", "sigma_g", "chi2", "p_value")}
+
+
+def goodness_of_fit(problem: CalibrationProblem, x_full: np.ndarray, sigma_g: float | None = None) -> GoodnessOfFit:
+    """Residual RMS, and χ² with its p-value when the noise is known."""
+    r = problem.residuals_full(x_full)[0]
+    obs = observability(problem, x_full)
+    dof = max(len(r) - obs.rank, 1)
+    cost = float(r @ r)
+    sigma = sigma_g if sigma_g is not None else problem.noise_g
+    if sigma is None:
+        return GoodnessOfFit(float(np.sqrt(np.mean(r**2))), cost, dof, float(np.sqrt(cost / dof)), None, None)
+    chi2 = cost / sigma**2
+    return GoodnessOfFit(float(np.sqrt(np.mean(r**2))), cost, dof, float(sigma), chi2, float(stats.chi2.sf(chi2, dof)))
+
+
+def standard_errors(problem: CalibrationProblem, x_full: np.ndarray, sigma_g: float | None = None) -> np.ndarray:
+    """Standard errors of the fitted parameters: σ̂·sqrt(diag((JᵀJ)⁺)); NaN for unobservable ones."""
+    gof = goodness_of_fit(problem, x_full, sigma_g)
+    sigma = gof.sigma_g if sigma_g is None and problem.noise_g is None else (sigma_g or problem.noise_g)
+    sd, _ = crlb(problem, x_full, sigma)
+    return sd

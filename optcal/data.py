@@ -1,0 +1,194 @@
+"""Positions data sets and the positions CSV of DESIGN §5.
+
+One row per static position: ``position``, the mean raw output ``ax, ay, az``, and optionally ``t`` (s),
+``temp`` (°C), ``n`` (samples averaged), ``sx, sy, sz`` (sample standard deviation per axis) and, for
+turntable data, ``ref_x, ref_y, ref_z`` (reference specific force in g, body frame). Extra columns are
+kept and ignored.
+"""
+
+from __future__ import annotations
+
+import csv
+import difflib
+import io
+import math
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+
+import numpy as np
+
+from .errors import InputError
+
+REQUIRED = ("ax", "ay", "az")
+OPTIONAL = ("position", "t", "temp", "n", "sx", "sy", "sz", "ref_x", "ref_y", "ref_z")
+G0 = 9.80665
+
+
+@dataclass(frozen=True)
+class PositionsData:
+    """Static-position means of a triaxial accelerometer, in the sensor's output units."""
+
+    N: np.ndarray  # (n, 3) mean raw output
+    position: np.ndarray | None = None
+    t: np.ndarray | None = None
+    temp: np.ndarray | None = None
+    n_samples: np.ndarray | None = None
+    std: np.ndarray | None = None  # (n, 3) per-axis sample SD of the samples averaged
+    ref: np.ndarray | None = None  # (n, 3) reference specific force in g (turntable)
+    units: str = "g"
+    extra: dict = field(default_factory=dict)
+
+    def __post_init__(self):
+        N = np.asarray(self.N, float)
+        if N.ndim != 2 or N.shape[1] != 3:
+            raise InputError(f"positions must have three output columns ax, ay, az; got shape {N.shape}")
+        object.__setattr__(self, "N", N)
+        if self.position is None:
+            object.__setattr__(self, "position", np.arange(len(N)))
+
+    def __len__(self) -> int:
+        return len(self.N)
+
+    @property
+    def columns(self) -> set[str]:
+        cols = {"ax", "ay", "az", "position"}
+        for name in ("t", "temp"):
+            if getattr(self, name) is not None:
+                cols.add(name)
+        if self.n_samples is not None:
+            cols.add("n")
+        if self.std is not None:
+            cols |= {"sx", "sy", "sz"}
+        if self.ref is not None:
+            cols |= {"ref_x", "ref_y", "ref_z"}
+        return cols
+
+    def noise_of_mean(self) -> np.ndarray | None:
+        """Standard error of each position's mean per axis, (n, 3), when ``n`` and ``s*`` are known."""
+        if self.std is None or self.n_samples is None:
+            return None
+        return self.std / np.sqrt(self.n_samples)[:, None]
+
+    def subset(self, idx) -> PositionsData:
+        idx = np.asarray(idx)
+        pick = {k: (None if getattr(self, k) is None else np.asarray(getattr(self, k))[idx])
+                for k in ("position", "t", "temp", "n_samples", "std", "ref")}
+        return replace(self, N=self.N[idx], **pick)
+
+    # -- CSV -------------------------------------------------------------------------------
+    def to_csv(self, path: str | Path | None = None) -> str:
+        cols: list[tuple[str, np.ndarray]] = [("position", self.position)]
+        cols += [(c, self.N[:, i]) for i, c in enumerate(REQUIRED)]
+        if self.t is not None:
+            cols.append(("t", self.t))
+        if self.temp is not None:
+            cols.append(("temp", self.temp))
+        if self.n_samples is not None:
+            cols.append(("n", self.n_samples))
+        if self.std is not None:
+            cols += [(f"s{a}", self.std[:, i]) for i, a in enumerate("xyz")]
+        if self.ref is not None:
+            cols += [(f"ref_{a}", self.ref[:, i]) for i, a in enumerate("xyz")]
+        buf = io.StringIO()
+        w = csv.writer(buf, lineterminator="\n")
+        w.writerow([c for c, _ in cols])
+        for r in range(len(self)):
+            w.writerow([_fmt(v[r]) for _, v in cols])
+        text = buf.getvalue()
+        if path is not None:
+            Path(path).write_text(text)
+        return text
+
+
+def _fmt(v) -> str:
+    v = float(v)
+    return str(int(v)) if v.is_integer() and abs(v) < 1e15 else repr(v)
+
+
+def read_positions(path: str | Path, units: str = "g") -> PositionsData:
+    """Read and validate a positions CSV (DESIGN §5). Every problem is an :class:`InputError`."""
+    path = Path(path)
+    try:
+        text = path.read_text()
+    except (OSError, UnicodeDecodeError) as exc:
+        raise InputError(f"cannot read {path}: {exc.strerror if hasattr(exc, 'strerror') else exc}") from None
+    rows = [r for r in csv.reader(io.StringIO(text)) if r and any(c.strip() for c in r)]
+    if not rows:
+        raise InputError(f"{path} is empty; a positions CSV needs a header with ax, ay, az and one row per position")
+    header = [h.strip() for h in rows[0]]
+    missing = [c for c in REQUIRED if c not in header]
+    if missing:
+        hints = []
+        for m in missing:
+            close = difflib.get_close_matches(m, header, n=1, cutoff=0.5)
+            if close:
+                hints.append(f"{close[0]!r} → {m!r}")
+        hint = f" (rename {', '.join(hints)})" if hints else ""
+        raise InputError(
+            f"{path}: missing column(s) {', '.join(missing)}; the header must name ax, ay, az{hint}"
+        )
+    body = rows[1:]
+    if not body:
+        raise InputError(f"{path} has a header but no positions")
+    wanted = [c for c in REQUIRED + OPTIONAL if c in header]
+    cols: dict[str, np.ndarray] = {}
+    for c in wanted:
+        j = header.index(c)
+        vals = np.empty(len(body))
+        for r, row in enumerate(body):
+            cell = row[j].strip() if j < len(row) else ""
+            try:
+                vals[r] = float(cell)
+            except ValueError:
+                raise InputError(
+                    f"{path}: line {r + 2}, column {c!r}: {cell!r} is not a number; fix or remove that row"
+                ) from None
+            if not math.isfinite(vals[r]):
+                raise InputError(
+                    f"{path}: line {r + 2}, column {c!r} is {cell}; remove the position or re-average it"
+                )
+        cols[c] = vals
+    N = np.stack([cols[c] for c in REQUIRED], 1)
+    std = np.stack([cols[c] for c in ("sx", "sy", "sz")], 1) if all(c in cols for c in ("sx", "sy", "sz")) else None
+    ref = (np.stack([cols[c] for c in ("ref_x", "ref_y", "ref_z")], 1)
+           if all(c in cols for c in ("ref_x", "ref_y", "ref_z")) else None)
+    if std is not None and np.any(std < 0):
+        raise InputError(f"{path}: negative standard deviation in sx/sy/sz")
+    if "n" in cols and np.any(cols["n"] < 1):
+        raise InputError(f"{path}: column 'n' (samples averaged) must be at least 1")
+    if "t" in cols and np.any(np.diff(cols["t"]) < 0):
+        raise InputError(f"{path}: column 't' decreases; positions must be in time order")
+    extra = {h: [row[i] if i < len(row) else "" for row in body]
+             for i, h in enumerate(header) if h not in REQUIRED + OPTIONAL}
+    return PositionsData(
+        N=N,
+        position=cols["position"].astype(int) if "position" in cols else None,
+        t=cols.get("t"),
+        temp=cols.get("temp"),
+        n_samples=cols.get("n"),
+        std=std,
+        ref=ref,
+        units=units,
+        extra=extra,
+    )
+
+
+UNITS = ("g", "m/s2", "counts", "volts", "mg")
+
+
+def check_units(data: PositionsData, units: str) -> None:
+    """Refuse data whose norms say they are in m/s² while the user declared other units."""
+    if units not in UNITS:
+        raise InputError(f"unknown units {units!r}; use one of {', '.join(UNITS)}")
+    med = float(np.median(np.linalg.norm(data.N, axis=1)))
+    looks_ms2 = 9.70 <= med <= 9.90
+    if units != "m/s2" and looks_ms2:
+        raise InputError(
+            f"the outputs' norms are about {med:.3f}, which looks like m/s², but the units are {units!r}; "
+            "pass --units m/s2 (and --gravity for your local g if you know it)"
+        )
+    if units == "g" and not 0.5 <= med <= 2.0:
+        raise InputError(
+            f"the outputs' norms are about {med:.4g}, not about 1, so they are not in g; "
+            "pass --units counts (or m/s2, volts) to say what they are"
+        )

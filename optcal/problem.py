@@ -1,0 +1,310 @@
+"""The calibration problem: model + data + cost, with batched evaluation and an enforced budget.
+
+Norm cost (2020 paper, Eq. 12): for each position j, invert the model to get A_j from N_j and take
+e_j = ‖A_j‖ − g_local; the cost is Σ e_j² (the paper writes Σ e_j; squares make it least squares).
+With ``reference=True`` (turntable data with known A_j) the residuals are the 3-D misfit
+(N_j − model(A_j)) / K0, in g, the "traditional" calibration.
+
+A problem can be *viewed* restricted to some parameters (the rest held fixed; the papers' four stages)
+and in normalised coordinates x = centre + halfwidth · z with z in [−1, 1] (2020 paper §3.4: search
+methods need parameters of similar magnitude). Views share one evaluation counter, so a budget covers
+everything done on a problem, and the counter keeps the best point ever evaluated so no solver can lose it.
+"""
+
+from __future__ import annotations
+
+import copy
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .data import PositionsData
+from .errors import BudgetExhausted, InputError
+from .linfit import linear_start
+from .model import Context, Model, get_model
+from .presets import Presets, default_halfwidth
+
+
+@dataclass(frozen=True)
+class Budget:
+    """Evaluation budget: at most ``max_evals`` candidate evaluations, ``max_time`` seconds, or stop
+    once the best cost reaches ``target``. A Jacobian counts as one evaluation."""
+
+    max_evals: int | None = None
+    max_time: float | None = None
+    target: float | None = None
+
+    def __post_init__(self):
+        if self.max_evals is not None and self.max_evals < 1:
+            raise InputError(f"budget max_evals must be at least 1, got {self.max_evals}")
+        if self.max_time is not None and self.max_time <= 0:
+            raise InputError(f"budget max_time must be positive, got {self.max_time}")
+
+    @classmethod
+    def of(cls, budget) -> Budget:
+        if budget is None:
+            return cls()
+        if isinstance(budget, Budget):
+            return budget
+        if isinstance(budget, int | np.integer):
+            return cls(max_evals=int(budget))
+        if isinstance(budget, dict):
+            return cls(**budget)
+        raise InputError(f"budget must be a Budget, an int (evaluations) or a dict, not {type(budget).__name__}")
+
+
+@dataclass
+class Counter:
+    """Evaluations, elapsed time and the best point so far, shared by every view of a problem."""
+
+    budget: Budget = field(default_factory=Budget)
+    nfev: int = 0
+    njev: int = 0
+    t0: float = field(default_factory=time.perf_counter)
+    best_f: float = np.inf
+    best_x: np.ndarray | None = None
+    trace: list = field(default_factory=list)
+    stopped: str = ""
+
+    def elapsed(self) -> float:
+        return time.perf_counter() - self.t0
+
+    def allow(self, S: int) -> int:
+        """How many of S candidates may be evaluated now; raises when nothing may be."""
+        b = self.budget
+        if not self.stopped:
+            if b.max_evals is not None and self.nfev >= b.max_evals:
+                self.stopped = "evaluation budget used up"
+            elif b.max_time is not None and self.elapsed() >= b.max_time:
+                self.stopped = "time budget used up"
+            elif b.target is not None and self.best_f <= b.target:
+                self.stopped = "target cost reached"
+        if self.stopped:
+            raise BudgetExhausted(self.stopped)
+        return S if b.max_evals is None else min(S, b.max_evals - self.nfev)
+
+    def record(self, f: np.ndarray, X_full: np.ndarray) -> None:
+        self.nfev += len(f)
+        finite = np.isfinite(f)
+        if finite.any():
+            i = int(np.argmin(np.where(finite, f, np.inf)))
+            if f[i] < self.best_f:
+                self.best_f, self.best_x = float(f[i]), X_full[i].copy()
+                self.trace.append((self.nfev, self.best_f, self.elapsed()))
+
+
+class CalibrationProblem:
+    """Calibration of ``model`` from static positions ``data``.
+
+    Parameters
+    ----------
+    model : name or :class:`~optcal.model.Model`
+    data : :class:`~optcal.data.PositionsData`
+    g_local : local gravity in units of g0 (1.0 by default)
+    reference : use the turntable reference ``data.ref`` (traditional calibration)
+    presets : :class:`~optcal.presets.Presets` giving the search centre and half-widths; without them the
+        centre is a closed-form linear fit of the data (never the truth)
+    noise_g : input-referred SD of each position's mean in g (for Cramér-Rao bounds); taken from the data's
+        ``n`` and ``sx, sy, sz`` when present
+    """
+
+    def __init__(self, model, data: PositionsData, *, g_local: float = 1.0, reference: bool = False,
+                 presets: Presets | None = None, noise_g: float | None = None, check: bool = True):
+        self.model: Model = get_model(model)
+        self.data = data
+        self.g_local = float(g_local)
+        self.reference = bool(reference)
+        self.presets = presets
+        if reference and data.ref is None:
+            raise InputError("--reference needs turntable columns ref_x, ref_y, ref_z in the data")
+        missing = [c for c in self.model.needs if getattr(data, c) is None]
+        if missing:
+            raise InputError(
+                f"model {self.model.name} needs column(s) {', '.join(missing)} that the data lack; "
+                "add them or drop the terms that need them"
+            )
+        m = len(data) * (3 if reference else 1)
+        if check and m < self.model.n_params:
+            raise InputError(
+                f"{len(data)} positions give {m} residuals, fewer than the {self.model.n_params} parameters of "
+                f"{self.model.name}; use more positions or a smaller model"
+            )
+        self.ctx = Context.from_columns(
+            temp=data.temp if "temp" in self.model.needs else None,
+            t=data.t if "t" in self.model.needs else None,
+        )
+        start = linear_start(self.model, data.N, self.g_local, data.ref if reference else None)
+        kscale = start[self.model.groups()["scale"]]
+        if presets is not None:
+            centre, width = presets.vectors(self.model, kscale)
+        else:
+            centre, width = start, default_halfwidth(self.model, start)
+        self.centre = centre
+        self.halfwidth = width
+        self._K0 = np.abs(centre[self.model.groups()["scale"]])
+        self.noise_g = noise_g
+        if noise_g is None and data.noise_of_mean() is not None:
+            self.noise_g = float(np.sqrt(np.mean((data.noise_of_mean() / self._K0) ** 2)))
+        # View state
+        self.free = np.arange(self.model.n_params)
+        self.x_fixed = centre.copy()
+        self.is_normalised = False
+        self.counter = Counter()
+
+    # -- views -----------------------------------------------------------------------------
+    def restrict(self, groups_or_indices, at: np.ndarray | None = None) -> CalibrationProblem:
+        """A view over some parameters (group names or full-vector indices); the rest stay at ``at``."""
+        groups = self.model.groups()
+        idx: list[int] = []
+        for g in np.atleast_1d(groups_or_indices):
+            if isinstance(g, str | np.str_):
+                if str(g) not in groups:
+                    raise InputError(f"model {self.model.name} has no parameter group {g!r}; it has {', '.join(groups)}")
+                idx.extend(groups[str(g)])
+            else:
+                idx.append(int(g))
+        view = copy.copy(self)
+        view.free = np.array(sorted(set(idx)), int)
+        view.x_fixed = np.array(self.x_fixed if at is None else at, float)
+        return view
+
+    def normalised(self) -> CalibrationProblem:
+        """A view in unit-box coordinates z: x = centre + halfwidth · z, z ∈ [−1, 1]."""
+        view = copy.copy(self)
+        view.is_normalised = True
+        return view
+
+    @property
+    def n(self) -> int:
+        return len(self.free)
+
+    @property
+    def names(self) -> list[str]:
+        return [self.model.names[i] for i in self.free]
+
+    @property
+    def lb(self) -> np.ndarray:
+        return -np.ones(self.n) if self.is_normalised else (self.centre - self.halfwidth)[self.free]
+
+    @property
+    def ub(self) -> np.ndarray:
+        return np.ones(self.n) if self.is_normalised else (self.centre + self.halfwidth)[self.free]
+
+    @property
+    def x0(self) -> np.ndarray:
+        """The starting point in this view's coordinates (presets or the linear fit)."""
+        return self.from_full(self.x_fixed if self.n < self.model.n_params else self.centre)
+
+    def to_full(self, X) -> np.ndarray:
+        X = np.atleast_2d(np.asarray(X, float))
+        if X.shape[1] != self.n:
+            raise ValueError(f"expected {self.n} coordinates, got {X.shape[1]}")
+        if self.is_normalised:
+            X = self.centre[self.free] + self.halfwidth[self.free] * X
+        full = np.tile(self.x_fixed, (X.shape[0], 1))
+        full[:, self.free] = X
+        return full
+
+    def from_full(self, x_full) -> np.ndarray:
+        x = np.asarray(x_full, float)[..., self.free]
+        if self.is_normalised:
+            x = (x - self.centre[self.free]) / self.halfwidth[self.free]
+        return x
+
+    # -- counter and budget ----------------------------------------------------------------
+    def start(self, budget=None) -> Counter:
+        """Reset the shared counter with a new budget (solvers call this once per solve)."""
+        self.counter.__init__(Budget.of(budget))
+        return self.counter
+
+    @property
+    def nfev(self) -> int:
+        return self.counter.nfev
+
+    @property
+    def best(self) -> tuple[np.ndarray | None, float]:
+        """Best point ever evaluated (in this view's coordinates) and its cost."""
+        c = self.counter
+        return (None if c.best_x is None else self.from_full(c.best_x)), c.best_f
+
+    # -- residuals and cost (uncounted kernels on full vectors) -----------------------------
+    def residuals_full(self, X_full) -> np.ndarray:
+        """Residuals (S, m) for full parameter vectors (S, p); not counted against the budget."""
+        X_full = np.atleast_2d(X_full)
+        # Blocks of about 16k position-candidates keep the element-wise chain in cache (measured
+        # 1.6x faster than one block at S = 10,000 on 24 positions).
+        step = max(1, 16384 // len(self.data))
+        if len(X_full) > step:
+            return np.concatenate([self.residuals_full(X_full[i:i + step]) for i in range(0, len(X_full), step)])
+        with np.errstate(all="ignore"):
+            if self.reference:
+                N = self.model.forward(X_full, self.data.ref, self.ctx)
+                return ((self.data.N - N) / self._K0).reshape(len(X_full), -1)
+            A = self.model.inverse(X_full, self.data.N, self.ctx)
+            return np.linalg.norm(A, axis=-1) - self.g_local
+
+    def specific_force(self, x_full) -> np.ndarray:
+        """Calibrated specific force (n, 3) in g at each position, for one full parameter vector."""
+        return self.model.inverse(np.atleast_2d(x_full), self.data.N, self.ctx)[0]
+
+    def _evaluate(self, X) -> tuple[np.ndarray, np.ndarray]:
+        X = np.atleast_2d(np.asarray(X, float))
+        k = self.counter.allow(len(X))
+        R = np.full((len(X), self.n_residuals), np.nan)
+        full = self.to_full(X[:k])
+        R[:k] = self.residuals_full(full)
+        f = np.full(len(X), np.inf)
+        f[:k] = np.sum(R[:k] ** 2, axis=1)
+        f[:k][~np.isfinite(f[:k])] = np.nan
+        self.counter.record(f[:k], full)
+        return R, f
+
+    @property
+    def n_residuals(self) -> int:
+        return len(self.data) * (3 if self.reference else 1)
+
+    def residuals_batch(self, X) -> np.ndarray:
+        """Residuals (S, m) of a population (S, n); counts S evaluations."""
+        return self._evaluate(X)[0]
+
+    def residuals(self, x) -> np.ndarray:
+        return self._evaluate(np.asarray(x, float)[None])[0][0]
+
+    def cost_batch(self, X) -> np.ndarray:
+        """Cost Σ e_j² of a population (S, n) in one call; (S,). Candidates past the budget cost inf."""
+        return self._evaluate(X)[1]
+
+    def cost(self, x) -> float:
+        return float(self._evaluate(np.asarray(x, float)[None])[1][0])
+
+    # -- derivatives ----------------------------------------------------------------------
+    def jacobian_full(self, x_full) -> np.ndarray:
+        """Exact Jacobian (m, p) of the residuals w.r.t. all parameters (complex step + implicit
+        function theorem); not counted."""
+        x_full = np.asarray(x_full, float)
+        if self.reference:
+            Fp = self.model.dforward_dp(x_full, self.data.ref, self.ctx)  # (n, 3, p)
+            return (-Fp / self._K0[None, :, None]).reshape(-1, x_full.size)
+        A = self.model.inverse(x_full[None], self.data.N, self.ctx)[0]
+        Fa = self.model.dforward_dA(x_full[None], A[None], self.ctx)[0]  # (n, 3, 3)
+        Fp = self.model.dforward_dp(x_full, A, self.ctx)  # (n, 3, p)
+        dA = -np.linalg.solve(Fa, Fp)  # (n, 3, p)
+        u = A / np.linalg.norm(A, axis=1, keepdims=True)
+        return np.einsum("ni,nip->np", u, dA)
+
+    def jacobian(self, x) -> np.ndarray:
+        """Jacobian (m, n) in this view's coordinates; counts one evaluation."""
+        self.counter.allow(1)
+        self.counter.njev += 1
+        self.counter.nfev += 1
+        J = self.jacobian_full(self.to_full(x)[0])[:, self.free]
+        return J * self.halfwidth[self.free] if self.is_normalised else J
+
+    def gradient(self, x) -> np.ndarray:
+        """Gradient of the cost, 2 Jᵀ r; counts the residual and the Jacobian."""
+        r = self.residuals(x)
+        return 2.0 * self.jacobian(x).T @ r
+
+    def rms(self, x_full) -> float:
+        return float(np.sqrt(np.mean(self.residuals_full(x_full)[0] ** 2)))

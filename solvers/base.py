@@ -1,0 +1,203 @@
+"""The solver contract (DESIGN §6).
+
+A solver is constructed with its options (an unknown option or a bad value is an error) and has
+``solve(problem, *, x0=None, budget, rng, callback=None) -> SolverResult``. The result uses SciPy's field
+names (``x, fun, success, status, message, nfev, nit``) plus ``runtime_s`` and a convergence ``trace`` of
+(evaluations, best cost, seconds). Budgets are enforced by the problem; the problem also keeps the best
+point ever evaluated, so a solver stopped by its budget (or by an error) still returns that point.
+
+Subclasses implement ``_solve(problem, x0, rng, callback) -> dict`` with any of ``x, nit, status,
+message, success``; they evaluate populations with ``problem.cost_batch`` in one call per iteration.
+"""
+
+from __future__ import annotations
+
+import importlib.util
+import time
+from dataclasses import dataclass, field
+from typing import Any, ClassVar
+
+import numpy as np
+
+from optcal.errors import BudgetExhausted, InputError
+from optcal.problem import CalibrationProblem
+
+
+@dataclass(frozen=True)
+class Option:
+    """A solver option: default, type, and an optional check (a predicate with a description)."""
+
+    default: Any
+    kind: type | tuple = float
+    doc: str = ""
+    choices: tuple | None = None
+    check: Any = None  # callable(value) -> bool
+    check_doc: str = ""
+
+    def validate(self, name: str, value, solver: str):
+        kinds = self.kind if isinstance(self.kind, tuple) else (self.kind,)
+        if float in kinds and isinstance(value, int | np.integer) and not isinstance(value, bool):
+            value = float(value)
+        if isinstance(value, str) and str not in kinds:
+            value = _parse(value, kinds, name, solver)
+        if value is not None and not isinstance(value, kinds) or (isinstance(value, bool) and bool not in kinds):
+            raise InputError(
+                f"solver {solver}: option {name}={value!r} must be {'/'.join(k.__name__ for k in kinds)}"
+            )
+        if self.choices is not None and value not in self.choices:
+            raise InputError(f"solver {solver}: option {name}={value!r}; choose one of {', '.join(map(str, self.choices))}")
+        if self.check is not None and not self.check(value):
+            raise InputError(f"solver {solver}: option {name}={value!r} is invalid; it must be {self.check_doc}")
+        return value
+
+
+def _parse(text: str, kinds: tuple, name: str, solver: str):
+    for k in kinds:
+        try:
+            if k is bool:
+                if text.lower() in ("true", "1", "yes"):
+                    return True
+                if text.lower() in ("false", "0", "no"):
+                    return False
+                continue
+            return k(text)
+        except ValueError:
+            continue
+    raise InputError(f"solver {solver}: option {name}={text!r} is not a {'/'.join(k.__name__ for k in kinds)}")
+
+
+def positive(v) -> bool:
+    return v > 0
+
+
+def probability(v) -> bool:
+    return 0.0 <= v <= 1.0
+
+
+@dataclass
+class SolverResult:
+    """Outcome of one solve, with SciPy's field names."""
+
+    x: np.ndarray
+    fun: float
+    success: bool
+    status: int
+    message: str
+    nfev: int
+    nit: int
+    runtime_s: float
+    trace: list = field(default_factory=list)
+    njev: int = 0
+    x_full: np.ndarray | None = None
+    solver: str = ""
+    extra: dict = field(default_factory=dict)
+
+    def to_dict(self) -> dict:
+        return {
+            "x": [float(v) for v in self.x], "fun": float(self.fun), "success": bool(self.success),
+            "status": int(self.status), "message": self.message, "nfev": int(self.nfev), "nit": int(self.nit),
+            "runtime_s": float(self.runtime_s), "solver": self.solver,
+        }
+
+
+class StopSolver(Exception):
+    """Raised inside a solver when the user's callback asks to stop."""
+
+
+class Solver:
+    """Base class: option validation, budget handling, timing and the result object."""
+
+    name: ClassVar[str] = ""
+    family: ClassVar[str] = "local"  # local | metaheuristic | global | convex | wrapper
+    options: ClassVar[dict[str, Option]] = {}
+    requires: ClassVar[tuple[str, ...]] = ()  # optional Python packages
+    default_budget: ClassVar[int] = 20000
+
+    def __init__(self, **options):
+        unknown = sorted(set(options) - set(self.options))
+        if unknown:
+            known = ", ".join(self.options) or "none"
+            raise InputError(f"solver {self.name}: unknown option(s) {', '.join(unknown)}; its options are {known}")
+        self.config = {k: o.default for k, o in self.options.items()}
+        for k, v in options.items():
+            self.config[k] = self.options[k].validate(k, v, self.name)
+        self.check_config()
+
+    def check_config(self) -> None:
+        """Cross-option checks (override)."""
+
+    @classmethod
+    def is_available(cls) -> bool:
+        return all(importlib.util.find_spec(p) is not None for p in cls.requires)
+
+    @classmethod
+    def unavailable_message(cls) -> str:
+        missing = [p for p in cls.requires if importlib.util.find_spec(p) is None]
+        return f"solver {cls.name} needs the package(s) {', '.join(missing)}; install them with pip"
+
+    @classmethod
+    def describe(cls) -> dict:
+        return {
+            "name": cls.name, "family": cls.family, "available": cls.is_available(),
+            "options": {k: {"default": o.default, "doc": o.doc} for k, o in cls.options.items()},
+        }
+
+    # -- the contract ------------------------------------------------------------------------
+    def solve(self, problem: CalibrationProblem, *, x0=None, budget=None, rng=None, callback=None) -> SolverResult:
+        if not self.is_available():
+            raise InputError(self.unavailable_message())
+        rng = rng if isinstance(rng, np.random.Generator) else np.random.default_rng(rng)
+        counter = problem.start(budget if budget is not None else self.default_budget)
+        x_start = self.start_point(problem, x0)
+        t0 = time.perf_counter()
+        out: dict = {}
+        status, message, success = 0, "", True
+        try:
+            out = self._solve(problem, x_start, rng, self._wrap_callback(problem, callback)) or {}
+            status = out.get("status", 0)
+            message = out.get("message", "converged")
+            success = out.get("success", True)
+        except BudgetExhausted as exc:
+            status, message, success = 1, str(exc), True
+        except StopSolver:
+            status, message, success = 2, "stopped by callback", True
+        except (np.linalg.LinAlgError, FloatingPointError, ValueError, ArithmeticError) as exc:
+            status, message, success = -1, f"{type(exc).__name__}: {exc}", False
+        runtime = time.perf_counter() - t0
+        x_best, f_best = problem.best
+        if x_best is None:
+            x_best, f_best = np.asarray(x_start, float), np.nan
+            success, status = False, -1
+            message = message or "no finite cost was evaluated"
+        if not np.isfinite(f_best):
+            success = False
+            message = f"{message}; no finite cost was found" if message else "no finite cost was found"
+        return SolverResult(
+            x=np.asarray(x_best, float), fun=float(f_best), success=bool(success), status=int(status),
+            message=message, nfev=counter.nfev, nit=int(out.get("nit", 0)), runtime_s=runtime,
+            trace=list(counter.trace), njev=counter.njev, x_full=problem.to_full(x_best)[0], solver=self.name,
+            extra=out.get("extra", {}),
+        )
+
+    def start_point(self, problem: CalibrationProblem, x0) -> np.ndarray:
+        """``x0`` if given (in the problem's coordinates), else the problem's presets or linear fit."""
+        if x0 is None:
+            return problem.x0
+        x0 = np.asarray(x0, float)
+        if x0.shape != (problem.n,):
+            raise InputError(f"x0 has {x0.size} values; the problem has {problem.n} parameters")
+        return x0
+
+    def _wrap_callback(self, problem, callback):
+        if callback is None:
+            return lambda nit: None
+
+        def cb(nit: int):
+            x, f = problem.best
+            if callback({"x": x, "fun": f, "nit": nit, "nfev": problem.nfev}) is True:
+                raise StopSolver
+
+        return cb
+
+    def _solve(self, problem: CalibrationProblem, x0: np.ndarray, rng: np.random.Generator, callback) -> dict:
+        raise NotImplementedError
