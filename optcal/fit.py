@@ -1,0 +1,87 @@
+"""Fitting a positions data set end to end: problem, solver (from the registry, by name, at run time),
+standard errors, observability and goodness of fit.
+
+``optcal`` does not import ``solvers``; :func:`get_solver` looks the registry up when it is called.
+"""
+
+from __future__ import annotations
+
+import importlib
+from dataclasses import dataclass
+
+import numpy as np
+
+from .analysis import GoodnessOfFit, Observability, crlb, goodness_of_fit, observability
+from .data import PositionsData
+from .errors import InputError
+from .model import Model, get_model
+from .presets import Presets
+from .problem import CalibrationProblem
+
+
+def get_solver(name: str, **options):
+    """A configured solver from the registry in the ``solvers`` package (imported at run time)."""
+    try:
+        registry = importlib.import_module("solvers")
+    except ImportError as exc:  # pragma: no cover - the distribution installs both packages
+        raise InputError(f"the solvers package is not installed ({exc}); reinstall optcal") from None
+    return registry.get(name, **options)
+
+
+@dataclass
+class Calibration:
+    """A fitted calibration: parameters, standard errors and diagnostics."""
+
+    model: Model
+    x: np.ndarray
+    stderr: np.ndarray
+    observability: Observability
+    fit: GoodnessOfFit
+    problem: CalibrationProblem
+    solver: str
+    result: object  # the SolverResult
+
+    @property
+    def parameters(self) -> dict[str, float]:
+        return self.model.to_dict(self.x)
+
+    def to_dict(self) -> dict:
+        r = self.result
+        return {
+            "model": self.model.name,
+            "terms": list(self.model.terms),
+            "parameters": self.parameters,
+            "stderr": {n: (None if not np.isfinite(s) else float(s)) for n, s in zip(self.model.names, self.stderr)},
+            "rms_residual_g": self.fit.rms_g,
+            "cost": self.fit.cost,
+            "n_positions": len(self.problem.data),
+            "g_local": self.problem.g_local,
+            "solver": self.solver,
+            "observability": self.observability.to_dict(),
+            "nfev": r.nfev, "nit": r.nit, "runtime_s": r.runtime_s, "success": r.success, "message": r.message,
+        }
+
+
+def calibrate(data: PositionsData, model: str | Model = "nonlinear12", *, solver: str = "scipy-lm",
+              options: dict | None = None, g_local: float = 1.0, reference: bool = False,
+              presets: Presets | None = None, seed: int | None = 0, budget=None, x0=None,
+              noise_g: float | None = None) -> Calibration:
+    """Fit ``model`` to ``data`` with the named solver and report parameters with standard errors."""
+    model = get_model(model)
+    problem = CalibrationProblem(model, data, g_local=g_local, reference=reference, presets=presets,
+                                 noise_g=noise_g)
+    obs = observability(problem)
+    if obs.rank < model.n_params and presets is None and not model.name == "seed15":
+        dirs = "; ".join(" ".join(f"{w['weight']:+.2f}·{w['name']}" for w in d) for d in obs.unobservable)
+        raise InputError(
+            f"these positions leave model {model.name} unobservable (rank {obs.rank} of {model.n_params}; "
+            f"directions: {dirs}); use more varied positions or a smaller model"
+        )
+    slv = get_solver(solver, **(options or {}))
+    rng = np.random.default_rng(seed)
+    result = slv.solve(problem, x0=x0, budget=budget, rng=rng)
+    x = problem.to_full(result.x)[0]
+    obs = observability(problem, x)
+    gof = goodness_of_fit(problem, x)
+    sd, _ = crlb(problem, x, gof.sigma_g if problem.noise_g is None else problem.noise_g)
+    return Calibration(model, x, sd, obs, gof, problem, solver, result)
