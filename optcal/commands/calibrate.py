@@ -1,0 +1,63 @@
+"""optcal calibrate: fit a model to a positions CSV (or a raw recording with --raw)."""
+
+from __future__ import annotations
+
+import importlib
+import json
+
+from ..errors import InputError
+from ..fit import calibrate
+from ..presets import load_presets
+from ._common import parameter_table, parse_options, refuse_overwrite
+from ._dataopts import add_data_options, gravity_from_args, load_positions
+
+HELP = "calibrate an accelerometer from static positions"
+
+
+def add_arguments(p):
+    p.add_argument("data", metavar="DATA", help="positions CSV (or a raw recording with --raw)")
+    p.add_argument("--model", default="nonlinear12", help="model name or sum of terms (default nonlinear12)")
+    p.add_argument("--solver", default="scipy-lm", help="registered solver name, e.g. bsas, staged:bsas (default scipy-lm)")
+    p.add_argument("--option", action="append", metavar="KEY=VALUE", help="solver option (repeatable)")
+    p.add_argument("--seed", type=int, default=0, help="seed of the solver's random generator")
+    p.add_argument("--budget", type=int, help="evaluation budget (default: the solver's)")
+    p.add_argument("--presets", help="presets JSON ({name: value} or {values, halfwidth}) for the search centre")
+    p.add_argument("--reference", action="store_true", help="turntable data: fit N to the known ref_x, ref_y, ref_z")
+    p.add_argument("--json", action="store_true", help="print the result as one JSON object")
+    p.add_argument("-o", "--output", metavar="CALIBRATION.json", help="write the calibration file")
+    p.add_argument("--force", action="store_true", help="overwrite an existing calibration file")
+    p.add_argument("--plot", metavar="FILE.png", help="with --raw: the recording with intervals and residuals")
+    add_data_options(p)
+
+
+def run(args) -> int:
+    refuse_overwrite(args.output, args.force)
+    g_local = gravity_from_args(args)
+    data = load_positions(args, args.data)
+    presets = load_presets(args.presets) if args.presets else None
+    cal = calibrate(data, args.model, solver=args.solver, options=parse_options(args.option), g_local=g_local,
+                    reference=args.reference, presets=presets, seed=args.seed, budget=args.budget)
+    detection = data.extra.get("detection") if isinstance(data.extra, dict) else None
+    recording = importlib.import_module("optcal.recording") if detection is not None else None
+    if args.output:
+        from ..calfile import write_calibration
+
+        write_calibration(cal, args.output, units_in="g", units_out=args.units, source=str(args.data),
+                          overwrite=args.force)
+    if args.plot:
+        if detection is None:
+            raise InputError("--plot draws a raw recording; use it with --raw")
+        recording.plot_recording(detection.recording, detection, cal.problem.residuals_full(cal.x)[0], args.plot)
+    if args.json:
+        print(json.dumps(cal.to_dict(), indent=2))
+        return 0
+    if detection is not None:
+        print(recording.describe_detection(detection))
+    print(f"model {cal.model.name}, {len(data)} positions, g_local = {cal.problem.g_local:.9f} g, solver {cal.solver}")
+    print(f"residual RMS {cal.fit.rms_g * 1e6:.3f} µg, cost {cal.fit.cost:.6e}, "
+          f"{cal.result.nfev} evaluations, {cal.result.runtime_s * 1e3:.1f} ms ({cal.result.message})")
+    print("observability: " + cal.observability.describe())
+    print(parameter_table(cal.model.names, cal.x, cal.stderr))
+    if args.output:
+        print(f"wrote {args.output}")
+    return 0
