@@ -140,7 +140,7 @@ class CalibrationFile:
 
 def _need(d: dict, key: str, path, kind=None):
     if key not in d:
-        raise InputError(f"{path}: calibration file lacks the field {key!r}; re-create it (optcal calibrate -o)")
+        raise InputError(f"{path}: lacks the field {key!r}; re-create it with optcal calibrate -o")
     v = d[key]
     if kind is not None and not isinstance(v, kind):
         raise InputError(f"{path}: field {key!r} has the wrong type ({type(v).__name__}); file damaged")
