@@ -93,6 +93,11 @@ def _sparse_basis(V: np.ndarray) -> np.ndarray:
     return B / np.linalg.norm(B, axis=0, keepdims=True)
 
 
+def _n_pos(problem: CalibrationProblem) -> int:
+    """Number of data residuals (gauge rows excluded)."""
+    return len(problem.data) * (3 if problem.reference else 1)
+
+
 def observability(problem: CalibrationProblem, x_full: np.ndarray | None = None, rtol: float = 1e-3) -> Observability:
     """Rank and null space of the residual Jacobian at ``x_full`` (default: the problem's centre).
 
@@ -101,7 +106,7 @@ def observability(problem: CalibrationProblem, x_full: np.ndarray | None = None,
     """
     x = problem.centre if x_full is None else np.asarray(x_full, float)
     u = natural_units(problem, x)
-    J = problem.jacobian_full(x) * u
+    J = problem.jacobian_full(x)[: _n_pos(problem)] * u
     _, s, vt = np.linalg.svd(J, full_matrices=True)
     s_full = np.zeros(J.shape[1])
     s_full[: len(s)] = s
@@ -112,7 +117,7 @@ def observability(problem: CalibrationProblem, x_full: np.ndarray | None = None,
 
 
 def fisher(problem: CalibrationProblem, x_full: np.ndarray, sigma_g: float) -> np.ndarray:
-    J = problem.jacobian_full(x_full)
+    J = problem.jacobian_full(x_full)[: _n_pos(problem)]
     return J.T @ J / sigma_g**2
 
 
@@ -130,7 +135,7 @@ def crlb(problem: CalibrationProblem, x_full: np.ndarray | None = None, sigma_g:
         raise ValueError("crlb needs the noise level: give sigma_g or data with n and sx, sy, sz")
     obs = observability(problem, x, rtol)
     u = natural_units(problem, x)
-    J = problem.jacobian_full(x) * u
+    J = problem.jacobian_full(x)[: _n_pos(problem)] * u
     F = J.T @ J / sigma**2
     if obs.null_space.size:
         P = np.eye(len(u)) - obs.null_space @ np.linalg.pinv(obs.null_space)
@@ -147,7 +152,7 @@ def crlb(problem: CalibrationProblem, x_full: np.ndarray | None = None, sigma_g:
 def covariance(problem: CalibrationProblem, x_full: np.ndarray, sigma_g: float) -> np.ndarray:
     """Parameter covariance σ²(JᵀJ)⁻¹ (pseudo-inverse over observable directions)."""
     u = natural_units(problem, x_full)
-    J = problem.jacobian_full(x_full) * u
+    J = problem.jacobian_full(x_full)[: _n_pos(problem)] * u
     cov = np.linalg.pinv(J.T @ J, rcond=1e-12) * sigma_g**2
     return cov * np.outer(u, u)
 
@@ -167,7 +172,7 @@ class GoodnessOfFit:
 
 def goodness_of_fit(problem: CalibrationProblem, x_full: np.ndarray, sigma_g: float | None = None) -> GoodnessOfFit:
     """Residual RMS, and χ² with its p-value when the noise is known."""
-    r = problem.residuals_full(x_full)[0]
+    r = problem.position_residuals(x_full)
     obs = observability(problem, x_full)
     dof = max(len(r) - obs.rank, 1)
     cost = float(r @ r)

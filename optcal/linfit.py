@@ -66,7 +66,8 @@ def linear_start(model: Model, N: np.ndarray, g_local: float = 1.0, ref: np.ndar
         try:
             o = -np.linalg.solve(Q, q)
         except np.linalg.LinAlgError:
-            raise InputError("the positions do not determine an ellipsoid; use more, and more varied, positions") from None
+            raise InputError(
+                "the positions do not determine an ellipsoid; use more, and more varied, positions") from None
         r = o @ Q @ o - c
         Qn = Q * g_local**2 / r
         if not np.all(np.linalg.eigvalsh(Qn) > 0):

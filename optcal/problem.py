@@ -107,10 +107,12 @@ class CalibrationProblem:
         centre is a closed-form linear fit of the data (never the truth)
     noise_g : input-referred SD of each position's mean in g (for Cramér-Rao bounds); taken from the data's
         ``n`` and ``sx, sy, sz`` when present
+    fix_gauge : hold the unobservable directions (if any) at the centre with one extra residual each
     """
 
     def __init__(self, model, data: PositionsData, *, g_local: float = 1.0, reference: bool = False,
-                 presets: Presets | None = None, noise_g: float | None = None, check: bool = True):
+                 presets: Presets | None = None, noise_g: float | None = None, check: bool = True,
+                 fix_gauge: bool = True):
         self.model: Model = get_model(model)
         self.data = data
         self.g_local = float(g_local)
@@ -134,7 +136,13 @@ class CalibrationProblem:
             temp=data.temp if "temp" in self.model.needs else None,
             t=data.t if "t" in self.model.needs else None,
         )
-        start = linear_start(self.model, data.N, self.g_local, data.ref if reference else None)
+        try:
+            start = linear_start(self.model, data.N, self.g_local, data.ref if reference else None)
+        except InputError:
+            # Degenerate geometry (e.g. every position in one plane): start from the nominal sensor so
+            # that the observability analysis, not the starting point, reports what is missing.
+            k = np.median(np.linalg.norm(data.N, axis=1)) / self.g_local
+            start = self.model.default_vector(k)
         kscale = start[self.model.groups()["scale"]]
         if presets is not None:
             centre, width = presets.vectors(self.model, kscale)
@@ -146,6 +154,16 @@ class CalibrationProblem:
         self.noise_g = noise_g
         if noise_g is None and data.noise_of_mean() is not None:
             self.noise_g = float(np.sqrt(np.mean((data.noise_of_mean() / self._K0) ** 2)))
+        # Gauge: directions the norm cost cannot see (seed15's three rotations) are held at the centre
+        # (presets or linear fit) by minimum-constraint residuals, as geodesy fixes a datum. They are zero
+        # at the centre and orthogonal to every observable direction, so the fit of those is unchanged.
+        self._gauge = None
+        if fix_gauge and not reference:
+            from .analysis import natural_units, observability
+
+            obs = observability(self, centre)
+            if obs.rank < self.model.n_params:
+                self._gauge = obs.null_space.T / natural_units(self, centre)
         # View state
         self.free = np.arange(self.model.n_params)
         self.x_fixed = centre.copy()
@@ -160,7 +178,8 @@ class CalibrationProblem:
         for g in np.atleast_1d(groups_or_indices):
             if isinstance(g, str | np.str_):
                 if str(g) not in groups:
-                    raise InputError(f"model {self.model.name} has no parameter group {g!r}; it has {', '.join(groups)}")
+                    raise InputError(
+                        f"model {self.model.name} has no parameter group {g!r}; it has {', '.join(groups)}")
                 idx.extend(groups[str(g)])
             else:
                 idx.append(int(g))
@@ -242,7 +261,14 @@ class CalibrationProblem:
                 N = self.model.forward(X_full, self.data.ref, self.ctx)
                 return ((self.data.N - N) / self._K0).reshape(len(X_full), -1)
             A = self.model.inverse(X_full, self.data.N, self.ctx)
-            return np.linalg.norm(A, axis=-1) - self.g_local
+            r = np.linalg.norm(A, axis=-1) - self.g_local
+        if self._gauge is not None:
+            r = np.concatenate([r, (X_full - self.centre) @ self._gauge.T], axis=1)
+        return r
+
+    def position_residuals(self, x_full) -> np.ndarray:
+        """Residuals of the positions alone (n or 3n), in g, without gauge rows."""
+        return self.residuals_full(x_full)[0][: len(self.data) * (3 if self.reference else 1)]
 
     def specific_force(self, x_full) -> np.ndarray:
         """Calibrated specific force (n, 3) in g at each position, for one full parameter vector."""
@@ -262,7 +288,7 @@ class CalibrationProblem:
 
     @property
     def n_residuals(self) -> int:
-        return len(self.data) * (3 if self.reference else 1)
+        return len(self.data) * (3 if self.reference else 1) + (0 if self._gauge is None else len(self._gauge))
 
     def residuals_batch(self, X) -> np.ndarray:
         """Residuals (S, m) of a population (S, n); counts S evaluations."""
@@ -291,7 +317,8 @@ class CalibrationProblem:
         Fp = self.model.dforward_dp(x_full, A, self.ctx)  # (n, 3, p)
         dA = -np.linalg.solve(Fa, Fp)  # (n, 3, p)
         u = A / np.linalg.norm(A, axis=1, keepdims=True)
-        return np.einsum("ni,nip->np", u, dA)
+        J = np.einsum("ni,nip->np", u, dA)
+        return J if getattr(self, "_gauge", None) is None else np.vstack([J, self._gauge])
 
     def jacobian(self, x) -> np.ndarray:
         """Jacobian (m, n) in this view's coordinates; counts one evaluation."""
@@ -307,4 +334,4 @@ class CalibrationProblem:
         return 2.0 * self.jacobian(x).T @ r
 
     def rms(self, x_full) -> float:
-        return float(np.sqrt(np.mean(self.residuals_full(x_full)[0] ** 2)))
+        return float(np.sqrt(np.mean(self.position_residuals(x_full) ** 2)))

@@ -45,7 +45,8 @@ class Option:
                 f"solver {solver}: option {name}={value!r} must be {'/'.join(k.__name__ for k in kinds)}"
             )
         if self.choices is not None and value not in self.choices:
-            raise InputError(f"solver {solver}: option {name}={value!r}; choose one of {', '.join(map(str, self.choices))}")
+            choices = ", ".join(map(str, self.choices))
+            raise InputError(f"solver {solver}: option {name}={value!r}; choose one of {choices}")
         if self.check is not None and not self.check(value):
             raise InputError(f"solver {solver}: option {name}={value!r} is invalid; it must be {self.check_doc}")
         return value

@@ -17,7 +17,7 @@ HELP = "calibrate an accelerometer from static positions"
 def add_arguments(p):
     p.add_argument("data", metavar="DATA", help="positions CSV (or a raw recording with --raw)")
     p.add_argument("--model", default="nonlinear12", help="model name or sum of terms (default nonlinear12)")
-    p.add_argument("--solver", default="scipy-lm", help="registered solver name, e.g. bsas, staged:bsas (default scipy-lm)")
+    p.add_argument("--solver", default="scipy-lm", help="registered solver, e.g. bsas, staged:bsas (default scipy-lm)")
     p.add_argument("--option", action="append", metavar="KEY=VALUE", help="solver option (repeatable)")
     p.add_argument("--seed", type=int, default=0, help="seed of the solver's random generator")
     p.add_argument("--budget", type=int, help="evaluation budget (default: the solver's)")

@@ -44,13 +44,15 @@ def parse_effects(items: list[str]) -> dict[str, dict[str, float]]:
         for kv in filter(None, rest.split(",")):
             k, _, v = kv.partition("=")
             if k not in TERMS[term].params:
-                raise InputError(f"--effect {item!r}: {k!r} is not a parameter of {term} ({', '.join(TERMS[term].params)})")
+                names = ", ".join(TERMS[term].params)
+                raise InputError(f"--effect {item!r}: {k!r} is not a parameter of {term} ({names})")
             try:
                 params[k] = float(v)
             except ValueError:
                 raise InputError(f"--effect {item!r}: {v!r} is not a number") from None
         if not params:
-            raise InputError(f"--effect {item!r}: give at least one parameter, e.g. {term}:{TERMS[term].params[0]}=1e-4")
+            example = f"{term}:{TERMS[term].params[0]}=1e-4"
+            raise InputError(f"--effect {item!r}: give at least one parameter, e.g. {example}")
         effects[term] = params
     return effects
 

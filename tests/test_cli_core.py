@@ -1,0 +1,145 @@
+"""Command line: simulate → calibrate round trip, info, and one-line errors (exit 2) for bad input."""
+
+import json
+
+import numpy as np
+import pytest
+
+from optcal.cli import main
+from optcal.schemes import rotation_groups
+
+
+def _run(capsys, *argv):
+    code = main([str(a) for a in argv])
+    out, err = capsys.readouterr()
+    return code, out, err
+
+
+@pytest.fixture
+def positions(tmp_path, capsys):
+    path = tmp_path / "p24.csv"
+    code, _, _ = _run(capsys, "simulate", "--scheme", 24, "--model", "nonlinear12", "--noise-ug", 10, "--seed", 1,
+                      "-o", path, "--truth-out", tmp_path / "truth.json")
+    assert code == 0
+    return path
+
+
+def test_calibrate_json_contract(positions, capsys, tmp_path):
+    code, out, err = _run(capsys, "calibrate", positions, "--model", "nonlinear12", "--json")
+    assert code == 0, err
+    res = json.loads(out)
+    for key in ("model", "terms", "parameters", "stderr", "rms_residual_g", "cost", "n_positions", "g_local",
+                "solver", "observability", "nfev", "nit", "runtime_s", "success", "message"):
+        assert key in res
+    truth = json.loads((tmp_path / "truth.json").read_text())
+    for name, value in res["parameters"].items():
+        assert abs(value - truth[name]) < 5 * res["stderr"][name], name
+    assert res["n_positions"] == 24 and res["observability"]["rank"] == 12
+    assert res["observability"]["unobservable"] == []
+    # expected sqrt((24 - 12) / 24) · 10 µg ≈ 7 µg
+    assert 3e-6 < res["rms_residual_g"] < 12e-6
+
+
+def test_calibrate_seed15_names_the_unobservable_directions(positions, capsys):
+    code, out, _ = _run(capsys, "calibrate", positions, "--model", "seed15", "--json")
+    res = json.loads(out)
+    assert code == 0 and res["observability"]["rank"] == 12
+    names = sorted(sorted(w["name"] for w in d) for d in res["observability"]["unobservable"])
+    assert names == [["S_xy", "S_zy"], ["S_xz", "S_yz"], ["S_yx", "S_zx"]]
+    assert res["stderr"]["S_xz"] is None and res["stderr"]["K_x"] is not None
+
+
+def test_info_reports_three_unobservable_directions_for_seed15(capsys):
+    code, out, _ = _run(capsys, "info", "--scheme", 24, "--model", "seed15", "--noise-ug", 10, "--json")
+    res = json.loads(out)
+    assert code == 0 and res["rank"] == 12 and len(res["unobservable"]) == 3
+    assert res["crlb"]["S_xz"] is None and res["crlb"]["K_x"] == pytest.approx(4.18e-6, rel=0.02)
+
+
+def _write(tmp_path, text, name="bad.csv"):
+    p = tmp_path / name
+    p.write_text(text)
+    return p
+
+
+def _good_rows(n=24, scale=1.0):
+    A = rotation_groups(45.0)[:n] * scale
+    return "\n".join(f"{i},{float(a[0])!r},{float(a[1])!r},{float(a[2])!r}" for i, a in enumerate(A))
+
+
+BAD_INPUTS = {
+    "missing column": ("position,ax,ay\n0,1,0\n", "missing column(s) az"),
+    "misnamed column": ("position,acc_x,acc_y,acc_z\n" + _good_rows(), "rename 'acc_x' → 'ax'"),
+    "non-numeric": ("position,ax,ay,az\n" + _good_rows().replace("0,0.0,0.0,1.0", "0,0.0,abc,1.0", 1), "not a number"),
+    "nan": ("position,ax,ay,az\n" + _good_rows().replace("0,0.0,0.0,1.0", "0,0.0,nan,1.0", 1), "is nan"),
+    "inf": ("position,ax,ay,az\n" + _good_rows().replace("0,0.0,0.0,1.0", "0,0.0,inf,1.0", 1), "is inf"),
+    "too few positions": ("position,ax,ay,az\n" + _good_rows(8), "fewer than the 12 parameters"),
+    "m/s2 as g": ("position,ax,ay,az\n" + _good_rows(scale=9.80665), "looks like m/s²"),
+    "empty": ("", "is empty"),
+}
+
+
+@pytest.mark.parametrize("case", sorted(BAD_INPUTS))
+def test_bad_input_is_one_line_and_exit_2(case, tmp_path, capsys):
+    text, fragment = BAD_INPUTS[case]
+    path = _write(tmp_path, text)
+    code, out, err = _run(capsys, "calibrate", path, "--model", "nonlinear12")
+    assert code == 2
+    assert fragment in err, err
+    assert err.count("\n") == 1 and "Traceback" not in err
+
+
+def test_unobservable_positions_name_the_directions(tmp_path, capsys):
+    # every position turns about x: the x axis never sees gravity, so K_x and b_x cannot be told apart
+    A = rotation_groups(30.0)[:12]
+    rows = "\n".join(f"{i},{a[0] + 1e-4},{a[1]},{a[2]}" for i, a in enumerate(A))
+    path = _write(tmp_path, "position,ax,ay,az\n" + rows)
+    code, _, err = _run(capsys, "calibrate", path, "--model", "diag6")
+    assert code == 2 and "unobservable" in err and "K_x" in err and "b_x" in err, err
+    assert err.count("\n") == 1
+
+
+@pytest.mark.parametrize("argv, fragment", [
+    (["--model", "linear10"], "unknown model or term 'linear10'"),
+    (["--model", "linear9+warp"], "unknown model or term 'warp'"),
+    (["--solver", "nope"], "unknown solver 'nope'"),
+    (["--option", "nope=1"], "unknown option(s) nope"),
+])
+def test_unknown_names_are_clear_errors(positions, capsys, argv, fragment):
+    code, _, err = _run(capsys, "calibrate", positions, *argv)
+    assert code == 2 and fragment in err and err.count("\n") == 1, err
+
+
+def test_unreadable_file_and_overwrite_refusal(tmp_path, positions, capsys):
+    code, _, err = _run(capsys, "calibrate", tmp_path / "missing.csv")
+    assert code == 2 and "cannot read" in err
+    binary = tmp_path / "bin.csv"
+    binary.write_bytes(b"\xff\xfe\x00\x81")
+    code, _, err = _run(capsys, "calibrate", binary)
+    assert code == 2 and "cannot read" in err
+    code, _, err = _run(capsys, "simulate", "-o", positions)
+    assert code == 2 and "--force" in err
+    assert positions.read_text().startswith("position,ax")
+
+
+def test_simulate_with_hidden_effect_and_counts(tmp_path, capsys):
+    out = tmp_path / "eff.csv"
+    code, _, err = _run(capsys, "simulate", "--scheme", 36, "--model", "linear9", "--effect", "cubic:K3_x=1e-3",
+                        "--seed", 2, "-o", out, "--truth-out", tmp_path / "t.json")
+    assert code == 0, err
+    truth = json.loads((tmp_path / "t.json").read_text())
+    assert truth["K3_x"] == 1e-3 and truth["K3_y"] == 0.0
+    code, _, err = _run(capsys, "simulate", "--effect", "cubic:K9=1", "-o", tmp_path / "x.csv")
+    assert code == 2 and "not a parameter of cubic" in err
+
+
+def test_counts_data_needs_units(tmp_path, capsys):
+    A = rotation_groups(45.0)
+    rows = "\n".join(f"{i},{16384 * a[0] + 20},{16384 * a[1]},{16384 * a[2]}" for i, a in enumerate(A))
+    path = _write(tmp_path, "position,ax,ay,az\n" + rows)
+    code, _, err = _run(capsys, "calibrate", path, "--model", "linear9")
+    assert code == 2 and "--units counts" in err
+    code, out, err = _run(capsys, "calibrate", path, "--model", "linear9", "--units", "counts", "--json")
+    assert code == 0, err
+    assert json.loads(out)["parameters"]["K_x"] == pytest.approx(16384, rel=1e-9)
+    assert np.isclose(json.loads(out)["parameters"]["b_x"], 20 / 16384, rtol=1e-6)
