@@ -1,0 +1,102 @@
+"""optcal solvers: every registered solver (built-in and plugins) with its options and defaults, whether it
+can run here, and the wrapper prefixes that compose with any of them (``staged:bsas``, ``mcs:nafsa``).
+
+The registry lives in the ``solvers`` package, which ``optcal`` does not import statically (DESIGN §2); it
+is looked up at run time, as :func:`optcal.fit.get_solver` does.
+"""
+
+from __future__ import annotations
+
+import importlib
+import json
+
+import numpy as np
+
+from ..errors import InputError
+
+HELP = "list the registered solvers with their options, defaults and availability, and the wrappers"
+
+
+def add_arguments(p):
+    p.add_argument("names", nargs="*", metavar="NAME", help="only these solvers (default: all)")
+    p.add_argument("--json", action="store_true", help="print one JSON object")
+
+
+def _registry():
+    try:
+        return importlib.import_module("solvers")
+    except ImportError as exc:  # pragma: no cover - the distribution installs both packages
+        raise InputError(f"the solvers package is not installed ({exc}); reinstall optcal") from None
+
+
+def _plain(v):
+    """A JSON-safe copy of an option default (numpy scalars and tuples included)."""
+    if isinstance(v, np.generic):
+        return v.item()
+    if isinstance(v, tuple | list):
+        return [_plain(x) for x in v]
+    return v
+
+
+def listing(names: list[str] | None = None) -> dict:
+    """{"solvers": [...], "wrappers": [...]} as printed by ``optcal solvers --json``."""
+    solvers = _registry()
+    reg = solvers.registry
+    known = reg.names()
+    unknown = [n for n in names or [] if n not in known]
+    if unknown:
+        raise InputError(f"unknown solver(s) {', '.join(unknown)}; registered solvers: {', '.join(known)}")
+    out = []
+    for d in reg.describe_all():
+        if names and d["name"] not in names:
+            continue
+        cls, _ = reg.solver_class(d["name"])
+        entry = {
+            "name": d["name"], "family": d["family"], "available": bool(d["available"]),
+            "module": cls.__module__,
+            "options": {k: {"default": _plain(o["default"]), "doc": o.get("doc", ""),
+                            **({"fixed": True} if o.get("fixed") else {})} for k, o in d["options"].items()},
+        }
+        if not entry["available"]:
+            entry["message"] = cls.unavailable_message()
+        out.append(entry)
+    wrappers = []
+    factories = getattr(reg, "_WRAPPERS", {})
+    for prefix in reg.wrappers():
+        f = factories.get(prefix)
+        opts = getattr(f, "options", {}) or {}
+        doc = (getattr(f, "__doc__", "") or "").strip().splitlines()
+        wrappers.append({
+            "prefix": prefix, "usage": f"{prefix}:<solver>", "doc": doc[0] if doc else "",
+            "options": {k: {"default": _plain(o.default), "doc": o.doc} for k, o in opts.items()},
+        })
+    return {"solvers": out, "wrappers": wrappers}
+
+
+def _option_lines(options: dict) -> list[str]:
+    shown = {k: (repr(o["default"]) if isinstance(o["default"], str) else str(o["default"]))
+             + (" (fixed)" if o.get("fixed") else "") for k, o in options.items()}
+    kw = max((len(k) for k in shown), default=0)
+    dw = max((len(v) for v in shown.values()), default=0)
+    return [f"    {k:<{kw}} = {v:<{dw}}  {options[k]['doc']}".rstrip() for k, v in shown.items()]
+
+
+def run(args) -> int:
+    info = listing(args.names)
+    if args.json:
+        print(json.dumps(info, indent=2))
+        return 0
+    lines = []
+    for s in info["solvers"]:
+        state = "available" if s["available"] else f"UNAVAILABLE: {s['message']}"
+        lines.append(f"{s['name']}  [{s['family']}]  {state}")
+        lines.extend(_option_lines(s["options"]) or ["    (no options)"])
+    if not args.names:
+        lines.append("")
+        lines.append("wrappers (PREFIX:SOLVER composes with any solver; wrapper options as --option KEY=VALUE,")
+        lines.append("the inner solver's as --option inner.KEY=VALUE):")
+        for w in info["wrappers"]:
+            lines.append(f"{w['usage']}  {w['doc']}")
+            lines.extend(_option_lines(w["options"]))
+    print("\n".join(lines))
+    return 0
