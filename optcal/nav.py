@@ -25,13 +25,15 @@ The vertical channel (δv_D, δh) is unstable and the papers' error is horizonta
 (height held, as by a barometric or known-height aid); δf_D therefore has no effect.
 
 The inputs are constant, so ``x' = F x + b`` is solved exactly: with ``M = [[F, b], [0, 0]]`` the
-augmented state obeys ``z(t) = expm(M t)·z(0)``. On the grid t_k = k·Δt the states are filled by
-doubling: ``z[k:k+m] = z[0:m]·(Φ^k)ᵀ`` with Φ = expm(M Δt) and Φ^(2k) = Φ^k·Φ^k: one vectorised
-product per doubling (17 for a day at 1 s), no loop over time steps.
+augmented state obeys ``z(t) = expm(M t)·z(0)``; the step Φ_M = expm(M Δt) = [[Φ, Γ·b], [0, 1]] with
+Φ = expm(F Δt) and Γ = ∫₀^Δt expm(F s) ds, which are computed once per site and step and cached. On the
+grid t_k = k·Δt the states are filled by doubling: ``z[k:k+m] = z[0:m]·(Φ_M^k)ᵀ`` with Φ_M^(2k) =
+Φ_M^k·Φ_M^k: one vectorised product per doubling (17 for a day at 1 s), no loop over time steps.
 """
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass
 
@@ -154,17 +156,22 @@ def propagate(F: np.ndarray, b: np.ndarray, x0: np.ndarray, dt: float, n_steps: 
     """Exact states x(k·dt), k = 0..n_steps, of x' = F x + b (b constant), shape (n_steps+1, n).
 
     One matrix exponential gives the step of the augmented system, Φ = expm(M·dt) with
-    M = [[F, b], [0, 0]]; the grid is then filled by doubling: z[k:k+m] = z[0:m]·(Φ^k)ᵀ with Φ^(2k) =
-    Φ^k·Φ^k, so a run of n steps costs log2(n) vectorised products and no loop over time steps.
+    M = [[F, b], [0, 0]]; :func:`_fill` then covers the grid by doubling.
     """
     n = F.shape[0]
     M = np.zeros((n + 1, n + 1))
     M[:n, :n] = F
     M[:n, n] = b
+    return _fill(expm(M * dt), x0, n_steps)
+
+
+def _fill(P: np.ndarray, x0: np.ndarray, n_steps: int) -> np.ndarray:
+    """States on the grid from the augmented step P: z[k:k+m] = z[0:m]·(P^k)ᵀ with P^(2k) = P^k·P^k,
+    so a run of n steps costs log2(n) vectorised products and no loop over time steps."""
+    n = P.shape[0] - 1
     Z = np.empty((n_steps + 1, n + 1))
     Z[0, :n] = x0
     Z[0, n] = 1.0
-    P = expm(M * dt)
     k = 1
     while k <= n_steps:
         m = min(k, n_steps + 1 - k)
@@ -174,6 +181,22 @@ def propagate(F: np.ndarray, b: np.ndarray, x0: np.ndarray, dt: float, n_steps: 
         P = P @ P
         k += m
     return Z[:, :n]
+
+
+@functools.lru_cache(maxsize=64)
+def _site_step(latitude_deg: float, height_m: float, earth_rate_coupling: bool, dt: float):
+    """(Φ, Γ, consts) for one site and step: Φ = expm(F·dt) and Γ = ∫₀^dt expm(F·s) ds, from one
+    exponential of [[F, I], [0, 0]]·dt. Cached, so the runs of a study (one site, many calibrations)
+    compute no matrix exponential after the first; the step for input b is [[Φ, Γ·b], [0, 1]]."""
+    F, consts = error_dynamics(latitude_deg, height_m, earth_rate_coupling)
+    n = F.shape[0]
+    M = np.zeros((2 * n, 2 * n))
+    M[:n, :n] = F
+    M[:n, n:] = np.eye(n)
+    E = expm(M * dt)
+    phi, gamma = E[:n, :n].copy(), E[:n, n:].copy()
+    phi.flags.writeable = gamma.flags.writeable = False
+    return phi, gamma, consts
 
 
 def static_navigation(
@@ -213,7 +236,9 @@ def static_navigation(
     n_steps = max(1, int(round(T / dt)))
     if n_steps > 2**22:
         raise InputError(f"{n_steps} output steps are too many (at most {2**22}); use a larger dt_s")
-    F, c = error_dynamics(latitude_deg, height_m, earth_rate_coupling)
+    _check_site(latitude_deg, height_m)
+    dt = T / n_steps
+    phi, gamma, c = _site_step(float(latitude_deg), float(height_m), bool(earth_rate_coupling), dt)
     C = dcm_body_to_nav(attitude_deg)
     df_n = C @ df_b
     eps_n = C @ (eps_b * DEG_PER_HOUR)
@@ -221,7 +246,11 @@ def static_navigation(
     b[:3] = -eps_n
     b[3:5] = df_n[:2]
     x0 = alignment_state(df_n, eps_n, latitude_deg, c["g"], earth_rate_coupling) if self_alignment else np.zeros(7)
-    X = propagate(F, b, x0, T / n_steps, n_steps)
+    P = np.zeros((8, 8))
+    P[:7, :7] = phi
+    P[:7, 7] = gamma @ b
+    P[7, 7] = 1.0
+    X = _fill(P, x0, n_steps)
     dlat, dlon = X[:, 5], X[:, 6]
     coslat = math.cos(math.radians(latitude_deg))
     err = np.hypot(c["R_N"] * dlat, c["R_E"] * coslat * dlon) / NMI_M
