@@ -13,10 +13,11 @@ whose calibration fits best is kept. Each static interval long enough becomes on
 its samples, their number ``n``, standard deviations ``sx, sy, sz``, middle time ``t`` and mean ``temp``.
 
 Differences from imu_tk, and why: imu_tk compares the raw final cost of fits made with different numbers
-of intervals, which favours thresholds that find fewer intervals; here candidates are compared by the
-residual variance per degree of freedom, cost / (n − rank), and a candidate must leave at least one
-degree of freedom. imu_tk averages a fixed 100 samples from the middle of each interval; here all samples
-of the interval are averaged (the variance window already keeps half a window away from motion).
+of intervals, which favours thresholds that find fewer intervals; here candidates are compared by an
+upper confidence bound of the residual SD per degree of freedom divided by √n (:func:`fit_score`), and a
+candidate must leave at least one degree of freedom. imu_tk averages a fixed 100 samples from the middle
+of each interval; here all samples of the interval are averaged (the variance window already keeps them
+half a window away from motion).
 """
 
 from __future__ import annotations
@@ -402,14 +403,21 @@ def detect_static(recording: Recording, k: float = 4.0, *, window_s: float = 1.0
     return _Detector.of(recording, window_s, min_static_s, init_s).result(k)
 
 
-def fit_score(data: PositionsData, model, g_local: float = 1.0, solver: str = "scipy-lm") -> float:
-    """σ̂/√n of a fit through the registry, with σ̂ = sqrt(cost / (n − rank)) the residual SD per degree
-    of freedom: the scale of the parameters' standard errors, so that a threshold that finds fewer
-    intervals must buy that with a proportionally cleaner fit."""
+def fit_score(data: PositionsData, model, g_local: float = 1.0, solver: str = "scipy-lm",
+              alpha: float = 0.10) -> float:
+    """Score of a candidate set of intervals (smaller is better): σ_up/√n, where σ_up = sqrt(cost /
+    χ²_α(n − rank)) is the (1 − α) upper confidence bound of the residual SD and n the number of positions.
+
+    The residual SD from few degrees of freedom is uncertain, and a fit that leaves one degree of freedom
+    can show a small residual by chance; comparing upper bounds stops such a candidate from winning on
+    luck. Dividing by √n weighs what a lost interval costs: the parameters' standard errors scale as
+    σ/√n. The fit goes through :func:`optcal.fit.calibrate` (the registry, at run time)."""
+    from scipy.stats import chi2
+
     from .fit import calibrate
 
     cal = calibrate(data, model, solver=solver, g_local=g_local)
-    return float(np.sqrt(cal.fit.cost / cal.fit.dof / len(data)))
+    return float(np.sqrt(cal.fit.cost / chi2.ppf(alpha, cal.fit.dof) / len(data)))
 
 
 def choose_threshold(recording: Recording, model, fit_cost_fn=None, *, ks=DEFAULT_KS, g_local: float = 1.0,
@@ -417,9 +425,9 @@ def choose_threshold(recording: Recording, model, fit_cost_fn=None, *, ks=DEFAUL
                      init_s: float = 2.0) -> DetectionResult:
     """Search the threshold multiplier k over ``ks`` and keep the one whose calibration fits best
     (Tedaldi et al. 2014, §IV-A; imu_tk tries k = 2…10). ``fit_cost_fn(positions) -> float`` scores a
-    candidate (default: the residual SD per degree of freedom of ``model`` fitted with ``solver`` through
-    :func:`optcal.fit.calibrate`). Interval sets met before are not refitted. A candidate needs more
-    positions than the model has parameters; if none has, the error says how many were found."""
+    candidate (default :func:`fit_score` of ``model`` fitted with ``solver``). Interval sets met before
+    are not refitted. A candidate needs more positions than the model has parameters; if none has, the
+    error says how many were found."""
     model = get_model(model)
     det = _Detector.of(recording, window_s, min_static_s, init_s)
     cost_fn = fit_cost_fn or (lambda d: fit_score(d, model, g_local, solver))
@@ -622,7 +630,7 @@ def describe_detection(obj) -> str:
         if det.search:
             tried = ", ".join(f"{r['k']:g}:{r['n_intervals']}" + (f"/{r['score'] * 1e6:.1f}"
                               if r["score"] is not None else "") for r in det.search)
-            how += f"\n  k searched (k:intervals/score σ̂/√n in µg, smallest kept): {tried}"
+            how += f"\n  k searched (k:intervals/score σ_up/√n in µg, smallest kept): {tried}"
     else:
         how = "intervals given by hand" if det.method == "given" else "intervals from the label column"
     lines = [head, f"{det.n_intervals} static interval(s), {det.n_static_samples} samples ({100 * frac:.0f}%); {how}"]
