@@ -143,14 +143,14 @@ class Staged(Solver):
 
     Result: ``x`` is the best point of the whole run, ``nit`` the inner iterations summed over stages,
     the trace is merged in evaluation order, and ``extra["stages"]`` lists every stage (cycle, group,
-    evaluations, iterations, cost after it, the inner message).
+    evaluations, iterations, best cost and full parameter vector after it, the inner message).
     """
 
     name = "staged"
     family = "wrapper"
     options = {
         "max_cycles": Option(5, int, "most cycles through the stages", check=positive, check_doc="> 0"),
-        "rtol": Option(1e-9, float, "stop when a cycle lowers the best cost by less than this fraction",
+        "rtol": Option(1e-9, float, "stop when a cycle lowers the best cost by less than this fraction (0: never)",
                        check=lambda v: v >= 0, check_doc=">= 0"),
         "split": Option("equal", str, "stage budgets: 'equal' share of what is left, or the 'inner' "
                         "solver's default per stage", choices=("equal", "inner")),
@@ -215,11 +215,12 @@ class Staged(Solver):
                 if counter.best_x is not None:
                     current = counter.best_x.copy()
                 state["log"].append({"cycle": cycle, "group": group, "nfev": res.nfev, "nit": res.nit,
-                                     "fun": float(counter.best_f), "message": res.message})
+                                     "fun": float(counter.best_f), "x_full": current.copy(),
+                                     "message": res.message})
             f = counter.best_f
             if not np.isfinite(f):
                 return -1, f"no finite cost in cycle {cycle}; last stage: {state['log'][-1]['message']}"
-            if np.isfinite(f_prev) and f_prev - f <= cfg["rtol"] * abs(f_prev):
+            if np.isfinite(f_prev) and f_prev - f < cfg["rtol"] * abs(f_prev):
                 return 0, (f"converged after {cycle} cycles: the last lowered the cost by "
                            f"{(f_prev - f) / abs(f_prev):.2e} relative (rtol {cfg['rtol']:g})")
             f_prev = f
