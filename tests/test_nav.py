@@ -301,6 +301,10 @@ def test_cli_attitude_self_alignment_and_plot(files, capsys):
     # (what is left comes from the 4.5 ng north error that b_x leaks into y through the truth's S_yz)
     assert code == code2 == 0 and plain > 0.2 and json.loads(out2)["max_error_nmi"] < 1e-3 * plain
     png = files["dir"] / "nav.png"
+    code, out, _ = _run(capsys, "nav", files["cal"], "--truth", files["truth"], "--json", "--attitude=-10,20,0")
+    m = files["m"]
+    direct = navigation_error(m, m.from_dict(files["truth_d"]), m.from_dict(files["est_d"]), attitude_deg=(-10, 20, 0))
+    assert code == 0 and json.loads(out)["max_error_nmi"] == pytest.approx(direct.max_error_nmi, rel=1e-12)
     code, out, err = _run(capsys, "nav", files["cal"], "--truth", files["truth"], "--plot", png, "--hours", 2)
     assert code == 0, err
     assert png.stat().st_size > 10_000 and png.read_bytes()[:4] == b"\x89PNG"
@@ -336,6 +340,8 @@ def test_cli_uses_the_union_of_parameters_of_different_models(files, capsys):
         (["{cal}", "--truth", "{truth}", "--latitude", "95"], "latitude"),
         (["{cal}", "--truth", "{truth}", "--hours", "-1"], "hours"),
         (["{cal}", "--truth", "{dir}/units.json"], "units"),
+        (["{cal}", "--truth", "{truth}", "--plot", "{dir}/no/such/dir/nav.png"], "cannot write"),
+        (["{cal}", "--truth", "{truth}", "--gyro-bias", "1,x,2"], "--gyro-bias"),
     ],
 )
 def test_cli_bad_input_is_one_line_exit_2(files, capsys, argv, fragment):

@@ -31,7 +31,8 @@ def add_arguments(p):
     p.add_argument("--latitude", type=float, default=45.0, metavar="DEG", help="latitude, deg (default 45)")
     p.add_argument("--height", type=float, default=0.0, metavar="M", help="ellipsoidal height, m (default 0)")
     p.add_argument("--attitude", default="0,0,0", metavar="ROLL,PITCH,YAW",
-                   help="fixed attitude in deg, FRD body against NED (default 0,0,0: x north, z down)")
+                   help="fixed attitude in deg, FRD body against NED (default 0,0,0: x north, z down); "
+                   "write a negative first angle as --attitude=-10,0,0")
     p.add_argument("--gyro-bias", default="0,0,0", metavar="X,Y,Z", help="constant gyro bias, deg/h, body frame")
     p.add_argument("--self-align", action="store_true",
                    help="run a static self-alignment first (default: the initial attitude is known)")
@@ -119,8 +120,11 @@ def run(args) -> int:
                            self_alignment=args.self_align)
     if args.plot:
         label = "self-aligned" if args.self_align else "known attitude"
-        plot_navigation({label: res}, args.plot,
-                        title=f"{Path(args.calibration).name} vs truth, {args.hours:g} h at {args.latitude:g}°")
+        try:
+            plot_navigation({label: res}, args.plot,
+                            title=f"{Path(args.calibration).name} vs truth, {args.hours:g} h at {args.latitude:g}°")
+        except OSError as exc:
+            raise InputError(f"cannot write the plot {args.plot}: {exc.strerror or exc}") from None
     if args.json:
         print(json.dumps(res.to_dict()))
         return 0
