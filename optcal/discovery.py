@@ -43,6 +43,7 @@ DEFAULT_BIC_THRESHOLD = -2.0
 EXPLAINED = "explained down to noise"
 REMAINS = "something remains"
 UNKNOWN = "noise floor unknown"
+NO_DOF = "untestable: no residual degrees of freedom"
 
 
 # -- regressors --------------------------------------------------------------------------------
@@ -280,7 +281,8 @@ class DiscoveryReport:
     last_round: list[Score]  # the round in which nothing was added (why the search stopped)
     alpha: float
     bic_threshold: float
-    noise_g: float | None
+    noise_g: float | None  # RMS over positions of σ_j
+    sigma_j: np.ndarray | None  # noise of each norm residual, g (from noise_g or the data's n and sx, sy, sz)
     notes: list[str] = field(default_factory=list)
 
     @property
@@ -296,22 +298,27 @@ class DiscoveryReport:
         return self.final.problem.n_residuals
 
     @property
+    def dof(self) -> int:
+        return self.m - self.final.rank
+
+    @property
     def expected_rms(self) -> float | None:
         """The RMS a correct model leaves: σ·√((m − p)/m)."""
-        return None if self.noise_g is None else self.noise_g * np.sqrt((self.m - self.final.rank) / self.m)
+        return None if self.noise_g is None else self.noise_g * np.sqrt(self.dof / self.m)
 
     @property
     def chi2(self) -> tuple[float, int, float] | None:
-        """χ² goodness of fit of the final model against the known noise: (χ², dof, p-value)."""
-        if self.noise_g is None:
+        """χ² goodness of fit of the final model against the known noise, Σ (e_j/σ_j)²: (χ², dof, p-value)."""
+        if self.sigma_j is None or self.dof < 1:
             return None
-        dof = max(self.m - self.final.rank, 1)
-        c = self.final.rss / self.noise_g**2
-        return c, dof, float(stats.chi2.sf(c, dof))
+        c = float(np.sum((self.final.residuals / self.sigma_j) ** 2))
+        return c, self.dof, float(stats.chi2.sf(c, self.dof))
 
     @property
     def verdict(self) -> str:
         """χ² test of the final residual against the noise floor at level α (needs the noise)."""
+        if self.dof < 1:
+            return NO_DOF
         chi = self.chi2
         if chi is None:
             return UNKNOWN
@@ -335,6 +342,7 @@ class DiscoveryReport:
             "rms_initial_g": self.initial.rms,
             "rms_final_g": f.rms,
             "noise_floor_g": self.noise_g,
+            "noise_per_position_g": None if self.sigma_j is None else [float(v) for v in self.sigma_j],
             "expected_rms_g": self.expected_rms,
             "chi2": None if chi is None else {"value": chi[0], "dof": chi[1], "p_value": chi[2]},
             "verdict": self.verdict,
@@ -364,15 +372,12 @@ class DiscoveryReport:
             if s.alternatives:
                 lines.append("    nearly as good (ΔBIC within 2: confounded on these data): "
                              + ", ".join(s.alternatives))
+            lines.append("    candidates this round:")
+            lines += _round_lines([x for x in s.scores if x is not c], u)
         lines.append("last round (nothing added):" if self.last_round else "no candidate left to test")
-        for s in sorted(self.last_round, key=lambda s: (not s.tested, s.p_value if s.tested else 0)):
-            if s.tested:
-                lines.append(f"    {s.term:18s} p = {s.p_value:.3g}, ΔBIC = {s.delta_bic:+.2f}, "
-                             f"RMS would be {s.fit.rms * u:.3f} µg")
-            else:
-                lines.append(f"    {s.term:18s} skipped: {s.note}")
+        lines += _round_lines(self.last_round, u)
         floor = "unknown (no n, sx, sy, sz in the data)" if self.noise_g is None else (
-            f"{self.noise_g * u:.3f} µg per residual, expected RMS {self.expected_rms * u:.3f} µg")
+            f"σ = {self.noise_g * u:.3f} µg (RMS over positions), expected RMS {self.expected_rms * u:.3f} µg")
         lines.append(f"final model {f.model.name}: residual RMS {f.rms * u:.3f} µg; noise floor {floor}")
         chi = self.chi2
         detail = "" if chi is None else f" (χ² = {chi[0]:.1f} on {chi[1]} dof, p = {chi[2]:.3g})"
@@ -419,7 +424,42 @@ class DiscoveryReport:
         return fig
 
 
+def _round_lines(scores: list[Score], u: float) -> list[str]:
+    out = []
+    for s in sorted(scores, key=lambda s: (not s.tested, s.p_value if s.tested else 0)):
+        if s.tested:
+            out.append(f"    {s.term:18s} p = {s.p_value:.3g}, ΔBIC = {s.delta_bic:+.2f}, "
+                       f"RMS would be {s.fit.rms * u:.3f} µg")
+        else:
+            out.append(f"    {s.term:18s} skipped: {s.note}")
+    return out
+
+
 # -- the workflow ------------------------------------------------------------------------------
+
+def noise_per_position(fit: Fit, noise_g: float | None, notes: list[str]) -> np.ndarray | None:
+    """σ_j, the noise of each norm residual in g: ``noise_g`` if given, else each position's standard error
+    per axis (sx, sy, sz over √n) referred to the input with the fitted scale factors and projected on the
+    measured direction, σ_j² = Σ_i â_ji²·(s_ji / (K_i·√n_j))²; None when neither is known."""
+    m = fit.problem.n_residuals
+    if noise_g is not None:
+        return np.full(m, float(noise_g))
+    se = fit.problem.data.noise_of_mean()
+    if se is None:
+        return None
+    A = fit.specific_force
+    u = A / np.linalg.norm(A, axis=1, keepdims=True)
+    K = np.abs(fit.x[fit.model.groups()["scale"]])
+    sigma = np.sqrt(np.sum((u * se / K) ** 2, axis=1))
+    bad = ~(sigma > 0)
+    if bad.all():
+        notes.append("every position has zero sample SD; the noise floor is unknown")
+        return None
+    if bad.any():
+        notes.append(f"{int(bad.sum())} position(s) with zero sample SD (one sample?) take the median noise")
+        sigma[bad] = np.median(sigma[~bad])
+    return sigma
+
 
 def _candidates(model: Model, candidates) -> list[str]:
     if candidates is None:
@@ -455,8 +495,6 @@ def discover(data: PositionsData, base: str | Model = "linear9", candidates=None
     if current.rank < model.n_params:
         notes.append(f"base {model.name} has {model.n_params - current.rank} unobservable direction(s) on these "
                      "positions; degrees of freedom use its rank")
-    if noise_g is None:
-        noise_g = current.problem.noise_g
     initial, steps, last_round = current, [], []
     while pool and (max_steps is None or len(steps) < max_steps):
         scores = [score(current, t, solver=solver, budget=budget) for t in pool]
@@ -466,11 +504,14 @@ def discover(data: PositionsData, base: str | Model = "linear9", candidates=None
         if best is None or not (best.p_value < threshold and best.delta_bic < bic_threshold):
             last_round = scores
             break
-        sigma = _sigma(best.fit.problem, best.fit, noise_g)
+        sigma = _sigma(best.fit.problem, best.fit, noise_g if noise_g is not None else current.problem.noise_g)
         sd, _ = crlb(best.fit.problem, best.fit.x, sigma)
         stderr = {n: float(sd[best.fit.model.index(n)]) for n in TERMS[best.term].params}
         alternatives = [s.term for s in scores if s.tested and s is not best and s.delta_bic < best.delta_bic + 2.0]
         steps.append(Step(best.term, current, best.fit, best, scores, threshold, stderr, alternatives))
         current = best.fit
         pool = [t for t in pool if t != best.term]
-    return DiscoveryReport(model.name, initial, current, steps, last_round, alpha, bic_threshold, noise_g, notes)
+    sigma_j = noise_per_position(current, noise_g, notes)
+    floor = None if sigma_j is None else float(np.sqrt(np.mean(sigma_j**2)))
+    return DiscoveryReport(model.name, initial, current, steps, last_round, alpha, bic_threshold, floor, sigma_j,
+                           notes)

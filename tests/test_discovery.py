@@ -10,7 +10,7 @@ from scipy import stats
 
 from optcal import get_model, simulate
 from optcal.cli import main
-from optcal.discovery import EXPLAINED, REMAINS, discover, fit_model
+from optcal.discovery import EXPLAINED, NO_DOF, REMAINS, discover, fit_model
 from optcal.errors import InputError
 from optcal.model import TERMS
 from optcal.presets import draw_truth
@@ -160,6 +160,15 @@ def test_terms_without_their_columns_are_skipped_with_a_note():
     assert set(notes) == {"temperature_bias", "temperature_scale", "bias_drift"}
     assert "temp" in notes["temperature_bias"] and "column" in notes["temperature_bias"]
     assert "t" in notes["bias_drift"].split("column(s) ")[1]
+
+
+def test_six_positions_leave_nothing_to_test():
+    _, data = hidden({"cubic": effect("cubic", 2e-4)}, "6", 0)
+    rep = discover(data, base="diag6", noise_g=NOISE)
+    assert rep.added == [] and rep.verdict == NO_DOF and rep.chi2 is None
+    notes = {s.term: s.note for s in rep.last_round}
+    assert all("no degrees of freedom" in notes[t] for t in ("quadratic", "cubic", "misalignment"))
+    assert "needs column(s) t" in notes["bias_drift"]
 
 
 def test_quadratic_and_scale_asymmetry_are_confounded_on_24_positions():
