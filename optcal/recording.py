@@ -35,6 +35,11 @@ from .data import UNITS, PositionsData, check_units
 from .errors import InputError
 from .model import Model, get_model
 
+try:  # optional: a faster reader for large delimited files
+    import pyarrow.csv as _arrow_csv
+except ImportError:  # pragma: no cover - depends on the installation
+    _arrow_csv = None
+
 ROLES = ("t", "ax", "ay", "az", "temp")
 ALIASES = {
     "t": ("t", "time", "timestamp", "time_s", "t_s", "seconds"),
@@ -83,6 +88,7 @@ class _Layout:
     numeric: tuple[bool, ...]
     header: list[str] | None
     meta: dict
+    first: list[str]  # the fields of the first data row (to check a fast reader started there)
 
 
 def _is_number(s: str) -> bool:
@@ -123,7 +129,7 @@ def _layout(path: Path) -> _Layout:
         header = before[-1][1]
         before = before[:-1]
     meta = {f[0].strip().lower(): f[1].strip() for _, f in before if len(f) >= 2}
-    return _Layout(delim, rows[start][0], ref[0], ref[1], header, meta)
+    return _Layout(delim, rows[start][0], ref[0], ref[1], header, meta, rows[start][1])
 
 
 def _resolve(ref: str, lay: _Layout, path: Path) -> int:
@@ -214,12 +220,7 @@ def read_recording(path, columns=None, rate: float | None = None, units: str = "
         )
     cols = _columns(columns, lay, path)
     order = [r for r in ROLES if r in cols]
-    try:
-        raw = np.loadtxt(path, delimiter=lay.delimiter, skiprows=lay.skiprows, usecols=[cols[r] for r in order],
-                         ndmin=2, comments="#", dtype=float)
-    except ValueError as exc:
-        msg = str(exc).splitlines()[0].rstrip(".")
-        raise InputError(f"{path}: {msg} (data start on line {lay.skiprows + 1}); fix or remove that row") from None
+    raw = _load_numeric(path, lay, [cols[r] for r in order])
     data = dict(zip(order, raw.T))
     n = len(raw)
     if n < 2:
@@ -271,6 +272,43 @@ def read_recording(path, columns=None, rate: float | None = None, units: str = "
     return Recording(t, N, data.get("temp"), units, float(fs), sat, str(path), names, lab, lay.meta)
 
 
+def _load_numeric(path: Path, lay: _Layout, usecols: list[int]) -> np.ndarray:
+    """The chosen columns as floats, (n, len(usecols)). Delimited files go through Arrow's multithreaded
+    CSV reader when pyarrow is installed (several times faster than NumPy's); anything it does not read
+    cleanly (comment lines, ragged rows, text in a number column, whitespace-separated files) goes through
+    numpy.loadtxt, a C reader too, whose messages name the offending row."""
+    if _arrow_csv is not None and lay.delimiter is not None:
+        out = _load_arrow(path, lay, usecols)
+        if out is not None:
+            return out
+    try:
+        return np.loadtxt(path, delimiter=lay.delimiter, skiprows=lay.skiprows, usecols=usecols, ndmin=2,
+                          comments="#", dtype=float)
+    except ValueError as exc:
+        msg = str(exc).splitlines()[0].rstrip(".")
+        raise InputError(f"{path}: {msg} (data start on line {lay.skiprows + 1}); fix or remove that row") from None
+
+
+def _load_arrow(path: Path, lay: _Layout, usecols: list[int]) -> np.ndarray | None:
+    import pyarrow as pa
+
+    names = [f"c{j}" for j in range(lay.ncol)]
+    try:
+        table = _arrow_csv.read_csv(
+            path,
+            read_options=_arrow_csv.ReadOptions(skip_rows=lay.skiprows, column_names=names),
+            parse_options=_arrow_csv.ParseOptions(delimiter=lay.delimiter),
+            convert_options=_arrow_csv.ConvertOptions(include_columns=[names[j] for j in usecols],
+                                                      column_types={names[j]: pa.float64() for j in usecols}),
+        )
+        out = np.column_stack([table.column(names[j]).to_numpy() for j in usecols]).astype(float, copy=False)
+    except (pa.ArrowException, ValueError, OSError):
+        return None
+    if len(out) == 0 or not np.array_equal(out[0], [float(lay.first[j]) for j in usecols], equal_nan=True):
+        return None  # it did not start on the first data row (e.g. blank lines in the preamble)
+    return out
+
+
 def _read_labels(path: Path, lay: _Layout, column: str, n: int) -> np.ndarray:
     j = _resolve(column, lay, path)
     lab = np.loadtxt(path, delimiter=lay.delimiter, skiprows=lay.skiprows, usecols=[j], dtype=str,
@@ -313,11 +351,13 @@ def variance_statistic(N: np.ndarray, window: int) -> np.ndarray:
     NaN where the window does not fit. Running sums in C (scipy.ndimage), no per-sample Python loop."""
     n = len(N)
     h = window // 2
-    X = N - N.mean(axis=0)  # centred: the running sums of squares keep their precision
-    m = uniform_filter1d(X, window, axis=0, mode="nearest")
-    m2 = uniform_filter1d(X * X, window, axis=0, mode="nearest")
+    # Centred (the running sums of squares keep their precision) and one contiguous row per axis (the
+    # filter then runs along memory: three times faster than along axis 0 of an (n, 3) array).
+    X = np.ascontiguousarray((N - N.mean(axis=0)).T)
+    m = uniform_filter1d(X, window, axis=1, mode="nearest")
+    m2 = uniform_filter1d(X * X, window, axis=1, mode="nearest")
     var = np.maximum(m2 - m * m, 0.0)
-    s = np.linalg.norm(var, axis=1)
+    s = np.sqrt(np.einsum("ij,ij->j", var, var))
     s[:h] = np.nan
     s[n - h:] = np.nan
     return s

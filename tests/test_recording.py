@@ -145,6 +145,29 @@ def test_formats_columns_and_rate(tmp_path, rec24):
         read_recording(p3, columns="ax,ay,az", units="counts")
 
 
+def test_fast_reader_and_numpy_reader_agree(tmp_path, rec24, monkeypatch):
+    import optcal.recording as recording
+
+    _, t, N, _, _ = rec24
+    n = 2000
+    body = "\n".join(f"{t[i]:.2f},{int(N[i, 0])},{int(N[i, 1])},{int(N[i, 2])}" for i in range(n))
+    files = {
+        "quoted.csv": '"t","ax","ay","az"\n' + body + "\n",
+        "preamble.csv": "Fs,100\n\nnote,x\n" + "t,ax,ay,az\n" + body + "\n",  # a blank line in the preamble
+        "comments.csv": "t,ax,ay,az\n" + body.replace("\n", "\n# a comment\n", 3) + "\n",
+        "semicolon.csv": "t;ax;ay;az\n" + body.replace(",", ";") + "\n",
+    }
+    for name, text in files.items():
+        (tmp_path / name).write_text(text)
+        fast = read_recording(tmp_path / name, units="counts")
+        with monkeypatch.context() as m:
+            m.setattr(recording, "_arrow_csv", None)
+            slow = read_recording(tmp_path / name, units="counts")
+        np.testing.assert_array_equal(fast.N, N[:n], err_msg=name)
+        np.testing.assert_array_equal(slow.N, N[:n], err_msg=name)
+        np.testing.assert_array_equal(fast.t, slow.t, err_msg=name)
+
+
 def test_variance_statistic_matches_direct_computation(rng):
     N = rng.standard_normal((500, 3)) * [1.0, 2.0, 3.0] + [1e4, -2e4, 5e3]
     w = 21
