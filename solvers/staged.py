@@ -131,7 +131,10 @@ class Staged(Solver):
     point the stage found, never worse than its start once that was evaluated) becomes the current
     point. A cycle runs every group in ``groups`` order (default: all the model's groups, DESIGN §3
     order, which is the papers' order: scale factors, biases, installation angles, nonlinear terms).
-    Cycles repeat until one lowers the best cost by less than ``rtol`` relative, or ``max_cycles``.
+    Cycles repeat until one lowers the best cost by less than ``rtol`` relative, or ``max_cycles``. A
+    stochastic inner solver with a small stage budget can fail to improve in a cycle by chance (a
+    metaheuristic restarts its step sizes in every stage), which that rule reads as convergence; give it
+    ``rtol=0`` to run all ``max_cycles``.
 
     Budget (the total is shared: evaluations, time and target are the problem's). ``split="equal"``:
     each stage gets an equal share of what is left, ``left // (stages not yet run, up to max_cycles)``,
