@@ -2,7 +2,9 @@
 
 2015 paper §5.3.2 and §6.2: "100-time MCS is conducted after the single NAFSA to bring in the random
 factors", and the mean of the runs is taken as the estimate, with the standard deviation of the runs as
-"an indicator for representing the stability of the estimates" (its Table 3, last column).
+"an indicator for representing the stability of the estimates" (its Table 3, last column). Its
+Algorithm 1 (§5.3.2) takes the mean within each of the four phases, which is ``staged:mcs:nafsa``;
+``mcs:staged:nafsa`` averages whole four-stage runs instead. Both compose through the registry.
 """
 
 from __future__ import annotations
