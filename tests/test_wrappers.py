@@ -223,6 +223,11 @@ def test_mcs_of_a_deterministic_solver_and_its_options():
     assert s.default_budget == 4 * solvers.get("scipy-lm").default_budget + 1
     with pytest.raises(InputError, match="runs"):
         solvers.get("mcs:scipy-lm", runs=0)
+    # The 2015 paper's Algorithm 1 (the mean within each phase) composes as staged:mcs:<inner>.
+    nested = solvers.get("staged:mcs:scipy-lm", max_cycles=1, **{"inner.runs": 2})
+    assert nested.name == "staged:mcs:scipy-lm" and nested.inner.config["runs"] == 2
+    r = nested.solve(problem(), rng=0)
+    assert [st["message"] for st in r.extra["stages"]] == ["2 runs done"] * 4 and r.fun < p.cost(p.x0)
 
 
 def test_mcs_budget_runs_out_before_the_runs():
