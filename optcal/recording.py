@@ -617,7 +617,8 @@ def positions_from_args(args, path) -> PositionsData:
     rec = read_recording(path, getattr(args, "columns", None), getattr(args, "rate", None),
                          getattr(args, "units", "g") or "g", saturation=getattr(args, "saturation", None),
                          labels=labels)
-    model = get_model(getattr(args, "model", None) or "diag6")
+    # the model the positions are for: calibrate's --model, discover's --base
+    model = get_model(getattr(args, "model", None) or getattr(args, "base", None) or "diag6")
     kw = {"window_s": getattr(args, "window", 1.0), "min_static_s": getattr(args, "min_static", 1.0),
           "init_s": getattr(args, "init_s", 2.0)}
     if getattr(args, "intervals", None):
