@@ -475,8 +475,8 @@ def _candidates(model: Model, candidates) -> list[str]:
     return [t for t in out if t not in model.terms]
 
 
-def discover(data: PositionsData, base: str | Model = "linear9", candidates=None, *, g_local: float = 1.0,
-             alpha: float = DEFAULT_ALPHA, bic_threshold: float = DEFAULT_BIC_THRESHOLD,
+def discover(data: PositionsData, base: str | Model = "linear9", candidates=None, g_local: float = 1.0,
+             alpha: float = DEFAULT_ALPHA, bic_threshold: float = DEFAULT_BIC_THRESHOLD, *,
              noise_g: float | None = None, max_steps: int | None = None, solver: str = "scipy-lm",
              budget: int = 2000) -> DiscoveryReport:
     """Forward selection of the missing terms (see the module docstring for the tests).

@@ -221,7 +221,7 @@ def test_report_dict_and_figure(tmp_path):
     effects = {"cubic": effect("cubic", 2e-4), "temperature_bias": effect("temperature_bias", 5e-6)}
     _, data = hidden(effects, "36", 0, columns=True)
     rep = discover(data, noise_g=NOISE)
-    d = json.loads(json.dumps(rep.to_dict()))
+    d = json.loads(json.dumps(rep.to_dict(), allow_nan=False))
     assert d["base"] == "linear9" and d["final_terms"] == list(rep.final_model.terms)
     assert d["final_terms"][-2:] == ["cubic", "temperature_bias"]
     assert [s["added"] for s in d["steps"]] == rep.added
@@ -284,3 +284,20 @@ def test_cli_bad_input_is_one_line(tmp_path, capsys, argv, match):
     assert main(["discover", str(csv), *argv]) == 2
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and match in err and "Traceback" not in err
+
+
+REAL = "/work/shared/data/real/mpu6050/example_data_calibration.csv"
+
+
+@pytest.mark.skipif(not __import__("os").path.exists(REAL), reason="real recordings not present")
+def test_cli_runs_end_to_end_on_a_real_recording(capsys):
+    # ImuCalibration's MPU-6050 recording (MIT licence): about ten poses in int16 counts at 100 Hz
+    assert main(["discover", REAL, "--raw", "--units", "counts", "--columns", "ax,ay,az", "--base", "diag6",
+                 "--json"]) == 0
+    out = json.loads(capsys.readouterr().out)
+    assert out["base"] == "diag6" and out["n_residuals"] >= 7
+    assert out["noise_floor_g"] > 0  # the positions carry n and sx, sy, sz
+    # scale and bias alone leave about twice the noise floor of the position means: the χ² test says so,
+    # and with one residual degree of freedom per candidate no term reaches significance
+    assert out["verdict"] == REMAINS and out["rms_initial_g"] > 1.5 * out["noise_floor_g"]
+    assert out["steps"] == [] and out["chi2"]["p_value"] < 1e-6

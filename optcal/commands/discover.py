@@ -46,6 +46,10 @@ def run(args) -> int:
     if args.json:
         print(json.dumps(report.to_dict(), indent=2))
     else:
+        if isinstance(data.extra, dict) and data.extra.get("detection") is not None:
+            from ..recording import describe_detection
+
+            print(describe_detection(data))
         print(report.summary())
         if args.plot:
             print(f"wrote {args.plot}")
