@@ -53,7 +53,7 @@ RATE_KEYS = ("fs", "rate", "sample rate", "sampling rate", "sample_rate", "sampl
 INT16_RAILS = (-32768.0, 32767.0)
 SNIFF_LINES = 200
 DEFAULT_KS = tuple(float(k) for k in range(2, 11))  # imu_tk's threshold multipliers
-NO_REST_RATIO = 20.0  # initial-rest variance this many times the quietest window: not at rest
+NO_REST_RATIO = 20.0  # initial-rest variance this many times the quietest windows': not at rest
 
 
 # -- reading -----------------------------------------------------------------------------------------
@@ -356,7 +356,10 @@ def variance_statistic(N: np.ndarray, window: int) -> np.ndarray:
     X = np.ascontiguousarray((N - N.mean(axis=0)).T)
     m = uniform_filter1d(X, window, axis=1, mode="nearest")
     m2 = uniform_filter1d(X * X, window, axis=1, mode="nearest")
-    var = np.maximum(m2 - m * m, 0.0)
+    var = m2 - m * m
+    # Below this the difference is rounding of the running sums, not signal: a window of constant
+    # (quantised) samples must come out exactly 0.
+    var[var < 1e-12 * float(np.mean(X * X))] = 0.0
     s = np.sqrt(np.einsum("ij,ij->j", var, var))
     s[:h] = np.nan
     s[n - h:] = np.nan
@@ -408,15 +411,21 @@ class _Detector:
             )
         stat = variance_statistic(rec.N, w)
         init_var = float(np.linalg.norm(rec.N[:n_init].var(axis=0)))
-        quiet = float(np.nanmin(stat))
-        if init_var > NO_REST_RATIO * max(quiet, np.finfo(float).tiny):
+        # The level of the quietest windows: the 1st percentile of those with any variance at all (a
+        # quantised sensor can hold a window exactly constant, which says nothing about its noise, and
+        # a window with one changed sample is not a noise level either).
+        moving = stat[stat > 0]
+        if not moving.size:
+            raise InputError(f"{rec.path}: the outputs never change; this is not a recording of a sensor being turned")
+        quiet = float(np.percentile(moving, 1.0))
+        if init_var > NO_REST_RATIO * quiet:
             raise InputError(
                 f"{rec.path}: the first {init_s:g} s are not at rest (their variance is "
-                f"{init_var / max(quiet, 1e-300):.3g} × that of the quietest window); start the recording "
+                f"{init_var / quiet:.3g} × that of the quietest windows); start the recording "
                 "with the sensor still, or set the rest period with --init-s"
             )
         if init_var == 0.0:
-            init_var = quiet if quiet > 0 else np.finfo(float).tiny  # a quantised, perfectly still start
+            init_var = quiet  # a quantised, perfectly still start: the finest variance seen sets the scale
         return cls(rec, w, _samples(rec, min_static_s, "--min-static"), n_init, init_var, stat)
 
     def intervals(self, k: float, notes: list[str]) -> np.ndarray:

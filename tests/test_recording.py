@@ -417,6 +417,19 @@ def test_bad_input_ms2_declared_as_counts(tmp_path, rec24, capsys):
     assert code == 2 and "looks like m/s²" in err and "--units m/s2" in err
 
 
+def test_quantised_still_start_and_constant_recording(tmp_path, rec24, capsys):
+    _, t, N, spans, _ = rec24
+    N = N.copy()
+    N[: spans[0, 1]] = N[0]  # a coarse ADC holds the first rest exactly constant: ς_init = 0
+    rec = read_recording(write(tmp_path / "still.csv", t, N), units="counts")
+    det = detect_static(rec, k=4)
+    assert det.init_variance > 0 and det.n_intervals == 24
+    const = np.tile(N[:1], (2000, 1))
+    code, err = _cli(["calibrate", write(tmp_path / "const.csv", t[:2000], const), "--raw", "--units", "counts"],
+                     capsys)
+    assert code == 2 and "never change" in err
+
+
 def test_load_positions_uses_the_raw_path(rec24):
     import argparse
 
