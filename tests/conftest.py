@@ -1,3 +1,5 @@
+from pathlib import Path
+
 import matplotlib
 import numpy as np
 import pytest
@@ -8,3 +10,6 @@ matplotlib.use("Agg")
 @pytest.fixture
 def rng():
     return np.random.default_rng(12345)
+
+# The shared data folder sits beside the repository (../shared), on a developer's machine and in CI.
+REAL_DATA = Path(__file__).resolve().parents[2] / "shared" / "data" / "real"

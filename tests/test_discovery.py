@@ -3,6 +3,7 @@ it, and the residual shrinks to what the true model leaves; on data without one 
 
 import dataclasses
 import json
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -286,7 +287,8 @@ def test_cli_bad_input_is_one_line(tmp_path, capsys, argv, match):
     assert err.count("\n") == 1 and match in err and "Traceback" not in err
 
 
-REAL = "/work/shared/data/real/mpu6050/example_data_calibration.csv"
+REAL = str(Path(__file__).resolve().parents[2] / "shared" / "data" / "real" / "mpu6050"
+           / "example_data_calibration.csv")
 
 
 @pytest.mark.skipif(not __import__("os").path.exists(REAL), reason="real recordings not present")

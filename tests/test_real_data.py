@@ -28,7 +28,7 @@ from optcal.recording import (
     read_recording,
 )
 
-REAL = Path("/work/shared/data/real")
+REAL = Path(__file__).resolve().parents[2] / "shared" / "data" / "real"
 IMUCAL, MPU = REAL / "imucal", REAL / "mpu6050"
 POSES = ["x_p", "x_a", "y_p", "y_a", "z_p", "z_a"]
 G_IMUCAL = 9.81  # imucal's Ferraris calibration assumes |g| = 9.81 m/s² (reproduced exactly below)

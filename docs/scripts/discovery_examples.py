@@ -21,7 +21,7 @@ from optcal.discovery import discover
 from optcal.errors import InputError
 from optcal.presets import draw_truth
 
-REAL = Path("/work/shared/data/real")
+REAL = Path(__file__).resolve().parents[3] / "shared" / "data" / "real"
 
 
 def halves(detection: rc.DetectionResult) -> np.ndarray:
