@@ -125,9 +125,18 @@ def _layout(path: Path) -> _Layout:
         start -= 1
     header = None
     before = rows[:start]
-    if before and len(before[-1][1]) == ref[0]:
+    # A header has text wherever the data have numbers; a line with the data's width and numbers in it is
+    # a data row that does not parse (an empty or text cell), and must not be skipped silently.
+    if before and len(before[-1][1]) == ref[0] and not any(
+            d and _is_number(x) for x, d in zip(before[-1][1], ref[1])):
         header = before[-1][1]
         before = before[:-1]
+    for i, f in reversed(before):  # the last such line is the one that breaks the run of data rows
+        if len(f) == ref[0] and any(_is_number(x) for x in f):
+            raise InputError(
+                f"{path}: line {i + 1} ({','.join(f)}) has the width of a data row but not its numbers "
+                "(an empty or text cell?); fix or remove it"
+            )
     meta = {f[0].strip().lower(): f[1].strip() for _, f in before if len(f) >= 2}
     return _Layout(delim, rows[start][0], ref[0], ref[1], header, meta, rows[start][1])
 

@@ -383,6 +383,11 @@ def test_bad_input_non_numeric_and_nan(tmp_path, rec24, capsys):
     (tmp_path / "text.csv").write_text("\n".join(lines) + "\n")
     code, err = _cli(["calibrate", str(tmp_path / "text.csv"), "--raw", "--units", "counts"], capsys)
     assert code == 2 and "abc" in err
+    lines[3] = "0.02,12,,16000"  # an empty cell among the first rows: an error, not a skipped preamble
+    (tmp_path / "empty_cell.csv").write_text("\n".join(lines) + "\n")
+    code, err = _cli(["calibrate", str(tmp_path / "empty_cell.csv"), "--raw", "--units", "counts"], capsys)
+    assert code == 2 and "line 4" in err and "empty or text cell" in err
+    lines[3] = "0.02,12,13,16000"
     lines[200] = "1.99,12,nan,16000"
     (tmp_path / "nan.csv").write_text("\n".join(lines) + "\n")
     code, err = _cli(["calibrate", str(tmp_path / "nan.csv"), "--raw", "--units", "counts"], capsys)
