@@ -2,8 +2,9 @@
 
 The problem is the conformance suite's setting: ``nonlinear12``, truth drawn with a fixed seed, 10 µg
 noise per axis, manufacturer presets as start and search centre; each solver gets its default budget
-(at most 20 000 evaluations) and seed 1. A solver with a ``warm_up(problem)`` step (casadi-ipopt builds
-its NLP there) is warmed up outside the timed call.
+(at most 20 000 evaluations; at most 2 000 when timing is disabled, as under `make test`) and seed 1.
+A solver with a ``warm_up(problem)`` step (casadi-ipopt builds its NLP there) is warmed up outside the
+timed call.
 
 extra_info per solver: final cost and its relative gap to scipy-lm's optimum, evaluations, iterations,
 success, and the verification error of the 2020 paper (§5.1, its Table 5): on an independent 36-position
@@ -26,6 +27,7 @@ from optcal.simulate import simulate
 
 SEED = 20240611
 CAP = 20_000
+QUICK = 2_000
 WRAPPED = {"staged:scipy-lm": {}, "mcs:scipy-lm": {"runs": 10}}
 NAMES = sorted(set(solvers.names()) | set(WRAPPED))
 
@@ -60,20 +62,24 @@ def test_bench_solver(benchmark, name):
     problem = CalibrationProblem("nonlinear12", sim.data, presets=presets)
     if hasattr(inner, "warm_up"):
         inner.warm_up(problem)
-    budget = CAP if solver.default_budget is None else min(solver.default_budget, CAP)
+    # Timed (`make bench`): the solver's default budget. Untimed (`make test`): at most QUICK evaluations,
+    # enough to check the run end to end without a second full accuracy run next to the conformance suite.
+    cap = QUICK if benchmark.disabled else CAP
+    budget = cap if solver.default_budget is None else min(solver.default_budget, cap)
     res = benchmark.pedantic(solver.solve, args=(problem,), kwargs={"budget": budget, "rng": 1},
                              rounds=1, iterations=1)
     start = problem.to_full(problem.x0)[0]
     info = {
         "solver": name, "family": inner.family, "cost": res.fun, "gap": (res.fun - ref.fun) / ref.fun,
-        "nfev": res.nfev, "nit": res.nit, "success": res.success, "runtime_s": res.runtime_s,
+        "budget": budget, "nfev": res.nfev, "nit": res.nit, "success": res.success, "runtime_s": res.runtime_s,
         "verification_error_ug": verification_error_ug(verify, res.x_full),
         "calibration_error_ug": verification_error_ug(exact, res.x_full),
         "presets_verification_error_ug": verification_error_ug(verify, start),
     }
     benchmark.extra_info.update(info)
     print(" ".join(f"{k}={v:.4g}" if isinstance(v, float) else f"{k}={v}" for k, v in info.items()))
-    assert res.success and np.isfinite(res.fun) and res.nfev <= budget
+    # success is recorded, not asserted: the conformance suite judges it; the benchmark measures.
+    assert np.isfinite(res.fun) and res.nfev <= budget
     # No solver may hand back something worse than where it started.
     assert res.fun <= CalibrationProblem("nonlinear12", sim.data, presets=presets).cost(problem.x0)
     assert np.isfinite(info["verification_error_ug"])
