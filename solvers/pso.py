@@ -1,0 +1,73 @@
+"""Global-best particle swarm optimisation with Clerc-Kennedy constriction, synchronous and vectorised
+(``docs/ALGORITHMS.md`` §PSO)."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .bas import finite_costs, normalised_start
+from .base import Option, Solver, positive
+from .registry import register
+
+
+@register
+class PSO(Solver):
+    """Global-best PSO (Kennedy & Eberhart 1995) with the constriction coefficients of Clerc & Kennedy
+    (2002, "The particle swarm — explosion, stability, and convergence", IEEE TEC 6(1)):
+    χ = 0.7298 and c1 = c2 = χ·2.05 = 1.49618, in the inertia form of Bratton & Kennedy (2007):
+
+        v = w·v + c1·r1 ⊙ (p − x) + c2·r2 ⊙ (g − x);  x = clip(x + v),   r1, r2 ~ U(0, 1) fresh each step.
+
+    Synchronous: the whole swarm moves, is evaluated in one batched call, then personal bests p update
+    on strict improvement and the global best g is taken over them. A non-finite cost counts as +inf.
+    ``v_clamp`` (optional) limits each velocity component to that fraction of the box width.
+
+    The swarm lives in the problem's unit box z ∈ [-1, 1]^n (2020 paper §3.4): particles start uniform
+    in the box, one of them at ``x0`` (the presets or the initialiser), with zero velocity (Engelbrecht
+    2012, "Particle swarm optimization: velocity initialization", CEC: zero initial velocities keep
+    particles from leaving a bounded space early). Evaluations: n_particles per iteration plus the
+    initial swarm.
+    """
+
+    name = "pso"
+    family = "metaheuristic"
+    options = {
+        "n_particles": Option(40, int, "swarm size", check=lambda v: v >= 2, check_doc=">= 2"),
+        "w": Option(0.7298, float, "inertia (constriction) weight", check=lambda v: 0.0 <= v < 1.0,
+                    check_doc="in [0, 1)"),
+        "c1": Option(1.49618, float, "cognitive coefficient", check=lambda v: v >= 0.0, check_doc=">= 0"),
+        "c2": Option(1.49618, float, "social coefficient", check=lambda v: v >= 0.0, check_doc=">= 0"),
+        "iterations": Option(500, int, "number of iterations", check=positive, check_doc="> 0"),
+        "v_clamp": Option(None, float, "maximum speed per coordinate as a fraction of the box width (None: off)",
+                          check=lambda v: v is None or v > 0, check_doc="> 0 or None"),
+    }
+
+    def __init__(self, **options):
+        super().__init__(**options)
+        # Without a budget, exactly what the iterations use: the initial swarm plus one swarm per iteration.
+        self.default_budget = self.config["n_particles"] * (self.config["iterations"] + 1)
+
+    def _solve(self, problem, x0, rng, callback):
+        cfg = self.config
+        w, c1, c2 = cfg["w"], cfg["c1"], cfg["c2"]
+        zp, z0 = normalised_start(problem, x0)
+        n_p, n = cfg["n_particles"], zp.n
+        vmax = None if cfg["v_clamp"] is None else 2.0 * cfg["v_clamp"]  # the box is 2 wide
+        x = rng.uniform(-1.0, 1.0, (n_p, n))
+        x[0] = z0
+        v = np.zeros_like(x)
+        p, f_p = x.copy(), finite_costs(zp.cost_batch(x))
+        g = p[np.argmin(f_p)].copy()
+        for t in range(1, cfg["iterations"] + 1):
+            r1, r2 = rng.random((2, n_p, n))
+            v = w * v + c1 * r1 * (p - x) + c2 * r2 * (g - x)
+            if vmax is not None:
+                np.clip(v, -vmax, vmax, out=v)
+            x = np.clip(x + v, -1.0, 1.0)
+            f = finite_costs(zp.cost_batch(x))
+            improved = f < f_p
+            p[improved], f_p[improved] = x[improved], f[improved]
+            g = p[np.argmin(f_p)].copy()
+            callback(t)
+        return {"nit": cfg["iterations"], "status": 0, "message": "maximum number of iterations reached",
+                "success": True}
