@@ -8,7 +8,9 @@ least-squares models,
 
     F = ((RSS0 − RSS1) / q) / (RSS1 / (m − p1)),   p = P[F(q, m − p1) > F],
 
-with m residuals, p0 and p1 the ranks of the two models (their observable dimensions) and q = p1 − p0.
+with m residuals (the norm residuals e_j = ‖A_j‖ − g_local of the 2020 paper, Eq. 12), p0 and p1 the ranks
+of the two models (their observable dimensions) and q = p1 − p0 (Seber & Wild, *Nonlinear Regression*,
+1989, §5.3: the F-test for nested least-squares models; Schwarz 1978 for BIC).
 With 24 positions and 12–15 parameters the residual degrees of freedom are few, so the asymptotic
 likelihood-ratio χ² test over-fits; the F-test is exact for a linear model with Gaussian noise (and very
 nearly so here, where the noise is small). The likelihood-ratio statistic m·ln(RSS0/RSS1) and the change
@@ -205,7 +207,7 @@ def best_of(scores: list[Score]) -> Score | None:
 
 # -- report ------------------------------------------------------------------------------------
 
-def _sigma(problem: CalibrationProblem, fit: Fit, noise_g: float | None) -> float:
+def _sigma(fit: Fit, noise_g: float | None) -> float:
     if noise_g is not None:
         return noise_g
     return float(np.sqrt(fit.rss / max(fit.problem.n_residuals - fit.rank, 1)))
@@ -326,7 +328,7 @@ class DiscoveryReport:
 
     def final_stderr(self) -> np.ndarray:
         f = self.final
-        sd, _ = crlb(f.problem, f.x, _sigma(f.problem, f, self.noise_g))
+        sd, _ = crlb(f.problem, f.x, _sigma(f, self.noise_g))
         return sd
 
     def to_dict(self) -> dict:
@@ -504,7 +506,7 @@ def discover(data: PositionsData, base: str | Model = "linear9", candidates=None
         if best is None or not (best.p_value < threshold and best.delta_bic < bic_threshold):
             last_round = scores
             break
-        sigma = _sigma(best.fit.problem, best.fit, noise_g if noise_g is not None else current.problem.noise_g)
+        sigma = _sigma(best.fit, noise_g if noise_g is not None else current.problem.noise_g)
         sd, _ = crlb(best.fit.problem, best.fit.x, sigma)
         stderr = {n: float(sd[best.fit.model.index(n)]) for n in TERMS[best.term].params}
         alternatives = [s.term for s in scores if s.tested and s is not best and s.delta_bic < best.delta_bic + 2.0]
