@@ -6,6 +6,7 @@ imports ``solvers`` or ``studies``; where it needs a fit it asks the registry by
 """
 
 from .data import PositionsData, read_positions
+from .discovery import DiscoveryReport, discover
 from .errors import BudgetExhausted, InputError
 from .model import NAMED_MODELS, TERMS, Context, Model, get_model
 from .problem import Budget, CalibrationProblem
@@ -15,5 +16,5 @@ __version__ = "0.1.0"
 
 __all__ = [
     "NAMED_MODELS", "TERMS", "Budget", "BudgetExhausted", "CalibrationProblem", "Context", "InputError", "Model",
-    "PositionsData", "Simulation", "get_model", "read_positions", "simulate",
+    "DiscoveryReport", "PositionsData", "Simulation", "discover", "get_model", "read_positions", "simulate",
 ]
