@@ -36,13 +36,14 @@ class BSAS(Solver):
     leaves details open): antennae at ±d/2 (``antenna.m``); a tie of the antennae counts as sign +1
     (``sign2.m``); the greedy pick is taken when a uniform draw is below p_pos (``Pgreedy``) and the step
     update when a draw is below p_st (``PstepUpdate``); δ and d shrink together (``pupdate.m``); every
-    point is clipped to the box (``bounds.m``). The 2020 paper's values (§4.1: s0 = d0 = 2.22e-16,
-    "MATLAB's minimum resolution") and the toolbox's p_pos = p_st = 0.8, n_flag = 3, η = 0.95 are the
-    defaults; m = 10 is the beetle count whose convergence the 2020 paper's Fig. 3 shows best.
-    ``step_init`` and ``d_init`` are optcal's choices for the unit box, the same as ``bas``'s (the paper's
-    Table 2 did not survive in the stored copy). With ``c`` set, the variant that ties the antenna to the step, d = δ/c
-    (rBAS ``BSAS_WPT``; ALGORITHMS.md's "tuned" variant), replaces d's own schedule: ``d_init``,
-    ``eta_d`` and ``d0`` are then unused.
+    point is clipped to the box (``bounds.m``). The 2020 paper's values (§4.1: minimum resolutions
+    s0 = d0 = 2.22e-16, MATLAB's eps) and the toolbox's p_pos = p_st = 0.8, n_flag = 3, η = 0.95 are the
+    defaults, with one η for step and antenna as the 2020 paper names it (the toolbox allows two);
+    m = 10 is the beetle count whose convergence the 2020 paper's Fig. 3 shows best. ``step_init`` and
+    ``d_init`` are optcal's choices for the unit box, the same as ``bas``'s (the paper's Table 2 did not
+    survive in the stored copy). With ``c`` set, the variant that ties the antenna to the step,
+    d = δ/c (rBAS ``BSAS_WPT``; ALGORITHMS.md's "tuned" variant), replaces d's own schedule: ``d_init``
+    and ``d0`` are then unused.
 
     The search runs in the problem's unit-box coordinates z ∈ [-1, 1]^n from ``x0`` (the presets or the
     initialiser, 2020 paper §3.4). All 2m antennae are one batched evaluation and the m candidate moves
@@ -57,8 +58,8 @@ class BSAS(Solver):
         "step_init": Option(0.03, float, "initial step δ (unit-box units)", check=positive, check_doc="> 0"),
         "d_init": Option(0.03, float, "initial antenna length d (unit-box units)", check=positive,
                          check_doc="> 0"),
-        "eta_step": Option(0.95, float, "step decay η_δ", check=lambda v: 0.0 < v <= 1.0, check_doc="in (0, 1]"),
-        "eta_d": Option(0.95, float, "antenna decay η_d", check=lambda v: 0.0 < v <= 1.0, check_doc="in (0, 1]"),
+        "eta": Option(0.95, float, "decay η of step and antenna (η_δ = η_d, as in the 2020 paper)",
+                      check=lambda v: 0.0 < v <= 1.0, check_doc="in (0, 1]"),
         "s0": Option(2.22e-16, float, "minimum step resolution added at each step update",
                      check=lambda v: v >= 0.0, check_doc=">= 0"),
         "d0": Option(2.22e-16, float, "minimum antenna resolution added at each antenna update",
@@ -102,8 +103,8 @@ class BSAS(Solver):
                 i = int(np.argmin(f_moves)) if rng.random() < cfg["p_pos"] else int(rng.choice(better))
                 z, f_best = moves[i], f_moves[i]
             elif rng.random() < cfg["p_st"] or flag > cfg["n_flag"]:
-                step = cfg["eta_step"] * step + cfg["s0"]
-                d = cfg["eta_d"] * d + cfg["d0"] if c is None else step / c
+                step = cfg["eta"] * step + cfg["s0"]
+                d = cfg["eta"] * d + cfg["d0"] if c is None else step / c
                 flag = 0
             else:
                 flag += 1

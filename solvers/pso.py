@@ -23,7 +23,8 @@ class PSO(Solver):
     ``v_clamp`` (optional) limits each velocity component to that fraction of the box width.
 
     The swarm lives in the problem's unit box z ∈ [-1, 1]^n (2020 paper §3.4): particles start uniform
-    in the box, one of them at ``x0`` (the presets or the initialiser), with zero velocity (Engelbrecht
+    in the box, one of them at ``x0`` (the presets or the initialiser; ``init="uniform"`` leaves it out),
+    with zero velocity (Engelbrecht
     2012, "Particle swarm optimization: velocity initialization", CEC: zero initial velocities keep
     particles from leaving a bounded space early). Evaluations: n_particles per iteration plus the
     initial swarm.
@@ -40,6 +41,8 @@ class PSO(Solver):
         "iterations": Option(500, int, "number of iterations", check=positive, check_doc="> 0"),
         "v_clamp": Option(None, float, "maximum speed per coordinate as a fraction of the box width (None: off)",
                           check=lambda v: v is None or v > 0, check_doc="> 0 or None"),
+        "init": Option("start", str, "initial swarm: uniform in the box with x0 as one particle ('start') or "
+                       "without it ('uniform')", choices=("start", "uniform")),
     }
 
     def __init__(self, **options):
@@ -54,7 +57,8 @@ class PSO(Solver):
         n_p, n = cfg["n_particles"], zp.n
         vmax = None if cfg["v_clamp"] is None else 2.0 * cfg["v_clamp"]  # the box is 2 wide
         x = rng.uniform(-1.0, 1.0, (n_p, n))
-        x[0] = z0
+        if cfg["init"] == "start":
+            x[0] = z0
         v = np.zeros_like(x)
         p, f_p = x.copy(), finite_costs(zp.cost_batch(x))
         g = p[np.argmin(f_p)].copy()

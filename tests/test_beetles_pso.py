@@ -273,6 +273,9 @@ def test_works_on_a_restricted_view_as_the_stages_do(name):
         ("bas", {"step_init": 0.0}, "option step_init=0.0 is invalid"),
         ("pso", {"n_particles": 1}, "option n_particles=1 is invalid"),
         ("pso", {"v_clamp": 0.0}, "option v_clamp=0.0 is invalid"),
+        ("pso", {"init": "latin"}, "choose one of start, uniform"),
+        ("bsas", {"eta": 0.0}, "option eta=0.0 is invalid"),
+        ("bsas", {"eta_d": 0.9}, "unknown option"),
     ],
 )
 def test_bad_options_are_refused(name, options, match):
@@ -343,6 +346,14 @@ def test_bsas_stops_when_the_step_falls_below_its_tolerance():
     res = solvers.get("bsas", m=2, iterations=10_000, step_tol=0.05).solve(unit_problem(), budget=100_000, rng=0)
     assert res.status == 0 and "below step_tol" in res.message
     assert res.extra["step"] < 0.05 and res.nit < 10_000 and res.nfev == 1 + 6 * res.nit
+
+
+def test_pso_uniform_init_leaves_the_start_out():
+    problem = paper_problem(7, Spy)
+    problem.calls = []
+    solvers.get("pso", n_particles=6, iterations=1, init="uniform").solve(problem, rng=9)
+    assert np.abs(problem.calls[0]).min(axis=1).max() > 0  # no particle at z = 0
+    assert np.abs(problem.calls[0]).max() <= 1.0
 
 
 def test_pso_starts_from_x0_and_clamps_velocity():
