@@ -35,14 +35,22 @@ no second copy of the sensor equations.
   nothing more. Past the budget a gate returns NaN, which Ipopt treats as a failed evaluation, and then
   stops. One evaluation is kept back: Ipopt's final point is evaluated through the problem, so the best
   point is tracked and the reported cost is the problem's own.
+* **Stopping.** Ipopt stops on its gradient test (``tol``, on the objective scaled to 1 at the start) or
+  a tiny step (``step_tol``). Near the optimum the cost itself cannot confirm a Gauss-Newton step (the
+  residuals ‖A‖ − g ≈ 1e-5 g carry ~1e-16 g of rounding, so relative cost changes below ~1e-11 are noise),
+  and without constraints Ipopt's backtracking has no lower limit on the step; a line search that finds
+  no decrease in :data:`MAX_TRIALS` trials therefore ends the solve, as converged when the step it was
+  trying was below :data:`STALL_STEP` half-widths.
 """
 
 from __future__ import annotations
 
+import threading
 import time
 
 import numpy as np
 
+from optcal.errors import BudgetExhausted
 from optcal.model import AXES, Context, Model
 
 from .base import Option, Solver, positive
@@ -244,7 +252,8 @@ def build(problem, options: dict) -> dict:
                        {"grad_f": grad_f, "hess_lag": hess_lag, "print_time": False, "ipopt": ipopt,
                         "error_on_fail": False, "calc_lam_p": False, "calc_lam_x": False,
                         "show_eval_warnings": False})
-    entry = {"solver": solver, "state": state, "gates": gates, "funs": funs}
+    # the gates share one state per cached solver: one solve at a time on it
+    entry = {"solver": solver, "state": state, "gates": gates, "funs": funs, "lock": threading.Lock()}
     _CACHE[key] = entry
     return entry
 
@@ -301,10 +310,14 @@ class CasadiIpopt(Solver):
             problem.cost(x0)
             return {"nit": 0, "status": 1, "success": True,
                     "message": "evaluation budget used up (too small for Ipopt; returned the start)"}
+        with entry["lock"]:
+            return self._run(problem, x0, entry, left, callback)
+
+    def _run(self, problem, x0, entry, left, callback):
+        counter, budget = problem.counter, problem.counter.budget
         state = entry["state"]
         state.update(left=left, w=None, refused=0, H=(None, None), trials=0, step=np.inf, stop="",
-                     best=(np.inf, None),
-                     calls={"f": 0, "grad": 0, "hess": 0, "jac": 0},
+                     best=(np.inf, None), calls={"f": 0, "grad": 0, "hess": 0, "jac": 0},
                      deadline=None if budget.max_time is None else counter.t0 + budget.max_time)
         c, h = problem.centre, problem.halfwidth
         z0 = (problem.to_full(x0)[0] - c) / h
@@ -322,7 +335,13 @@ class CasadiIpopt(Solver):
         # The lowest point Ipopt evaluated (its last iterate, unless it stopped on a refused trial) is
         # evaluated through the problem: the evaluation kept back, and the best point tracked.
         z = state["best"][1] if state["best"][1] is not None else np.asarray(res["x"], float).ravel()
-        problem.cost(problem.from_full(c + h * z))
+        x = problem.from_full(c + h * z)
+        try:
+            problem.cost(x)
+        except BudgetExhausted:  # a time budget ran out inside Ipopt: the kept evaluation is still made
+            X = problem.to_full(x)
+            f = float(np.sum(problem.residuals_full(X) ** 2))
+            counter.record(np.array([f if np.isfinite(f) else np.nan]), X)
         nit = int(st["iter_count"])
         callback(nit)
         status = st["return_status"]

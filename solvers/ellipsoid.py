@@ -189,10 +189,16 @@ class Ellipsoid(Solver):
         "polish": Option(True, bool, "solve the KKT system when the semidefinite constraint is inactive"),
     }
 
+    def start_point(self, problem, x0):
+        """The fit itself (the method needs no starting point; ``x0`` is ignored). Done here, before the
+        run, so that data which cannot be an ellipsoid are refused with an InputError (one line from the
+        CLI) rather than reported as a failed run."""
+        self._fit = _fit_problem(problem, self.config["solver"], self.config["polish"])
+        return problem.from_full(fit_to_vector(problem.model, self._fit))
+
     def _solve(self, problem, x0, rng, callback):
-        fit = _fit_problem(problem, self.config["solver"], self.config["polish"])
-        x_full = fit_to_vector(problem.model, fit)
-        problem.cost(problem.from_full(x_full))
+        fit = self._fit
+        problem.cost(x0)
         callback(1)
         others = [n for t in problem.model.terms if t not in LINEAR for n in _term_params(t)]
         how = f"convex ellipsoid fit ({fit['solver']}{', polished' if fit['polished'] else ''})"
