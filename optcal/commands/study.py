@@ -1,0 +1,44 @@
+"""``optcal study run SPEC`` and ``optcal study report DIR``: Monte-Carlo comparison studies (DESIGN §7).
+
+``optcal`` never imports ``studies`` at import time: the package is loaded inside :func:`run`.
+"""
+
+from __future__ import annotations
+
+HELP = "run a comparison study from a TOML spec, or write a study folder's report"
+
+
+def add_arguments(parser) -> None:
+    sub = parser.add_subparsers(dest="study_command", required=True, metavar="{run,report}")
+    r = sub.add_parser("run", help="run a study spec (a path, or a shipped spec: compare, bsas2020, nafsa2015, "
+                                   "traditional, ci); finished trials in --out are skipped",
+                       description="Run a study spec into a folder; a killed study resumes where it stopped.")
+    r.add_argument("spec", metavar="SPEC", help="spec file, or the name of a shipped spec")
+    r.add_argument("--out", metavar="DIR", help="output folder (default out/<spec name>)")
+    r.add_argument("--executor", choices=("serial", "processes", "dask"), help="default: the spec's")
+    r.add_argument("--workers", type=int, metavar="N", help="worker processes (processes, dask)")
+    r.add_argument("--scheduler", metavar="ADDRESS", help="an existing Dask scheduler, e.g. tcp://host:8786")
+    r.add_argument("--quick", action="store_true", help="the spec's quick variant (quick_runs runs)")
+    r.add_argument("--runs", type=int, metavar="N", help="override the number of Monte-Carlo runs")
+    r.add_argument("--limit", type=int, metavar="N", help="run at most N pending trials, then stop")
+    r.add_argument("--no-report", action="store_true", help="do not write report.md at the end")
+    r.add_argument("--no-progress", action="store_true", help="no progress bar")
+    p = sub.add_parser("report", help="write report.md, figures and summary.json for a study folder",
+                       description="Write report.md, parameters.md, summary.json and figures/ for a study folder.")
+    p.add_argument("dir", metavar="DIR", help="a study folder (holding study.sqlite)")
+
+
+def run(args) -> int:
+    from optcal.errors import InputError
+
+    try:
+        from studies import cli
+    except ImportError as exc:  # pragma: no cover - one distribution installs both packages
+        raise InputError(f"the studies package is not installed ({exc}); reinstall optcal") from None
+    if args.study_command == "run":
+        if args.runs is not None and args.runs < 1:
+            raise InputError(f"--runs must be at least 1, got {args.runs}")
+        if args.limit is not None and args.limit < 0:
+            raise InputError(f"--limit must be non-negative, got {args.limit}")
+        return cli.run(args)
+    return cli.report(args)

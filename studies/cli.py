@@ -1,0 +1,40 @@
+"""The ``optcal study`` command's work: ``run`` a spec into a folder (then write its report), ``report``."""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+from .execute import run_study
+from .report import write_report
+from .spec import load
+
+
+def default_folder(spec) -> Path:
+    return Path("out") / spec.name
+
+
+def run(args) -> int:
+    spec = load(args.spec)
+    if args.quick:
+        spec = spec.quick()
+    if args.runs is not None:
+        spec = spec.with_runs(args.runs)
+    folder = Path(args.out) if args.out else default_folder(spec)
+    total = spec.runs * len(spec.models) * len(spec.schemes) * len(spec.solvers)
+    print(f"study {spec.name}: {len(spec.solvers)} solver configurations × {len(spec.models)} model(s) × "
+          f"{len(spec.schemes)} scheme(s) × {spec.runs} runs = {total} trials -> {folder}", file=sys.stderr)
+    s = run_study(spec, folder, executor=args.executor, workers=args.workers, scheduler=args.scheduler,
+                  progress=None if not args.no_progress else False, limit=args.limit)
+    print(f"study {spec.name}: ran {s.ran} trials ({s.failed} failed), skipped {s.skipped} already stored, "
+          f"in {s.wall_s:.1f} s with {s.executor}" + (f" ×{s.workers}" if s.executor != "serial" else ""))
+    if not args.no_report:
+        out = write_report(folder)
+        print(f"report: {out}")
+    return 0
+
+
+def report(args) -> int:
+    out = write_report(args.dir)
+    print(f"report: {out}")
+    return 0

@@ -1,0 +1,162 @@
+"""Running a study: executors (serial, a local process pool, Dask distributed), the store, progress.
+
+Workers only compute: each trial returns its row to the coordinating process, which writes it to the
+store the moment it arrives. Trials carry their own seeds (:mod:`studies.trial`), so the executor, the
+number of workers and the order of completion change nothing but the wall time.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import sys
+import time
+from collections.abc import Iterator
+from concurrent.futures import ProcessPoolExecutor, as_completed
+from contextlib import contextmanager
+from dataclasses import asdict, dataclass
+from pathlib import Path
+
+from optcal.errors import InputError
+
+from .spec import EXECUTORS, Spec
+from .store import Store
+from .trial import Trial, run_trial, trials
+
+# One BLAS thread per worker: the workers already use every core, and oversubscribed BLAS pools
+# only make them fight (dask's nanny sets the same variables for its workers).
+_SINGLE_THREAD = {k: "1" for k in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS")}
+
+
+@contextmanager
+def _env(values: dict):
+    old = {k: os.environ.get(k) for k in values}
+    os.environ.update(values)
+    try:
+        yield
+    finally:
+        for k, v in old.items():
+            if v is None:
+                os.environ.pop(k, None)
+            else:
+                os.environ[k] = v
+
+
+def _serial(tasks: list[Trial], workers: int, scheduler: str) -> Iterator[dict]:
+    for t in tasks:
+        yield run_trial(t)
+
+
+def _processes(tasks: list[Trial], workers: int, scheduler: str) -> Iterator[dict]:
+    import multiprocessing as mp
+
+    # spawn: workers start clean (no inherited threads or locks from the coordinator)
+    with _env(_SINGLE_THREAD):
+        pool = ProcessPoolExecutor(max_workers=workers, mp_context=mp.get_context("spawn"))
+    try:
+        futures = [pool.submit(run_trial, t) for t in tasks]
+        for f in as_completed(futures):
+            yield f.result()
+    finally:
+        pool.shutdown(wait=True, cancel_futures=True)
+
+
+def _dask(tasks: list[Trial], workers: int, scheduler: str) -> Iterator[dict]:
+    try:
+        from dask.distributed import Client, LocalCluster
+        from dask.distributed import as_completed as dask_completed
+    except ImportError:  # pragma: no cover - a runtime dependency
+        raise InputError("executor dask needs dask[distributed]; install it with pip") from None
+    cluster = None
+    if scheduler:
+        try:
+            client = Client(scheduler, timeout="30s")
+        except OSError as exc:
+            raise InputError(f"cannot reach the Dask scheduler at {scheduler} ({exc})") from None
+    else:
+        cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True, dashboard_address=None)
+        client = Client(cluster)
+    try:
+        futures = [client.submit(run_trial, t, key=f"trial-{i}-{t.id}", pure=False) for i, t in enumerate(tasks)]
+        for f in dask_completed(futures):
+            yield f.result()
+            f.release()
+    finally:
+        client.close()
+        if cluster is not None:
+            cluster.close()
+
+
+EXECUTOR_FUNCS = {"serial": _serial, "processes": _processes, "dask": _dask}
+
+
+@dataclass
+class RunSummary:
+    folder: str
+    spec_hash: str
+    total: int
+    skipped: int
+    ran: int
+    failed: int
+    wall_s: float
+    executor: str
+    workers: int
+
+
+def _progress(total: int, enabled: bool | None):
+    from tqdm import tqdm
+
+    return tqdm(total=total, unit="trial", file=sys.stderr, disable=None if enabled is None else not enabled,
+                dynamic_ncols=True, smoothing=0.05)
+
+
+def spec_json(spec: Spec) -> str:
+    return json.dumps({**spec.canonical(), "description": spec.description}, sort_keys=True)
+
+
+def run_study(spec: Spec, folder: str | Path, *, executor: str | None = None, workers: int | None = None,
+              scheduler: str | None = None, progress: bool | None = None, limit: int | None = None) -> RunSummary:
+    """Run every trial of ``spec`` not yet in ``folder``'s store; return a summary of this session.
+
+    ``progress=None`` shows the bar only on a terminal. ``limit`` runs at most that many pending trials
+    (for tests and partial runs).
+    """
+    ex = executor or spec.executor["kind"]
+    if ex not in EXECUTORS:
+        raise InputError(f"unknown executor {ex!r}; use one of {', '.join(EXECUTORS)}")
+    nw = int(workers or spec.executor["workers"])
+    if nw < 1:
+        raise InputError(f"--workers must be at least 1, got {nw}")
+    sched = scheduler if scheduler is not None else spec.executor.get("scheduler", "")
+    if sched and ex != "dask":
+        raise InputError("--scheduler is for --executor dask")
+    all_trials = trials(spec)
+    t0 = time.perf_counter()
+    with Store(folder, spec.hash, spec_json(spec)) as store:
+        done = store.finished()
+        pending = [t for t in all_trials if t.id not in done]
+        if limit is not None:
+            pending = pending[:limit]
+        ran = failed = 0
+        bar = _progress(len(pending), progress)
+        try:
+            if pending:
+                for row in EXECUTOR_FUNCS[ex](pending, nw, sched):
+                    store.write(row)
+                    ran += 1
+                    failed += row["status"] == "failed"
+                    bar.update(1)
+                    if failed:
+                        bar.set_postfix(failed=failed, refresh=False)
+        finally:
+            bar.close()
+            wall = time.perf_counter() - t0
+            store.add_session({"executor": ex, "workers": nw if ex != "serial" else 1, "trials": ran,
+                               "wall_s": wall, "ended": time.strftime("%Y-%m-%d %H:%M:%S")})
+        store.export()
+        return RunSummary(str(folder), spec.hash, len(all_trials), len(done), ran, failed, wall, ex,
+                          nw if ex != "serial" else 1)
+
+
+def summary_json(s: RunSummary) -> str:
+    return json.dumps(asdict(s))

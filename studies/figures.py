@@ -1,0 +1,207 @@
+"""The report's figures (matplotlib, Agg backend), after the 2020 paper's: final cost per run (Figures 5
+and 6), convergence curves (Figure 4), verification error per position (Figure 9), static navigation
+error (Figure 11); plus error against the Cramér-Rao bound and accuracy against runtime."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from .metrics import Group
+
+MAX_LINES = 10  # solvers drawn on per-solver line charts (the most accurate ones)
+
+
+def _plt():
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    return plt
+
+
+def _style(i: int) -> dict:
+    import matplotlib
+
+    cmap = matplotlib.colormaps["tab10"]
+    return {"color": cmap(i % 10), "linestyle": ("-", "--", ":", "-.")[(i // 10) % 4]}
+
+
+def best(groups: list[Group], n: int = MAX_LINES) -> list[Group]:
+    """The n most accurate groups (reference calibrations always kept), in their original order."""
+    ranked = sorted(groups, key=lambda g: (np.nan_to_num(g.accuracy, nan=np.inf)))
+    keep = {id(g) for g in ranked[:n]} | {id(g) for g in groups if g.reference}
+    return [g for g in groups if id(g) in keep]
+
+
+def _save(fig, path: Path) -> Path:
+    fig.savefig(path, dpi=110, bbox_inches="tight")
+    _plt().close(fig)
+    return path
+
+
+def cost_per_run(groups: list[Group], title: str, path: Path) -> Path:
+    """Final cost of every run, one panel per solver (2020 paper, Figures 5 and 6)."""
+    plt = _plt()
+    n = len(groups)
+    ncol = min(4, n)
+    nrow = int(np.ceil(n / ncol))
+    fig, axes = plt.subplots(nrow, ncol, figsize=(3.2 * ncol, 2.4 * nrow), sharey=True, squeeze=False)
+    for ax, g in zip(axes.flat, groups):
+        runs = [r["run"] for r in g.ok]
+        ax.semilogy(runs, g.column("fun"), "o-", ms=3, lw=0.8)
+        ax.set_title(g.solver, fontsize=8)
+        ax.tick_params(labelsize=7)
+    for ax in axes.flat[n:]:
+        ax.set_visible(False)
+    for ax in axes[-1]:
+        ax.set_xlabel("run", fontsize=8)
+    for ax in axes[:, 0]:
+        ax.set_ylabel("final cost Σe²", fontsize=8)
+    fig.suptitle(title, fontsize=10)
+    fig.tight_layout()
+    return _save(fig, path)
+
+
+def convergence(groups: list[Group], title: str, path: Path) -> Path:
+    """Median best cost against evaluations, with the 10-90 % band over runs (2020 paper, Figure 4)."""
+    plt = _plt()
+    fig, ax = plt.subplots(figsize=(8, 5))
+    for i, g in enumerate(best(groups)):
+        x, med, lo, hi = g.convergence()
+        if not len(x):
+            continue
+        st = _style(i)
+        ax.loglog(x, med, label=g.solver, **st)
+        ax.fill_between(x, lo, hi, color=st["color"], alpha=0.12, lw=0)
+    ax.set_xlabel("cost evaluations")
+    ax.set_ylabel("best cost Σe² (median, 10-90 % band)")
+    ax.set_title(title, fontsize=10)
+    ax.grid(True, which="both", alpha=0.3)
+    ax.legend(fontsize=7, ncol=2)
+    fig.tight_layout()
+    return _save(fig, path)
+
+
+def error_vs_crlb(groups: list[Group], title: str, path: Path) -> Path:
+    """RMSE of each parameter (observable part) over runs against its Cramér-Rao bound."""
+    plt = _plt()
+    fig, ax = plt.subplots(figsize=(10, 4.8))
+    shown = best(groups)
+    names = groups[0].names
+    x = np.arange(len(names))
+    w = 0.8 / max(len(shown), 1)
+    crlb = None
+    for i, g in enumerate(shown):
+        ps = g.parameters()
+        crlb = [p["crlb"] for p in ps]
+        ax.bar(x - 0.4 + (i + 0.5) * w, [p.get("rmse_observable", np.nan) for p in ps], w,
+               color=_style(i)["color"], label=g.solver)
+    if crlb is not None:
+        ax.plot(x, crlb, "k_", ms=22, mew=2, label="Cramér-Rao bound")
+    ax.set_yscale("log")
+    ax.set_xticks(x)
+    ax.set_xticklabels(names, rotation=45, fontsize=8)
+    ax.set_ylabel("RMSE over runs (natural units)")
+    ax.set_title(title, fontsize=10)
+    ax.legend(fontsize=7, ncol=3)
+    ax.grid(True, axis="y", which="both", alpha=0.3)
+    fig.tight_layout()
+    return _save(fig, path)
+
+
+def verification(groups: list[Group], title: str, path: Path) -> Path:
+    """|‖A‖ − g| per verification position, median over runs (2020 paper, Figure 9)."""
+    plt = _plt()
+    fig, ax = plt.subplots(figsize=(9, 4.5))
+    truth = None
+    for i, g in enumerate(best(groups)):
+        ok = g.ok
+        if not ok:
+            continue
+        V = np.array([r["ver_err"] for r in ok])
+        truth = np.array([r["ver_truth"] for r in ok])
+        ax.plot(np.arange(1, V.shape[1] + 1), np.median(V, 0), marker="o", ms=3, label=g.solver, **_style(i))
+    if truth is not None:
+        ax.plot(np.arange(1, truth.shape[1] + 1), np.median(truth, 0), "k-", lw=2, alpha=0.5,
+                label="truth calibration (noise floor)")
+    ax.set_xlabel("verification position")
+    ax.set_ylabel("|‖A‖ − g| (µg), median over runs")
+    ax.set_title(title, fontsize=10)
+    ax.legend(fontsize=7, ncol=2)
+    ax.grid(True, alpha=0.3)
+    fig.tight_layout()
+    return _save(fig, path)
+
+
+def accuracy_runtime(cells: dict, title: str, path: Path) -> Path:
+    """Accuracy (RMSE/CRLB) against median runtime for every solver, one panel per model × scheme."""
+    plt = _plt()
+    n = len(cells)
+    ncol = min(2, n)
+    nrow = int(np.ceil(n / ncol))
+    fig, axes = plt.subplots(nrow, ncol, figsize=(7 * ncol, 5 * nrow), squeeze=False)
+    for ax, ((model, scheme), gs) in zip(axes.flat, cells.items()):
+        for g in gs:
+            s = g.summary()
+            if not np.isfinite(s["accuracy"]) or not np.isfinite(s["runtime_median_s"]):
+                continue
+            staged = g.solver.startswith("staged:")
+            ax.scatter(s["runtime_median_s"], s["accuracy"], marker="s" if staged else "o",
+                       c="tab:orange" if staged else ("tab:green" if g.reference else "tab:blue"), s=22)
+            ax.annotate(g.solver, (s["runtime_median_s"], s["accuracy"]), fontsize=6, xytext=(3, 2),
+                        textcoords="offset points")
+        ax.set_xscale("log")
+        ax.set_yscale("log")
+        ax.axhline(1.0, color="k", lw=0.8, ls="--")
+        ax.set_xlabel("median runtime per calibration (s)")
+        ax.set_ylabel("RMSE / CRLB (RMS over parameters)")
+        ax.set_title(f"{model}, {scheme} positions (circles: joint, squares: staged)", fontsize=9)
+        ax.grid(True, which="both", alpha=0.3)
+    for ax in axes.flat[n:]:
+        ax.set_visible(False)
+    fig.suptitle(title, fontsize=10)
+    fig.tight_layout()
+    return _save(fig, path)
+
+
+def navigation(groups: list[Group], hours: float, title: str, path: Path) -> Path:
+    """Radial position error of a 5-hour static navigation run, median over runs (2020 paper, Figure 11)."""
+    plt = _plt()
+    fig, ax = plt.subplots(figsize=(8, 4.5))
+    shown = [g for g in best(groups) if any(r["nav_curve"] for r in g.ok)]
+    t = np.linspace(0, hours, 2)
+    for i, g in enumerate(shown):
+        C = np.array([r["nav_curve"] for r in g.ok if r["nav_curve"]])
+        t = np.linspace(0, hours, C.shape[1])
+        ax.plot(t, np.median(C, 0), label=("traditional: " if g.reference else "") + g.solver, **_style(i))
+    ax.plot(t, np.zeros_like(t), "k-", lw=2, label="truth calibration")
+    ax.set_xlabel("time (h)")
+    ax.set_ylabel("position error (nmi), median over runs")
+    ax.set_title(title, fontsize=10)
+    ax.legend(fontsize=7)
+    ax.grid(True, alpha=0.3)
+    fig.tight_layout()
+    return _save(fig, path)
+
+
+def traditional(levels: list[tuple[float, float]], infield: list[tuple[str, float]], ylabel: str, title: str,
+                path: Path) -> Path:
+    """A metric of the turntable calibration against its orientation error, with in-field levels."""
+    plt = _plt()
+    fig, ax = plt.subplots(figsize=(7, 4.5))
+    a = np.array(levels, float)
+    ax.plot(a[:, 0], a[:, 1], "ko-", lw=2, label="traditional (turntable reference)")
+    for i, (name, v) in enumerate(infield):
+        ax.axhline(v, label=f"in-field: {name}", **_style(i))
+    ax.set_xscale("symlog", linthresh=10)
+    ax.set_yscale("log")
+    ax.set_xlabel("turntable orientation error (arcsec, 1σ per axis)")
+    ax.set_ylabel(ylabel)
+    ax.set_title(title, fontsize=10)
+    ax.legend(fontsize=7)
+    ax.grid(True, which="both", alpha=0.3)
+    fig.tight_layout()
+    return _save(fig, path)

@@ -1,0 +1,233 @@
+"""``optcal study report DIR``: ``report.md`` with tables and PNG figures, ``parameters.md`` with every
+per-parameter statistic, and ``summary.json`` (one record per solver × scheme × model) for tools and CI."""
+
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+
+import numpy as np
+
+from . import figures
+from .metrics import Group, cells, groups
+from .store import Store
+
+
+def _f(v, fmt: str = ".3g") -> str:
+    if v is None or (isinstance(v, float) and not math.isfinite(v)):
+        return "–"
+    return format(v, fmt)
+
+
+def _table(header: list[str], rows: list[list[str]]) -> list[str]:
+    out = ["| " + " | ".join(header) + " |", "|" + "|".join("---" for _ in header) + "|"]
+    out += ["| " + " | ".join(r) + " |" for r in rows]
+    return out + [""]
+
+
+def _rank(gs: list[Group]) -> list[Group]:
+    """Most accurate first; never-converging and failed groups last."""
+    return sorted(gs, key=lambda g: (-round(g.success_rate, 6), np.nan_to_num(g.accuracy, nan=np.inf)))
+
+
+def _label(g: Group) -> str:
+    if g.reference:
+        return f"traditional ({g.solver_name}, {g.reference_error_arcsec:g}″)"
+    return g.solver
+
+
+def _summary_rows(gs: list[Group], nav: bool) -> list[list[str]]:
+    rows = []
+    for g in _rank(gs):
+        s = g.summary()
+        r = [
+            f"`{_label(g)}`", f"{100 * s['success_rate']:.0f} %", _f(s["accuracy"], ".2f"),
+            f"{_f(s['ver_mean_ug'], '.2f')} ({_f(s['ver_sd_ug'], '.2f')})",
+            f"{_f(s['cost_median'], '.3e')} [{_f(s['cost_min'], '.2e')}, {_f(s['cost_max'], '.2e')}]",
+            f"{_f(s['runtime_median_s'], '.3g')} [{_f(s['runtime_p10_s'], '.2g')}, {_f(s['runtime_p90_s'], '.2g')}]",
+            _f(s["nfev_median"], ".0f"),
+        ]
+        if nav:
+            r.append(f"{_f(s['nav_max_nmi'], '.3f')} / {_f(s['nav_mean_nmi'], '.3f')}")
+        r.append(str(s["failed"]))
+        rows.append(r)
+    return rows
+
+
+SUMMARY_HEADER = ["solver", "success", "RMSE/CRLB", "verification µg mean (SD)", "final cost median [min, max]",
+                  "runtime s median [p10, p90]", "evaluations"]
+
+
+def _crossing(levels: list[tuple[float, float]], value: float) -> str:
+    """The orientation error above which the turntable metric exceeds ``value``."""
+    a = [x for x, _ in levels]
+    m = [y for _, y in levels]
+    if m[0] > value:
+        return f"at every orientation error tested (even {a[0]:g}″)"
+    for (a1, m1), (a2, m2) in zip(levels, levels[1:]):
+        if m1 <= value < m2:
+            # linear in arcsec, logarithmic in the metric
+            t = (math.log(value) - math.log(m1)) / (math.log(m2) - math.log(m1))
+            return f"once the orientation error exceeds about {a1 + t * (a2 - a1):.0f}″ (between {a1:g}″ and {a2:g}″)"
+    return f"at none of the orientation errors tested (up to {a[-1]:g}″)"
+
+
+def _traditional_section(cell_key, gs: list[Group], figdir: Path, slug: str) -> list[str]:
+    ref = sorted([g for g in gs if g.reference], key=lambda g: g.reference_error_arcsec)
+    inf = [g for g in gs if not g.reference and g.ok]
+    if not ref or not inf:
+        return []
+    model, scheme = cell_key
+    lines = [f"### Traditional against in-field: {model}, {scheme} positions", ""]
+    best_in = min(inf, key=lambda g: np.nan_to_num(g.accuracy, nan=np.inf))
+    metrics = [("accuracy", "RMSE/CRLB", lambda s: s["accuracy"])]
+    metrics.append(("verification", "verification |‖A‖−g| (µg)", lambda s: s["ver_mean_ug"]))
+    if any(r.get("nav_max_nmi") is not None for g in gs for r in g.ok):
+        metrics.append(("navigation", "5-h max position error (nmi)", lambda s: s["nav_max_nmi"]))
+    header = ["calibration"] + [m[1] for m in metrics]
+    rows = [[_label(g)] + [_f(fn(g.summary())) for _, _, fn in metrics] for g in ref]
+    rows += [[f"in-field `{g.solver}`"] + [_f(fn(g.summary())) for _, _, fn in metrics] for g in inf]
+    lines += _table(header, rows)
+    for key, name, fn in metrics:
+        levels = [(g.reference_error_arcsec, fn(g.summary())) for g in ref]
+        v = fn(best_in.summary())
+        if not all(np.isfinite(y) for _, y in levels) or not np.isfinite(v):
+            continue
+        lines.append(f"- **{name}**: in-field calibration (`{best_in.solver}`, {_f(v)}) beats the turntable "
+                     f"calibration {_crossing(levels, v)}.")
+        if len(levels) > 1:
+            p = figures.traditional(levels, [(best_in.solver, v)], name, f"{model}, {scheme} positions: {name}",
+                                    figdir / f"traditional_{key}_{slug}.png")
+            lines.append(f"  ![{name}](figures/{p.name})")
+    return lines + [""]
+
+
+def _navigation_section(cell_key, gs: list[Group], hours: float, figdir: Path, slug: str) -> list[str]:
+    nav = [g for g in gs if any(r.get("nav_max_nmi") is not None for r in g.ok)]
+    if not nav:
+        return []
+    model, scheme = cell_key
+    lines = [f"### Static navigation ({hours:g} h): {model}, {scheme} positions", "",
+             "Median over runs of each run's maximum and mean radial position error "
+             "(2020 paper, Eq. 23 and Table 6).", ""]
+    rows = [["truth calibration", "0", "0"]]
+    for g in sorted(nav, key=lambda g: (not g.reference, g.summary()["nav_max_nmi"])):
+        s = g.summary()
+        rows.append([_label(g), _f(s["nav_max_nmi"], ".4f"), _f(s["nav_mean_nmi"], ".4f")])
+    lines += _table(["calibration", "max error (nmi)", "mean error (nmi)"], rows)
+    p = figures.navigation(nav, hours, f"{model}, {scheme} positions: static navigation error",
+                           figdir / f"navigation_{slug}.png")
+    return lines + [f"![navigation](figures/{p.name})", ""]
+
+
+def _parameters_md(cs) -> str:
+    lines = ["# Per-parameter statistics", "",
+             "Error = estimate − truth over the runs that did not fail. CRLB: Cramér-Rao SD at the truth with "
+             "the simulation noise; ratio = RMSE of the observable part / CRLB. Parameters marked * have weight "
+             "in an unobservable direction: their ratio scores only their observable part.", ""]
+    for (model, scheme), gs in cs.items():
+        for g in gs:
+            lines.append(f"## {model}, {scheme} positions: `{_label(g)}`")
+            lines.append("")
+            rows = [[p["name"] + ("" if p["observable"] else "*"), _f(p["mean"], ".3e"), _f(p["rmse"], ".3e"),
+                     _f(p["sd"], ".3e"), _f(p["crlb"], ".3e"), _f(p["ratio"], ".3g")] for p in g.parameters()]
+            lines += _table(["parameter", "mean error", "RMSE", "SD", "CRLB", "RMSE/CRLB"], rows)
+    return "\n".join(lines)
+
+
+def write_report(folder: str | Path) -> Path:
+    """Write ``report.md``, ``parameters.md``, ``summary.json`` and ``figures/*.png`` into ``folder``."""
+    folder = Path(folder)
+    with Store.open_existing(folder) as store:
+        spec = store.spec
+        rows = store.rows()
+        sessions = json.loads(store.meta("sessions") or "[]")
+        wall = float(store.meta("wall_s") or 0)
+        spec_hash = store.meta("spec_hash")
+    figdir = folder / "figures"
+    figdir.mkdir(exist_ok=True)
+    order = [s["label"] for s in spec["solvers"]]
+    gs = groups(rows, order)
+    cs = cells(gs)
+    expected = spec["runs"] * len(spec["models"]) * len(spec["schemes"]) * len(spec["solvers"])
+    failed = sum(r["status"] != "ok" for r in rows)
+    has_nav = any(r.get("nav_max_nmi") is not None for r in rows)
+    budgets = {json.dumps(s["budget"], sort_keys=True) for s in spec["solvers"]}
+    budget = (", ".join(f"{k} {v:g}" for k, v in spec["solvers"][0]["budget"].items()) or "the solvers' defaults"
+              ) if len(budgets) == 1 else "per solver (see the spec)"
+
+    L = [f"# Study `{spec['name']}`", ""]
+    if spec.get("description"):
+        L += [spec["description"], ""]
+    L += [
+        f"- Spec hash `{spec_hash}`; {len(rows)} of {expected} trials stored"
+        + (" (**incomplete**: run the spec again into this folder to finish)" if len(rows) < expected else "")
+        + f"; {failed} failed.",
+        f"- {spec['runs']} Monte-Carlo runs, base seed {spec['seed']}; models {', '.join(spec['models'])}; "
+        f"schemes {', '.join(spec['schemes'])} positions; noise {spec['noise_ug']:g} µg; placement tilt "
+        f"{spec['tilt_deg']:g}°; truth `{spec['truth'] if isinstance(spec['truth'], str) else 'given values'}`; "
+        f"presets `{spec['presets']}`; budget: {budget}.",
+        f"- Verification: {spec['verification']['scheme']} positions, {spec['verification']['noise_ug']:g} µg noise. "
+        + (f"Navigation: {spec['navigation']['hours']:g} h static at {spec['navigation']['latitude_deg']:g}° latitude."
+           if has_nav else "Navigation: not computed."),
+        f"- Wall time {wall:.1f} s over {len(sessions)} session(s): "
+        + "; ".join(f"{s['executor']} ×{s['workers']}: {s['trials']} trials in {s['wall_s']:.1f} s" for s in sessions),
+        "",
+        "**How to read.** *success*: share of runs whose final cost is within the 99.9 % χ² quantile of the "
+        "cost at the optimum (reached the noise floor). *RMSE/CRLB*: RMS over parameters of each parameter's "
+        "RMSE over runs divided by its Cramér-Rao bound (1 = as good as any unbiased estimator can be; "
+        "unobservable directions excluded, see below). *Verification*: |‖A‖ − g| on an independent "
+        "verification set with the estimated calibration (2020 paper, Table 5), mean over positions "
+        "(SD over positions), averaged over runs. Runtime: solver time per calibration.",
+        "",
+    ]
+    summary = []
+    figs_all = []
+    for (model, scheme), cg in cs.items():
+        slug = f"{model}_{scheme}".replace(":", "-")
+        L += [f"## {model}, {scheme} positions", ""]
+        truth_ver = np.nanmean([g.summary()["ver_truth_ug"] for g in cg if g.ok]) if any(g.ok for g in cg) else np.nan
+        L += [f"Truth calibration on the verification set: {_f(truth_ver, '.2f')} µg (the noise floor).", ""]
+        header = SUMMARY_HEADER + (["nav max / mean nmi"] if has_nav else []) + ["failed"]
+        L += _table(header, _summary_rows(cg, has_nav))
+        for g in cg:
+            summary.append({**g.summary(), "reference": g.reference,
+                            "reference_error_arcsec": g.reference_error_arcsec})
+        ttl = f"{spec['name']}: {model}, {scheme} positions"
+        f1 = figures.cost_per_run(cg, f"{ttl}: final cost per run", figdir / f"cost_{slug}.png")
+        f2 = figures.convergence(cg, f"{ttl}: convergence", figdir / f"convergence_{slug}.png")
+        f3 = figures.error_vs_crlb(cg, f"{ttl}: error against the Cramér-Rao bound", figdir / f"crlb_{slug}.png")
+        f4 = figures.verification(cg, f"{ttl}: verification error per position", figdir / f"verification_{slug}.png")
+        figs_all += [f1, f2, f3, f4]
+        L += [f"![final cost per run](figures/{f1.name})", "", f"![convergence](figures/{f2.name})", "",
+              f"![error against CRLB](figures/{f3.name})", "", f"![verification](figures/{f4.name})", ""]
+        # per-parameter ratios
+        names = cg[0].names
+        obs = cg[0].ok[0]["observable"] if cg[0].ok else [1] * len(names)
+        L += ["RMSE / CRLB per parameter (\\* = observable part only):", ""]
+        L += _table(["solver"] + [n + ("" if o else "\\*") for n, o in zip(names, obs)],
+                    [[f"`{_label(g)}`"] + [_f(p["ratio"], ".2g") for p in g.parameters()] for g in _rank(cg)])
+        un = [(g, g.unobservable()) for g in _rank(cg) if g.unobservable()]
+        if un:
+            dirs = [d["direction"] for d in un[0][1]]
+            L += ["Unobservable directions (natural units; set by the presets, not by the data, so not scored): "
+                  "RMS error along each, over runs.", ""]
+            L += _table(["solver"] + [f"`{d}`" for d in dirs],
+                        [[f"`{_label(g)}`"] + [_f(d["rms"], ".2e") for d in u] for g, u in un])
+        L += _navigation_section((model, scheme), cg, spec["navigation"]["hours"], figdir, slug)
+        L += _traditional_section((model, scheme), cg, figdir, slug)
+        fails = [(g, g.failures) for g in cg if g.failures]
+        if fails:
+            L += ["Failures:", ""] + [f"- `{g.solver}` ({g.n_failed}): " + "; ".join(m[:200] for m in f[:3])
+                                      for g, f in fails] + [""]
+    if len(cs):
+        p = figures.accuracy_runtime(cs, f"{spec['name']}: accuracy against runtime", figdir / "accuracy_runtime.png")
+        L += ["## Accuracy against runtime", "", f"![accuracy against runtime](figures/{p.name})", ""]
+    L += ["Per-parameter mean error, RMSE, SD and CRLB: [parameters.md](parameters.md). "
+          "Every trial: `trials.csv` / `trials.parquet` / `study.sqlite`.", ""]
+    (folder / "parameters.md").write_text(_parameters_md(cs))
+    (folder / "summary.json").write_text(json.dumps(summary, indent=1, default=float))
+    out = folder / "report.md"
+    out.write_text("\n".join(L))
+    return out

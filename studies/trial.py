@@ -1,0 +1,247 @@
+"""One trial of a study: simulate run i's data, solve it with one configured solver, score the result.
+
+Seeds (DESIGN §7). Every random stream is a child of the spec's base seed through
+``numpy.random.SeedSequence(seed, spawn_key=(stream, run, ...))``: the truth and presets depend on
+(run, model), the data on (run, model, scheme), the solver's generator on (run, model, scheme, solver
+label). Run i of every solver therefore sees the same data, and no result depends on the executor, the
+number of workers or the order in which trials finish. Names enter the keys through CRC-32, so adding
+a solver to a spec leaves the other solvers' streams unchanged.
+
+A trial never raises: a solver that raises or returns a non-finite point is stored as failed with its
+message, and the study goes on.
+"""
+
+from __future__ import annotations
+
+import time
+import traceback
+import zlib
+from dataclasses import dataclass
+
+import numpy as np
+from scipy import stats
+
+from optcal.analysis import natural_units, observability
+from optcal.model import get_model
+from optcal.presets import PAPER_TRUTH, draw_truth, manufacturer_presets
+from optcal.problem import CalibrationProblem
+from optcal.simulate import simulate
+
+from .spec import SolverConfig, Spec
+
+TRUTH, PRESETS, DATA, VERIFY, TURNTABLE, SOLVER = range(6)
+CONVERGED_QUANTILE = 0.999  # χ² quantile of the final cost that counts as "reached the noise floor"
+NAV_POINTS = 61
+
+
+def key(name: str) -> int:
+    return zlib.crc32(name.encode())
+
+
+def stream(seed: int, *keys: int) -> np.random.Generator:
+    return np.random.default_rng(np.random.SeedSequence(seed, spawn_key=tuple(int(k) for k in keys)))
+
+
+@dataclass(frozen=True)
+class Trial:
+    """Everything a worker needs to run one trial (small and picklable)."""
+
+    id: str
+    run: int
+    model: str
+    scheme: str
+    config: SolverConfig
+    seed: int
+    truth: str | dict
+    presets: str
+    presets_error_scale: float
+    noise_ug: float
+    tilt_deg: float
+    g_local: float
+    verification: dict
+    navigation: dict
+
+
+def trial_id(model: str, scheme: str, label: str, run: int) -> str:
+    return f"{model}|{scheme}|{label}|{run}"
+
+
+def trials(spec: Spec) -> list[Trial]:
+    """The study's trials in a fixed order: model, scheme, run, solver."""
+    out = []
+    for model in spec.models:
+        for scheme in spec.schemes:
+            for run in range(spec.runs):
+                for cfg in spec.solvers:
+                    out.append(Trial(
+                        trial_id(model, scheme, cfg.label, run), run, model, scheme, cfg, spec.seed, spec.truth,
+                        spec.presets, spec.presets_error_scale, spec.noise_ug, spec.tilt_deg, spec.g_local,
+                        dict(spec.verification), dict(spec.navigation)))
+    return out
+
+
+# -- the simulated world of run i ----------------------------------------------------------------
+
+def truth_of(t: Trial) -> dict[str, float]:
+    model = get_model(t.model)
+    if t.truth == "paper":
+        values = PAPER_TRUTH
+    elif t.truth == "draw":
+        values = draw_truth(model, stream(t.seed, TRUTH, t.run, key(t.model)))
+    else:
+        values = t.truth
+    return {n: float(values[n]) for n in model.names}
+
+
+def presets_of(t: Trial, truth: dict):
+    if t.presets == "none":
+        return None
+    return manufacturer_presets(truth, stream(t.seed, PRESETS, t.run, key(t.model)), t.presets_error_scale)
+
+
+def infield_data(t: Trial, truth: dict):
+    rng = stream(t.seed, DATA, t.run, key(t.model), key(t.scheme))
+    return simulate(t.model, truth, rng, scheme=t.scheme, noise_g=t.noise_ug * 1e-6, tilt_deg=t.tilt_deg,
+                    g_local=t.g_local)
+
+
+def turntable_data(t: Trial, truth: dict):
+    # One stream for every orientation error: the errors at 10, 60 and 300 arcsec are the same random
+    # rotations scaled, so the comparison between levels is not blurred by different draws.
+    rng = stream(t.seed, TURNTABLE, t.run, key(t.model), key(t.scheme))
+    return simulate(t.model, truth, rng, scheme=t.scheme, noise_g=t.noise_ug * 1e-6, g_local=t.g_local,
+                    reference=True, reference_error_arcsec=t.config.reference_error_arcsec)
+
+
+def verification_data(t: Trial, truth: dict):
+    v = t.verification
+    rng = stream(t.seed, VERIFY, t.run, key(t.model))
+    return simulate(t.model, truth, rng, scheme=v["scheme"], noise_g=v["noise_ug"] * 1e-6, tilt_deg=v["tilt_deg"],
+                    g_local=t.g_local)
+
+
+# -- scoring ------------------------------------------------------------------------------------
+
+def projected_crlb(problem: CalibrationProblem, x_true: np.ndarray, sigma_g: float, rtol: float = 1e-3):
+    """Cramér-Rao SDs of the parameters' observable part, the projector onto it and the null directions.
+
+    With the norm cost some directions are (nearly) unobservable (DESIGN §3; seed15 has three). The
+    estimate's error is split, in natural units, into its component in the observable subspace (scored
+    against these bounds) and its coefficients along the unobservable directions (reported, not scored).
+    For observable parameters the SD equals :func:`optcal.analysis.crlb`'s.
+    """
+    obs = observability(problem, x_true, rtol)
+    u = natural_units(problem, x_true)
+    J = problem.jacobian_full(x_true) * u
+    F = J.T @ J / sigma_g**2
+    Nsp = obs.null_space
+    P = np.eye(len(u))
+    if Nsp.size:
+        P = P - Nsp @ np.linalg.pinv(Nsp)
+        cov = np.linalg.pinv(P @ F @ P, rcond=rtol**2, hermitian=True)
+    else:
+        cov = np.linalg.inv(F)
+    sd = np.sqrt(np.clip(np.diag(cov), 0, None)) * u
+    return sd, P, u, obs
+
+
+def trace_on_grid(trace) -> list[list[float]]:
+    """The best cost at evaluations 1, 1.26, 1.58, ... (ten points per decade), from a solver's trace of
+    (evaluations, best cost, seconds): compact, and the same grid for every trial so curves line up."""
+    if not trace:
+        return []
+    nf = np.array([t[0] for t in trace], float)
+    best = np.minimum.accumulate(np.array([t[1] for t in trace], float))
+    grid = np.unique(np.round(10 ** (np.arange(0, 10 * np.log10(max(nf[-1], 1.0)) + 1) / 10)))
+    idx = np.searchsorted(nf, grid, side="right") - 1
+    keep = idx >= 0
+    return [[int(g), float(best[i])] for g, i in zip(grid[keep], idx[keep])]
+
+
+def _navigation(model, x_true, x_est, nav: dict):
+    """Max and mean 5-hour static navigation error (nmi) and a resampled curve; None without optcal.nav."""
+    if not nav.get("enabled", True):
+        return None
+    try:
+        from optcal.nav import navigation_error
+    except ImportError:
+        return None
+    r = navigation_error(model, x_true, x_est, hours=nav["hours"], latitude_deg=nav["latitude_deg"])
+    t = np.asarray(r.t_s, float)
+    grid = np.linspace(0.0, nav["hours"] * 3600.0, NAV_POINTS)
+    curve = np.interp(grid, t, np.asarray(r.error_nmi, float))
+    return float(r.max_error_nmi), float(r.mean_error_nmi), [float(v) for v in curve]
+
+
+def _abs_norm_error_ug(problem: CalibrationProblem, x) -> np.ndarray:
+    A = problem.specific_force(x)
+    return np.abs(np.linalg.norm(A, axis=1) - problem.g_local) * 1e6
+
+
+def run_trial(t: Trial) -> dict:
+    """Run one trial and return its row (see :mod:`studies.store` for the columns)."""
+    t_start = time.perf_counter()
+    cfg = t.config
+    model = get_model(t.model)
+    sigma = t.noise_ug * 1e-6
+    truth = truth_of(t)
+    presets = presets_of(t, truth)
+    sim = infield_data(t, truth)
+    x_true = sim.truth_vector(model)
+    yard = CalibrationProblem(model, sim.data, g_local=t.g_local, presets=presets, noise_g=sigma)
+    row = {
+        "trial_id": t.id, "model": t.model, "scheme": t.scheme, "solver": cfg.label, "solver_name": cfg.name,
+        "run": t.run, "reference": int(cfg.reference), "reference_error_arcsec": cfg.reference_error_arcsec,
+        "names": list(model.names), "x_true": [float(v) for v in x_true],
+    }
+    try:
+        if cfg.reference:
+            problem = CalibrationProblem(model, turntable_data(t, truth).data, g_local=t.g_local, reference=True,
+                                         presets=presets, noise_g=sigma)
+        else:
+            problem = yard
+        import solvers
+
+        solver = solvers.get(cfg.name, **cfg.options)
+        rng = stream(t.seed, SOLVER, t.run, key(t.model), key(t.scheme), key(cfg.label))
+        res = solver.solve(problem, budget=dict(cfg.budget) or None, rng=rng)
+        x_est = np.asarray(res.x_full, float)
+        if not np.all(np.isfinite(x_est)) or not np.isfinite(res.fun):
+            raise FloatingPointError(f"solver returned a non-finite result ({res.message})")
+    except Exception as exc:  # noqa: BLE001 - any solver error is a failed trial, not a failed study
+        tb = traceback.extract_tb(exc.__traceback__)
+        where = f" at {tb[-1].filename.rsplit('/', 1)[-1]}:{tb[-1].lineno}" if tb else ""
+        row.update(status="failed", message=f"{type(exc).__name__}: {exc}{where}"[:500], success=0, converged=0,
+                   wall_s=time.perf_counter() - t_start)
+        return row
+
+    sd, P, u, obs = projected_crlb(yard, x_true, sigma)
+    e = x_est - x_true
+    e_proj = (P @ (e / u)) * u
+    null = obs.null_space
+    null_coef = (np.linalg.pinv(null) @ (e / u)) if null.size else np.zeros(0)
+    rank = obs.rank if not cfg.reference else observability(problem, x_true).rank
+    dof = max(problem.n_residuals - rank, 1)
+    chi2 = float(res.fun) / sigma**2
+    converged = chi2 <= stats.chi2.ppf(CONVERGED_QUANTILE, dof)
+
+    ver = CalibrationProblem(model, verification_data(t, truth).data, g_local=t.g_local, check=False)
+    ver_err = _abs_norm_error_ug(ver, x_est)
+    ver_truth = _abs_norm_error_ug(ver, x_true)
+    nav = _navigation(model, x_true, x_est, t.navigation)
+    row.update(
+        status="ok", message=str(res.message)[:500], success=int(bool(res.success)), converged=int(converged),
+        fun=float(res.fun), chi2=chi2, dof=int(dof), nfev=int(res.nfev), nit=int(res.nit),
+        runtime_s=float(res.runtime_s),
+        accuracy=float(np.sqrt(np.mean((e_proj / sd) ** 2))),
+        ver_mean_ug=float(np.mean(ver_err)), ver_sd_ug=float(np.std(ver_err, ddof=1)),
+        ver_truth_mean_ug=float(np.mean(ver_truth)),
+        nav_max_nmi=None if nav is None else nav[0], nav_mean_nmi=None if nav is None else nav[1],
+        x_est=[float(v) for v in x_est], err=[float(v) for v in e], err_proj=[float(v) for v in e_proj],
+        crlb=[float(v) for v in sd], observable=[int(v) for v in obs.observable_mask()],
+        null_dirs=obs.unobservable, null_err=[float(v) for v in null_coef],
+        ver_err=[float(v) for v in ver_err], ver_truth=[float(v) for v in ver_truth],
+        trace=trace_on_grid(res.trace), nav_curve=None if nav is None else nav[2],
+    )
+    row["wall_s"] = time.perf_counter() - t_start
+    return row

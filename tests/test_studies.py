@@ -1,0 +1,347 @@
+"""Studies: spec validation, seeds, the store (resume, changed spec, failed trials, export), metrics
+against hand computation and against the Cramér-Rao bound, reports, and the traditional calibration."""
+
+from __future__ import annotations
+
+import json
+import textwrap
+
+import numpy as np
+import pytest
+
+import solvers
+from optcal.cli import main
+from optcal.errors import InputError
+from solvers.base import Solver
+from studies import spec as S
+from studies.execute import run_study
+from studies.metrics import Group, groups
+from studies.report import write_report
+from studies.store import TIMING, Store
+from studies.trial import infield_data, run_trial, stream, trace_on_grid, trials, truth_of
+
+BASE = """
+name = "t"
+runs = 3
+seed = 11
+models = ["nonlinear12"]
+schemes = ["24"]
+tilt_deg = 1.0
+budget = 300
+[navigation]
+enabled = false
+"""
+
+
+def spec_of(extra: str = "", solvers_toml: str = '[[solvers]]\nname = "scipy-lm"\n', base: str = BASE):
+    """A spec from BASE (its [navigation] table kept last) with top-level keys or tables added."""
+    import tomllib
+
+    top, nav = base.split("[navigation]")
+    text = top + textwrap.dedent(extra) + "[navigation]" + nav + solvers_toml
+    return S.parse(tomllib.loads(text), "test.toml")
+
+
+def _strip(rows):
+    return [{k: v for k, v in r.items() if k not in TIMING} for r in rows]
+
+
+# -- spec validation --------------------------------------------------------------------------
+
+@pytest.mark.parametrize("name", ["compare", "bsas2020", "nafsa2015", "traditional", "ci"])
+def test_shipped_specs_validate(name):
+    sp = S.load(name)
+    assert sp.runs >= 1 and sp.solvers
+    if name == "compare":
+        labels = {c.label for c in sp.solvers}
+        assert sp.runs >= 50 and set(sp.schemes) == {"24", "36"} and set(sp.models) == {"nonlinear12", "seed15"}
+        assert {"scipy-lm", "staged:scipy-lm"} <= labels
+        assert sp.noise_ug == 10.0
+
+
+BAD = [
+    ("frobnicate = 1\n", "", "'frobnicate'"),
+    ("", '[[solvers]]\nname = "no-such-solver"\n', "no-such-solver"),
+    ("", '[[solvers]]\nname = "scipy-lm"\noptions = {bogus = 1}\n', "solvers[0].options"),
+    ("", '[[solvers]]\nname = "scipy-lm"\noptions = {ftol = "abc"}\n', "ftol"),
+    ("", '[[solvers]]\nname = "scipy-lm"\ncolour = "red"\n', "solvers[0].colour"),
+    ("", '[[solvers]]\nname = "scipy-lm"\ngrid = {ftol = 1e-9}\n', "solvers[0].grid.ftol"),
+    ("", '[[solvers]]\nname = "scipy-lm"\nreference_error_arcsec = 10\n', "reference_error_arcsec"),
+    ("", '[[solvers]]\nname = "scipy-lm"\n[[solvers]]\nname = "scipy-lm"\n', "appears twice"),
+    ("", '[[solvers]]\nname = "all"\noptions = {ftol = 1e-9}\n', "solvers[0].options"),
+    ("[verification]\nschemes = '36'\n", "", "verification.schemes"),
+    ("[executor]\nkind = 'mpi'\n", "", "executor.kind"),
+    ("[navigation]\nhours = 'five'\n", "", "navigation.hours"),
+]
+
+
+@pytest.mark.parametrize("extra,solvers_toml,key", BAD)
+def test_bad_spec_is_refused_naming_the_key(extra, solvers_toml, key):
+    import tomllib
+
+    text = BASE.replace("[navigation]\nenabled = false\n", "") + extra
+    if "[navigation]" not in extra:
+        text += "[navigation]\nenabled = false\n"
+    with pytest.raises(InputError) as exc:
+        S.parse(tomllib.loads(text + (solvers_toml or '[[solvers]]\nname = "scipy-lm"\n')), "bad.toml")
+    msg = str(exc.value)
+    assert key in msg and "\n" not in msg and msg.startswith("spec bad.toml:")
+
+
+@pytest.mark.parametrize("line,key", [
+    ('runs = "many"', "'runs'"), ("runs = 0", "'runs'"), ('schemes = ["25"]', "schemes[0]"),
+    ('models = ["linear99"]', "'models'"), ("noise_ug = -1", "noise_ug"), ('truth = "random"', "'truth'"),
+    ('presets = "factory"', "'presets'"), ("budget = 2.5", "'budget'"), ("seed = true", "'seed'"),
+])
+def test_bad_top_level_values(line, key):
+    import tomllib
+
+    lines = [x for x in BASE.splitlines() if not x.startswith(line.split(" ")[0] + " ")]
+    with pytest.raises(InputError, match=key.replace("[", r"\[").replace("]", r"\]")):
+        S.parse(tomllib.loads("\n".join([line] + lines) + '\n[[solvers]]\nname = "scipy-lm"\n'), "bad.toml")
+
+
+def test_bad_spec_from_the_command_line_is_one_line_exit_2(tmp_path, capsys):
+    p = tmp_path / "bad.toml"
+    p.write_text(BASE + '[[solvers]]\nname = "bsas"\noptions = {m = -3}\n')
+    code = main(["study", "run", str(p), "--out", str(tmp_path / "o")])
+    err = capsys.readouterr().err
+    assert code == 2 and err.count("\n") == 1 and "solvers[0].options" in err and "m=-3" in err
+    assert not (tmp_path / "o").exists()  # refused before anything ran
+    assert main(["study", "run", str(tmp_path / "missing.toml")]) == 2
+    assert main(["study", "report", str(tmp_path)]) == 2
+    assert "holds no study" in capsys.readouterr().err
+
+
+def test_all_expands_to_every_available_solver_and_its_staged_version():
+    sp = spec_of(solvers_toml='[[solvers]]\nname = "all"\nexclude = ["pso"]\n')
+    labels = [c.label for c in sp.solvers]
+    from solvers import registry
+
+    avail = [n for n in registry.names() if n != "pso" and registry.solver_class(n)[0].is_available()]
+    assert labels == avail + [f"staged:{n}" for n in avail]
+    assert "pso" not in labels and all(c.budget == {"max_evals": 300} for c in sp.solvers)
+
+
+def test_option_grid_and_reference_levels_expand():
+    sp = spec_of(solvers_toml=textwrap.dedent("""
+        [[solvers]]
+        name = "scipy-lm"
+        grid = {ftol = [1e-10, 1e-12], xtol = [1e-10, 1e-12]}
+        [[solvers]]
+        name = "scipy-trf"
+        label = "turntable"
+        reference = true
+        reference_error_arcsec = [0, 60]
+    """))
+    labels = [c.label for c in sp.solvers]
+    assert labels[:4] == ["scipy-lm[ftol=1e-10,xtol=1e-10]", "scipy-lm[ftol=1e-10,xtol=1e-12]",
+                          "scipy-lm[ftol=1e-12,xtol=1e-10]", "scipy-lm[ftol=1e-12,xtol=1e-12]"]
+    assert labels[4:] == ["turntable@0as", "turntable@60as"]
+    assert sp.solvers[5].reference and sp.solvers[5].reference_error_arcsec == 60.0
+    assert len(trials(sp)) == 6 * 3
+
+
+def test_spec_hash_tracks_what_determines_results():
+    a = spec_of()
+    assert a.hash == spec_of().hash
+    assert a.hash != spec_of("noise_ug = 20.0\n").hash
+    assert a.hash != a.with_runs(4).hash
+    assert a.quick().runs == a.quick_runs and a.quick().hash != a.hash
+    assert a.hash == spec_of("[executor]\nkind = 'dask'\nworkers = 7\n").hash  # the executor is not part of it
+
+
+# -- seeds ------------------------------------------------------------------------------------
+
+def test_every_solver_of_a_run_sees_the_same_data_and_runs_differ():
+    sp = spec_of(solvers_toml='[[solvers]]\nname = "scipy-lm"\n[[solvers]]\nname = "pso"\n')
+    ts = trials(sp)
+    by = {(t.run, t.config.label): t for t in ts}
+    d0 = infield_data(by[0, "scipy-lm"], truth_of(by[0, "scipy-lm"])).data.N
+    assert np.array_equal(d0, infield_data(by[0, "pso"], truth_of(by[0, "pso"])).data.N)
+    d1 = infield_data(by[1, "pso"], truth_of(by[1, "pso"])).data.N
+    assert not np.allclose(d0, d1)
+    # solver streams depend on the label, not on the position in the spec
+    assert stream(11, 5, 0, 1, 2, 3).random() == stream(11, 5, 0, 1, 2, 3).random()
+
+
+def test_a_solver_result_does_not_depend_on_the_other_solvers_in_the_spec():
+    one = spec_of(solvers_toml='[[solvers]]\nname = "pso"\noptions = {n_particles = 10, iterations = 20}\n')
+    two = spec_of(solvers_toml='[[solvers]]\nname = "scipy-lm"\n[[solvers]]\nname = "pso"\n'
+                               'options = {n_particles = 10, iterations = 20}\n')
+    t1 = [t for t in trials(one) if t.run == 1][0]
+    t2 = [t for t in trials(two) if t.run == 1 and t.config.label == "pso"][0]
+    r1, r2 = run_trial(t1), run_trial(t2)
+    assert r1["x_est"] == r2["x_est"] and r1["fun"] == r2["fun"] and r1["nfev"] == 210
+
+
+def test_drawn_truth_differs_per_run_and_is_reproducible():
+    sp = spec_of(base=BASE.replace("tilt_deg", 'truth = "draw"\ntilt_deg'))
+    ts = trials(sp)
+    a, b = truth_of(ts[0]), truth_of(ts[1])
+    assert (ts[0].run, ts[1].run) == (0, 1)
+    assert a != b and a == truth_of(ts[0])
+    assert abs(a["K_x"] - 1) < 5e-3 and len(a) == 12
+
+
+# -- store: resume, changed spec, failures, export --------------------------------------------
+
+def test_resume_skips_finished_trials_and_a_changed_spec_is_refused(tmp_path):
+    sp = spec_of()
+    s1 = run_study(sp, tmp_path, limit=2, progress=False)
+    assert (s1.ran, s1.skipped, s1.total) == (2, 0, 3)
+    s2 = run_study(sp, tmp_path, progress=False)
+    assert (s2.ran, s2.skipped) == (1, 2)
+    s3 = run_study(sp, tmp_path, progress=False)
+    assert s3.ran == 0
+    with Store.open_existing(tmp_path) as st:
+        assert st.count() == (3, 0)
+        assert len(json.loads(st.meta("sessions"))) == 3
+    with pytest.raises(InputError, match="different spec"):
+        run_study(spec_of("noise_ug = 5.0\n"), tmp_path, progress=False)
+    other = tmp_path.parent / (tmp_path.name + "_other")
+    run_study(sp, other, progress=False)
+    with Store.open_existing(tmp_path) as a, Store.open_existing(other) as b:
+        assert _strip(a.rows()) == _strip(b.rows())
+
+
+class _Raises(Solver):
+    name = "raises"
+
+    def _solve(self, problem, x0, rng, callback):
+        raise RuntimeError("deliberate failure in the test solver")
+
+
+class _NoCost(Solver):
+    name = "nocost"
+
+    def _solve(self, problem, x0, rng, callback):
+        return {"message": "evaluated nothing"}
+
+
+def test_a_failing_or_nan_solver_is_stored_as_failed_and_the_study_goes_on(tmp_path, monkeypatch):
+    sp = spec_of(solvers_toml='[[solvers]]\nname = "scipy-lm"\n[[solvers]]\nname = "scipy-trf"\n'
+                              '[[solvers]]\nname = "pso"\n')
+    real = solvers.get
+    fake = {"scipy-trf": _Raises, "pso": _NoCost}
+    monkeypatch.setattr(solvers, "get", lambda name, **o: fake[name]() if name in fake else real(name, **o))
+    s = run_study(sp, tmp_path, progress=False)
+    assert (s.ran, s.failed) == (9, 6)
+    with Store.open_existing(tmp_path) as st:
+        rows = {r["trial_id"]: r for r in st.rows()}
+    assert rows["nonlinear12|24|scipy-lm|0"]["status"] == "ok"
+    assert rows["nonlinear12|24|scipy-trf|0"]["status"] == "failed"
+    assert "RuntimeError: deliberate failure in the test solver" in rows["nonlinear12|24|scipy-trf|0"]["message"]
+    assert "non-finite" in rows["nonlinear12|24|pso|2"]["message"]
+    report = write_report(tmp_path).read_text()
+    assert "Failures:" in report and "deliberate failure" in report
+    g = {x.solver: x for x in groups(list(rows.values()))}
+    assert g["scipy-trf"].success_rate == 0 and g["scipy-lm"].success_rate == 1 and g["pso"].n_failed == 3
+
+
+def test_export_csv_and_parquet(tmp_path):
+    run_study(spec_of(), tmp_path, progress=False)
+    import csv
+
+    rows = list(csv.DictReader(open(tmp_path / "trials.csv")))
+    assert len(rows) == 3 and rows[0]["trial_id"] == "nonlinear12|24|scipy-lm|0"
+    assert len(json.loads(rows[0]["x_est"])) == 12
+    pq = pytest.importorskip("pyarrow.parquet")
+    t = pq.read_table(tmp_path / "trials.parquet")
+    assert t.num_rows == 3 and t.column("fun").to_pylist() == [float(r["fun"]) for r in rows]
+
+
+# -- metrics -----------------------------------------------------------------------------------
+
+def test_group_metrics_match_a_hand_computation():
+    errs = np.array([[1e-6, -2e-6], [3e-6, 0.0], [-1e-6, 2e-6]])
+    rows = [{"model": "m", "scheme": "24", "solver": "s", "solver_name": "s", "run": i, "reference": 0,
+             "reference_error_arcsec": 0.0, "status": "ok", "message": "", "success": 1, "converged": int(i < 2),
+             "names": ["a", "b"], "err": list(e), "err_proj": list(e), "crlb": [2e-6, 1e-6], "observable": [1, 1],
+             "fun": f, "runtime_s": t, "nfev": 10, "null_dirs": [], "null_err": []}
+            for i, (e, f, t) in enumerate(zip(errs, [1.0, 3.0, 2.0], [0.1, 0.3, 0.2]))]
+    g = groups(rows)[0]
+    p = g.parameters()
+    assert p[0]["mean"] == pytest.approx(1e-6) and p[0]["rmse"] == pytest.approx(np.sqrt(11 / 3) * 1e-6)
+    assert p[0]["sd"] == pytest.approx(np.std(errs[:, 0], ddof=1))
+    assert p[1]["ratio"] == pytest.approx(np.sqrt(8 / 3))
+    assert g.accuracy == pytest.approx(np.sqrt((11 / 12 + 8 / 3) / 2))
+    s = g.summary()
+    assert (s["cost_min"], s["cost_median"], s["cost_max"], s["runtime_median_s"]) == (1.0, 2.0, 3.0, 0.2)
+    assert g.success_rate == pytest.approx(2 / 3)
+
+
+def test_trace_on_grid_is_the_best_so_far_at_ten_points_per_decade():
+    tr = [(1, 5.0, 0.0), (3, 4.0, 0.0), (12, 1.0, 0.0), (100, 0.5, 0.0)]
+    g = trace_on_grid(tr)
+    assert g[0] == [1, 5.0] and [3, 4.0] in g and [10, 4.0] in g and [13, 1.0] in g and g[-1] == [100, 0.5]
+    assert len(g) == 18 and [x[0] for x in g[:8]] == [1, 2, 3, 4, 5, 6, 8, 10]
+
+
+def test_least_squares_reaches_the_cramer_rao_bound_and_seed15_reports_its_unobservable_directions(tmp_path):
+    """scipy-lm is an efficient estimator here: RMSE/CRLB ≈ 1 over 40 runs on both models; seed15's
+    three unobservable directions carry the presets' error (20 µrad SD), not the data's."""
+    sp = spec_of(base=BASE.replace("runs = 3", "runs = 40").replace('["nonlinear12"]', '["nonlinear12", "seed15"]'))
+    run_study(sp, tmp_path, progress=False)
+    with Store.open_existing(tmp_path) as st:
+        gs = {g.model: g for g in groups(st.rows())}
+    for m in ("nonlinear12", "seed15"):
+        assert 0.85 < gs[m].accuracy < 1.15, (m, gs[m].accuracy)
+        assert gs[m].success_rate >= 0.95
+        s = gs[m].summary()
+        assert s["ver_truth_ug"] < s["ver_mean_ug"] < 1.3 * s["ver_truth_ug"]
+    assert gs["nonlinear12"].unobservable() == []
+    un = gs["seed15"].unobservable()
+    assert len(un) == 3 and all(0.5 * 20e-6 < u["rms"] < 2 * 20e-6 for u in un)
+    obs = {p["name"]: p["observable"] for p in gs["seed15"].parameters()}
+    assert not obs["S_xz"] and obs["K_x"] and obs["K2_z"]
+
+
+def test_traditional_calibration_beats_in_field_with_a_perfect_turntable_and_loses_with_a_poor_one(tmp_path):
+    sp = spec_of(base=BASE.replace("runs = 3", "runs = 12"), solvers_toml=textwrap.dedent("""
+        [[solvers]]
+        name = "scipy-lm"
+        [[solvers]]
+        name = "scipy-lm"
+        label = "turntable"
+        reference = true
+        reference_error_arcsec = [0, 300]
+    """))
+    run_study(sp, tmp_path, progress=False)
+    with Store.open_existing(tmp_path) as st:
+        g = {x.solver: x for x in groups(st.rows())}
+    assert g["turntable@0as"].accuracy < 0.8 * g["scipy-lm"].accuracy
+    assert g["turntable@300as"].accuracy > 3 * g["scipy-lm"].accuracy
+    report = write_report(tmp_path).read_text()
+    assert "Traditional against in-field" in report
+    assert "beats the turntable calibration once the orientation error exceeds about" in report
+    assert (tmp_path / "figures" / "traditional_accuracy_nonlinear12_24.png").stat().st_size > 10_000
+
+
+def test_report_writes_tables_figures_and_summary(tmp_path):
+    sp = spec_of(solvers_toml='[[solvers]]\nname = "scipy-lm"\n[[solvers]]\nname = "staged:scipy-lm"\n',
+                 base=BASE.replace("enabled = false", "enabled = true"))
+    run_study(sp, tmp_path, progress=False)
+    out = write_report(tmp_path)
+    text = out.read_text()
+    assert "| solver | success | RMSE/CRLB |" in text and "`staged:scipy-lm`" in text
+    figs = ["cost_nonlinear12_24", "convergence_nonlinear12_24", "crlb_nonlinear12_24",
+            "verification_nonlinear12_24", "accuracy_runtime"]
+    for f in figs:
+        p = tmp_path / "figures" / f"{f}.png"
+        assert p.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" and p.stat().st_size > 10_000
+        assert f"figures/{f}.png" in text
+    summary = json.loads((tmp_path / "summary.json").read_text())
+    assert [s["solver"] for s in summary] == ["scipy-lm", "staged:scipy-lm"]
+    assert (tmp_path / "parameters.md").read_text().count("| K_x |") == 2
+    try:
+        import optcal.nav  # noqa: F401
+    except ImportError:
+        return
+    assert "Static navigation" in text and (tmp_path / "figures" / "navigation_nonlinear12_24.png").is_file()
+    assert all(s["nav_max_nmi"] > s["nav_mean_nmi"] > 0 for s in summary)
+
+
+def test_group_without_rows_is_harmless():
+    g = Group("m", "24", "s", "s", False, 0.0)
+    assert g.n == 0 and g.success_rate == 0
