@@ -66,24 +66,68 @@ def _solver_name(choice: str) -> str:
     raise InputError("solver ellipsoid needs CLARABEL or SCS for cvxpy; install one (pip install clarabel)")
 
 
+def _prepare(N, misalignment: bool):
+    """Centred, scaled points, the design matrix (columns kept for the model) and the checks that the
+    quadric through the points is unique."""
+    N = np.asarray(N, float)
+    if N.ndim != 2 or N.shape[1] != 3 or not np.all(np.isfinite(N)):
+        raise InputError("the ellipsoid fit needs finite position means with three columns")
+    mu = N.mean(axis=0)
+    s = float(np.sqrt(np.mean(np.sum((N - mu) ** 2, axis=1))))
+    P = (N - mu) / (s if s > 0 else 1.0)
+    keep = np.arange(10) if misalignment else np.array([0, 1, 2, 6, 7, 8, 9])
+    D = _design(P)[:, keep]
+    sv = np.linalg.svd(D, compute_uv=False)
+    if len(N) < len(keep) - 1 or sv[-2] <= 1e-9 * sv[0]:
+        raise InputError(f"{len(N)} positions do not determine an ellipsoid (the quadric through them is not "
+                         "unique); use more, and more varied, orientations (e.g. the 24-position scheme)")
+    return mu, s, P, D, keep
+
+
+def _kkt(D: np.ndarray) -> np.ndarray:
+    """min ‖D·v‖² subject to trace(Q) = 1 alone, from its KKT system (the fit when Q ⪰ 0 is inactive)."""
+    m = D.shape[1]
+    a = np.zeros(m)
+    a[:3] = 1.0
+    K = np.block([[D.T @ D, a[:, None]], [a[None, :], np.zeros((1, 1))]])
+    return np.linalg.solve(K, np.concatenate([np.zeros(m), [1.0]]))[:-1]
+
+
+def _to_params(v, keep, mu, s, g_local) -> dict:
+    """K, b, T, centre and Q (radius g_local) from the quadric v in the scaled frame; refuses a
+    degenerate quadric (Q singular: the optimum on the cone's boundary) or one without real points."""
+    full = np.zeros(10)
+    full[keep] = v
+    Qp = np.array([[full[0], full[3], full[4]], [full[3], full[1], full[5]], [full[4], full[5], full[2]]])
+    eig = np.linalg.eigvalsh(Qp)
+    if eig[0] <= 1e-6 * eig[-1]:
+        raise InputError("the position means do not lie on an ellipsoid (the best quadric with a positive-"
+                         "semidefinite Q is degenerate): wrong units, or the sensor moved during the positions?")
+    op = -np.linalg.solve(Qp, full[6:9])
+    rho = float(op @ Qp @ op - full[9])
+    if rho <= 0:
+        raise InputError("the position means do not lie on an ellipsoid (the fitted quadric has no real "
+                         "points); check the data")
+    o = mu + s * op
+    Qn = Qp * g_local**2 / (rho * s**2)
+    K, b, T = ellipsoid_to_params(Qn, o)
+    return {"K": K, "b": b, "T": T, "o": o, "Q": Qn, "rho": rho}
+
+
+def check_ellipsoid(N, g_local: float = 1.0, *, misalignment: bool = True) -> None:
+    """Refuse (InputError) data that cannot be an ellipsoid, without the conic solver: the trace-only
+    least-squares quadric decides it exactly, since when its Q is not positive definite the convex
+    problem's optimum lies on the cone's boundary (a singular Q), which :func:`fit_ellipsoid` refuses."""
+    mu, s, _, D, keep = _prepare(N, misalignment)
+    _to_params(_kkt(D), keep, mu, s, g_local)
+
+
 def fit_ellipsoid(N: np.ndarray, g_local: float = 1.0, *, misalignment: bool = True, solver: str = "auto",
                   polish: bool = True) -> dict:
     """The convex fit: returns K, b, T (gauge of DESIGN §3), the centre o, Q (radius g_local) and
     solver details. Raises InputError for data that cannot be an ellipsoid."""
-    N = np.asarray(N, float)
-    if N.ndim != 2 or N.shape[1] != 3 or not np.all(np.isfinite(N)):
-        raise InputError("the ellipsoid fit needs finite position means with three columns")
-    need = 9 if misalignment else 6
-    mu = N.mean(axis=0)
-    s = float(np.sqrt(np.mean(np.sum((N - mu) ** 2, axis=1))))
-    P = (N - mu) / (s if s > 0 else 1.0)
-    D = _design(P)
-    keep = np.arange(10) if misalignment else np.array([0, 1, 2, 6, 7, 8, 9])
-    D = D[:, keep]
-    sv = np.linalg.svd(D, compute_uv=False)
-    if len(N) < need or sv[-2] <= 1e-9 * sv[0]:
-        raise InputError(f"{len(N)} positions do not determine an ellipsoid (the quadric through them is not "
-                         "unique); use more, and more varied, orientations (e.g. the 24-position scheme)")
+    mu, s, P, D, keep = _prepare(N, misalignment)
+    n = len(P)
     if misalignment:
         Q = cp.Variable((3, 3), symmetric=True)
         cons = [Q >> 0]
@@ -96,7 +140,7 @@ def fit_ellipsoid(N: np.ndarray, g_local: float = 1.0, *, misalignment: bool = T
     q, c = cp.Variable(3), cp.Variable()
     cons.append(cp.trace(Q) == 1)
     # Residuals divided by √n so that the objective is O(1) whatever the number of positions.
-    prob = cp.Problem(cp.Minimize(cp.sum_squares(quad + 2 * P @ q + c) / len(N)), cons)
+    prob = cp.Problem(cp.Minimize(cp.sum_squares(quad + 2 * P @ q + c) / n), cons)
     name = _solver_name(solver)
     kwargs = {"tol_gap_abs": 1e-12, "tol_gap_rel": 1e-12, "tol_feas": 1e-12} if name == "CLARABEL" else \
         {"eps": 1e-10, "max_iters": 100000}
@@ -109,34 +153,13 @@ def fit_ellipsoid(N: np.ndarray, g_local: float = 1.0, *, misalignment: bool = T
     Qv = np.array(Q.value, float)
     v = np.concatenate([Qv[[0, 1, 2], [0, 1, 2]], Qv[[0, 0, 1], [1, 2, 2]], q.value, [c.value]])[keep]
     eig = np.linalg.eigvalsh(Qv)
-    polished = False
-    if polish and eig[0] > 1e-6 * eig[-1]:
-        # The cone constraint is inactive: solve min ‖Dv‖² s.t. aᵀv = 1 (a: the trace) from its KKT system.
-        a = np.zeros(len(keep))
-        a[:3] = 1.0
-        H = D.T @ D
-        K = np.block([[H, a[:, None]], [a[None, :], np.zeros((1, 1))]])
-        v = np.linalg.solve(K, np.concatenate([np.zeros(len(keep)), [1.0]]))[:-1]
-        polished = True
-    full = np.zeros(10)
-    full[keep] = v
-    Qp = np.array([[full[0], full[3], full[4]], [full[3], full[1], full[5]], [full[4], full[5], full[2]]])
-    qp, cp_ = full[6:9], full[9]
-    eig = np.linalg.eigvalsh(Qp)
-    if eig[0] <= 1e-6 * eig[-1]:
-        raise InputError("the position means do not lie on an ellipsoid (the best quadric with a positive-"
-                         "semidefinite Q is degenerate): wrong units, or the sensor moved during the positions?")
-    op = -np.linalg.solve(Qp, qp)
-    rho = float(op @ Qp @ op - cp_)
-    if rho <= 0:
-        raise InputError("the position means do not lie on an ellipsoid (the fitted quadric has no real "
-                         "points); check the data")
-    o = mu + s * op
-    Qn = Qp * g_local**2 / (rho * s**2)
-    K, b, T = ellipsoid_to_params(Qn, o)
-    rms = float(np.sqrt(np.mean((D @ v) ** 2)) / rho)  # algebraic residual relative to the radius²
-    return {"K": K, "b": b, "T": T, "o": o, "Q": Qn, "solver": name, "status": prob.status, "polished": polished,
-            "algebraic_rms": rms}
+    polished = bool(polish and eig[0] > 1e-6 * eig[-1])
+    if polished:  # the cone constraint is inactive: the optimum solves the equality-constrained KKT system
+        v = _kkt(D)
+    out = _to_params(v, keep, mu, s, g_local)
+    out.update(solver=name, status=prob.status, polished=polished,
+               algebraic_rms=float(np.sqrt(np.mean((D @ v) ** 2)) / out["rho"]))  # relative to the radius²
+    return out
 
 
 def fit_to_vector(model, fit: dict) -> np.ndarray:
@@ -190,15 +213,17 @@ class Ellipsoid(Solver):
     }
 
     def start_point(self, problem, x0):
-        """The fit itself (the method needs no starting point; ``x0`` is ignored). Done here, before the
-        run, so that data which cannot be an ellipsoid are refused with an InputError (one line from the
-        CLI) rather than reported as a failed run."""
-        self._fit = _fit_problem(problem, self.config["solver"], self.config["polish"])
-        return problem.from_full(fit_to_vector(problem.model, self._fit))
+        """The method needs no starting point (``x0`` is ignored). Data that cannot be an ellipsoid are
+        refused here, before the run, with an InputError (one line from the CLI) rather than reported as
+        a failed run; the check is exact and cheap (:func:`check_ellipsoid`), the fit itself is timed."""
+        if problem.reference:
+            _fit_problem(problem)  # raises: the fit needs the norm cost
+        check_ellipsoid(problem.data.N, problem.g_local, misalignment="misalignment" in problem.model.groups())
+        return problem.x0
 
     def _solve(self, problem, x0, rng, callback):
-        fit = self._fit
-        problem.cost(x0)
+        fit = _fit_problem(problem, self.config["solver"], self.config["polish"])
+        problem.cost(problem.from_full(fit_to_vector(problem.model, fit)))
         callback(1)
         others = [n for t in problem.model.terms if t not in LINEAR for n in _term_params(t)]
         how = f"convex ellipsoid fit ({fit['solver']}{', polished' if fit['polished'] else ''})"

@@ -144,7 +144,6 @@ class NLopt(Solver):
                 if grad.size:
                     grad[:] = 0.0
                 return np.inf
-            state["calls"] += 1
             try:
                 if grad.size:
                     r = pn.residuals(z)
@@ -152,6 +151,7 @@ class NLopt(Solver):
                     g = 2.0 * pn.jacobian(z).T @ r if np.isfinite(f) else None
                 else:
                     f = pn.cost(z)
+                state["calls"] += 1
                 callback(state["calls"])
             except BudgetExhausted as exc:
                 return _stop(opt, state, str(exc), grad)

@@ -14,7 +14,7 @@ energies; NaN would never lose a comparison against itself and can be picked by 
 
 ``polish`` (off by default) finishes with L-BFGS-B from the best member, as SciPy's polish does, but with
 the problem's exact gradient; every evaluation goes through the problem, so it is counted and stopped by
-the budget like the rest.
+the budget like the rest. With an evaluation budget, a tenth of it is kept for the polish.
 """
 
 from __future__ import annotations
@@ -24,11 +24,12 @@ import math
 import numpy as np
 from scipy.optimize import differential_evolution, minimize
 
-from optcal.errors import InputError
+from optcal.errors import BudgetExhausted, InputError
 
 from .base import Option, Solver, positive, probability
 from .registry import register
 
+POLISH_SHARE = 0.1  # of an evaluation budget kept for the polish when it is on
 STRATEGIES = ("best1bin", "best1exp", "rand1bin", "rand1exp", "rand2bin", "rand2exp", "randtobest1bin",
               "randtobest1exp", "currenttobest1bin", "currenttobest1exp", "best2bin", "best2exp")
 
@@ -88,8 +89,12 @@ class ScipyDE(Solver):
         budget = problem.counter.budget
         maxiter = cfg["maxiter"]
         if budget.max_evals is not None:
-            # the initial population and `maxiter` generations, the last one cut by the budget
-            maxiter = max(0, math.ceil((budget.max_evals - problem.counter.nfev) / S) - 1)
+            # the initial population and `maxiter` generations, the last one cut by the budget (less the
+            # part kept for the polish)
+            left = budget.max_evals - problem.counter.nfev
+            if cfg["polish"]:
+                left -= int(POLISH_SHARE * left)
+            maxiter = max(0, math.ceil(left / S) - 1)
 
         def energies(Z):
             Z = np.asarray(Z, float)
@@ -103,16 +108,20 @@ class ScipyDE(Solver):
             generation[0] += 1
             callback(generation[0])
 
-        res = differential_evolution(
-            energies, [(-1.0, 1.0)] * n, strategy=cfg["strategy"], maxiter=maxiter, popsize=cfg["popsize"],
-            tol=cfg["tol"], atol=cfg["atol"], mutation=cfg["mutation"], recombination=cfg["recombination"],
-            rng=int(rng.integers(2**63)), callback=each_generation, polish=self._polish(pn) if cfg["polish"]
-            else False, init="latinhypercube", updating="deferred", vectorized=True, x0=z0,
-        )
-        used_up = budget.max_evals is not None and problem.counter.nfev >= budget.max_evals
-        if used_up and not res.success:
+        try:
+            res = differential_evolution(
+                energies, [(-1.0, 1.0)] * n, strategy=cfg["strategy"], maxiter=maxiter, popsize=cfg["popsize"],
+                tol=cfg["tol"], atol=cfg["atol"], mutation=cfg["mutation"], recombination=cfg["recombination"],
+                rng=int(rng.integers(2**63)), callback=each_generation, polish=self._polish(pn) if cfg["polish"]
+                else False, init="latinhypercube", updating="deferred", vectorized=True, x0=z0,
+            )
+        except BudgetExhausted as exc:  # within the polish (the generations are sized to the budget)
+            return {"nit": generation[0], "status": 1, "success": True,
+                    "message": f"{exc} (in the L-BFGS-B polish after {generation[0]} generations)"}
+        if budget.max_evals is not None and not res.success:  # SciPy: the generations ran out
+            polished = " and the L-BFGS-B polish" if cfg["polish"] else ""
             return {"nit": int(res.nit), "status": 1, "success": True,
-                    "message": f"evaluation budget used up after {res.nit} generations"}
+                    "message": f"evaluation budget used up by {res.nit} generations{polished}"}
         return {"nit": int(res.nit), "status": 0 if res.success else 1, "success": True,
                 "message": f"differential evolution: {res.message}"}
 

@@ -412,6 +412,15 @@ def test_scipy_de_uses_a_binding_budget_exactly(budget):
     assert res.fun <= true_cost(prob, prob.to_full(x0)[0])  # the start is a member of the first population
 
 
+def test_scipy_de_polish_gets_a_tenth_of_the_budget():
+    prob, x0 = _de_problem()
+    plain = solvers.get("scipy-de").solve(prob, x0=x0, budget=1000, rng=1)
+    polished = solvers.get("scipy-de", polish=True).solve(prob, x0=x0, budget=1000, rng=1)
+    # 900 evaluations for the generations (10 populations of 90), the rest for L-BFGS-B
+    assert 900 < polished.nfev <= 1000 and polished.nit == 9
+    assert polished.fun < plain.fun and "polish" in polished.message
+
+
 def test_scipy_de_is_seeded_and_converges():
     prob, x0 = _de_problem()
     lm = reference_optimum()
