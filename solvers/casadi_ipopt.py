@@ -32,9 +32,12 @@ no second copy of the sensor equations.
   a Python gate (:class:`_Gate`) that charges the problem's counter: an objective evaluation is one
   evaluation, a gradient is one (a residual-and-Jacobian evaluation, as ``problem.jacobian`` counts one);
   the same call forms JᵀJ, so the Gauss-Newton Hessian Ipopt asks for next, at the same point, costs
-  nothing more. Past the budget a gate returns NaN, which Ipopt treats as a failed evaluation, and then
-  stops. One evaluation is kept back: Ipopt's final point is evaluated through the problem, so the best
-  point is tracked and the reported cost is the problem's own.
+  nothing more. (This is the count Ipopt reports in its statistics, taken as the calls happen rather
+  than after the run, so that the budget can stop Ipopt exactly.) Past the budget a gate refuses the
+  call: an objective refusal returns a value Ipopt accepts, so that it asks for the gradient there,
+  which is refused with NaN, and Ipopt stops at once; the refused points are never reported. One
+  evaluation is kept back: the lowest point Ipopt evaluated (its final iterate) is evaluated through the
+  problem, so the best point is tracked and the reported cost is the problem's own.
 * **Stopping.** Ipopt stops on its gradient test (``tol``, on the objective scaled to 1 at the start) or
   a tiny step (``step_tol``). Near the optimum the cost itself cannot confirm a Gauss-Newton step (the
   residuals ‖A‖ − g ≈ 1e-5 g carry ~1e-16 g of rounding, so relative cost changes below ~1e-11 are noise),
@@ -121,9 +124,10 @@ def symbolic_residuals(model: Model, P: dict, N, ctx: Context, g, ref=None, K0=N
 
 
 class _Gate(ca.Callback if ca is not None else object):
-    """A compiled function behind a Python gate: charges the evaluation, refuses it past the allowance
-    or the deadline (NaN outputs), and scales the outputs by the objective weight w (set from the first
-    objective value, at the start). The gradient gate also keeps JᵀJ for the Hessian gate."""
+    """A compiled function behind a Python gate: charges the evaluation, refuses it past the allowance,
+    the deadline or a stalled line search (module docstring), and scales the outputs by the objective
+    weight w (set from the first objective value, at the start). The gradient gate also keeps JᵀJ for
+    the Hessian gate, and the lowest point evaluated is remembered for the final evaluation."""
 
     def __init__(self, kind: str, fun, state: dict, n_out: int, jac=None):
         ca.Callback.__init__(self)

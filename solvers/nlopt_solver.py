@@ -9,9 +9,10 @@ ranking evolution strategy, Runarsson & Yao 2005), ``nlopt-lbfgs`` (Nocedal's lo
 
 * **Normalised coordinates.** NLopt searches z ∈ [−1, 1]ⁿ with x = centre + half-width·z
   (``problem.normalised()``). The parameters differ by five orders of magnitude (scale factors near 1,
-  second-order terms near 1e-5), and NLopt's derivative-free methods take one initial step size for all
-  coordinates, the global ones sample the box uniformly, and xtol_rel compares steps with |x|: in the
-  unit box all of this means the same for every parameter (2020 paper §3.4 asks for the same).
+  second-order terms near 1e-5), while NLopt's derivative-free methods start with one step size for all
+  coordinates, the global ones sample the box uniformly, and xtol_rel compares each step with |x|
+  (tolerances five orders apart in x). In the unit box every parameter is searched on the same footing,
+  its box being its expected range around the presets (2020 paper §3.4 asks for the same).
 * **Objective scale.** The cost is divided by its first finite value (the start), so that it is O(1):
   L-BFGS and SLSQP have absolute internal thresholds that a cost of 1e-9 g² would meet at the start.
 * **Return codes.** NLopt's results are mapped by :data:`RESULTS` (code → message, success), never left to
