@@ -183,6 +183,11 @@ class Solver:
     def start_point(self, problem: CalibrationProblem, x0) -> np.ndarray:
         """``x0`` if given (in the problem's coordinates), else the problem's presets or linear fit."""
         if x0 is None:
+            # The convex ellipsoid fit initialises every local method when neither x0 nor presets are given.
+            if problem.presets is None and self.family == "local":
+                from .ellipsoid import ellipsoid_start
+
+                return ellipsoid_start(problem)
             return problem.x0
         x0 = np.asarray(x0, float)
         if x0.shape != (problem.n,):
