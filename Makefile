@@ -12,8 +12,13 @@ $(STAMP): pyproject.toml
 	$(PY) -m pip install --quiet -e ".[test]"
 	touch $(STAMP)
 
+# The headline comparison study (studies/specs/compare.toml) and its report, out/compare-quick/report.md.
+# The full study (50 runs) takes longer than 15 minutes on 2 cores (docs/studies.md), so `make run` runs
+# its --quick variant; the full one: .venv/bin/optcal study run compare  (report: out/compare/report.md).
+# A study that is stopped resumes where it stopped when run again.
 run: $(STAMP)
-	$(VENV)/bin/optcal demo
+	$(VENV)/bin/optcal study run compare --quick --executor processes --workers $$(nproc 2>/dev/null || echo 2) \
+		--out out/compare-quick
 
 test: $(STAMP)
 	$(PY) -m ruff check optcal solvers studies tests
@@ -22,8 +27,12 @@ test: $(STAMP)
 bench: $(STAMP)
 	$(PY) -m pytest tests/benchmarks --benchmark-enable --benchmark-only --benchmark-autosave
 
+# The latest saved benchmark run against the one before it (both saved by `make bench`).
 bench-compare: $(STAMP)
-	$(VENV)/bin/pytest-benchmark compare --group-by=name --columns=min,median,mean,stddev $$(ls -t .benchmarks/*/*.json | head -2)
+	@runs="$$(ls -t .benchmarks/*/*.json 2>/dev/null | head -2 | tac)"; \
+	if [ "$$(echo "$$runs" | grep -c json)" -lt 2 ]; then \
+		echo "make bench-compare needs two saved runs in .benchmarks/: run make bench twice"; exit 1; fi; \
+	$(VENV)/bin/pytest-benchmark compare --group-by=name --columns=min,median,mean,stddev $$runs
 
 lint: $(STAMP)
 	$(PY) -m ruff check optcal solvers studies tests

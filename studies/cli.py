@@ -6,7 +6,7 @@ import sys
 from pathlib import Path
 
 from .execute import run_study
-from .report import write_report
+from .report import headline, write_report
 from .spec import load
 
 
@@ -30,6 +30,7 @@ def run(args) -> int:
           f"in {s.wall_s:.1f} s with {s.executor}" + (f" ×{s.workers}" if s.executor != "serial" else ""))
     if not args.no_report:
         out = write_report(folder)
+        print(headline(folder))
         print(f"report: {out}")
     return 0
 

@@ -136,6 +136,21 @@ def _parameters_md(cs) -> str:
     return "\n".join(lines)
 
 
+def headline(folder: str | Path, top: int = 8) -> str:
+    """The ``top`` solvers of each model × scheme (success, then accuracy), as markdown tables."""
+    with Store.open_existing(folder) as store:
+        spec, rows = store.spec, store.rows()
+    out = []
+    for (model, scheme), cg in cells(groups(rows, [s["label"] for s in spec["solvers"]])).items():
+        ranked = _rank(cg)
+        out.append(f"{model}, {scheme} positions ({min(top, len(ranked))} best of {len(ranked)}):")
+        out += _table(["solver", "success", "RMSE/CRLB", "verification µg", "runtime s"],
+                      [[f"`{_label(g)}`", f"{100 * g.success_rate:.0f} %", _f(g.accuracy, ".2f"),
+                        _f(g.summary()["ver_mean_ug"], ".2f"), _f(g.summary()["runtime_median_s"], ".3g")]
+                       for g in ranked[:top]])
+    return "\n".join(out)
+
+
 def write_report(folder: str | Path) -> Path:
     """Write ``report.md``, ``parameters.md``, ``summary.json`` and ``figures/*.png`` into ``folder``."""
     folder = Path(folder)
