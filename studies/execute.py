@@ -110,6 +110,21 @@ def _progress(total: int, enabled: bool | None):
                 dynamic_ncols=True, smoothing=0.05)
 
 
+def code_version() -> str:
+    """The git commit of the code that runs the trials (with '+dirty' for local changes), if known."""
+    import subprocess
+
+    root = Path(__file__).resolve().parent.parent
+    try:
+        head = subprocess.run(["git", "-C", str(root), "rev-parse", "--short", "HEAD"], capture_output=True,
+                              text=True, timeout=10).stdout.strip()
+        dirty = subprocess.run(["git", "-C", str(root), "status", "--porcelain", "--", "optcal", "solvers",
+                                "studies"], capture_output=True, text=True, timeout=10).stdout.strip()
+    except (OSError, subprocess.SubprocessError):
+        return ""
+    return head + ("+dirty" if head and dirty else "")
+
+
 def spec_json(spec: Spec) -> str:
     return json.dumps({**spec.canonical(), "description": spec.description}, sort_keys=True)
 
@@ -152,7 +167,8 @@ def run_study(spec: Spec, folder: str | Path, *, executor: str | None = None, wo
             bar.close()
             wall = time.perf_counter() - t0
             store.add_session({"executor": ex, "workers": nw if ex != "serial" else 1, "trials": ran,
-                               "wall_s": wall, "ended": time.strftime("%Y-%m-%d %H:%M:%S")})
+                               "wall_s": wall, "ended": time.strftime("%Y-%m-%d %H:%M:%S"),
+                               "code": code_version(), "cpus": os.cpu_count()})
         store.export()
         return RunSummary(str(folder), spec.hash, len(all_trials), len(done), ran, failed, wall, ex,
                           nw if ex != "serial" else 1)

@@ -155,6 +155,8 @@ def accuracy_runtime(cells: dict, title: str, path: Path) -> Path:
                         textcoords="offset points")
         ax.set_xscale("log")
         ax.set_yscale("log")
+        lo, hi = ax.get_ylim()
+        ax.set_ylim(min(lo, 0.5), max(hi, 2.0))
         ax.axhline(1.0, color="k", lw=0.8, ls="--")
         ax.set_xlabel("median runtime per calibration (s)")
         ax.set_ylabel("RMSE / CRLB (RMS over parameters)")
@@ -176,7 +178,8 @@ def navigation(groups: list[Group], hours: float, title: str, path: Path) -> Pat
     for i, g in enumerate(shown):
         C = np.array([r["nav_curve"] for r in g.ok if r["nav_curve"]])
         t = np.linspace(0, hours, C.shape[1])
-        ax.plot(t, np.median(C, 0), label=("traditional: " if g.reference else "") + g.solver, **_style(i))
+        label = f"traditional ({g.reference_error_arcsec:g}″ turntable)" if g.reference else g.solver
+        ax.plot(t, np.median(C, 0), label=label, **_style(i))
     ax.plot(t, np.zeros_like(t), "k-", lw=2, label="truth calibration")
     ax.set_xlabel("time (h)")
     ax.set_ylabel("position error (nmi), median over runs")
@@ -197,6 +200,7 @@ def traditional(levels: list[tuple[float, float]], infield: list[tuple[str, floa
     for i, (name, v) in enumerate(infield):
         ax.axhline(v, label=f"in-field: {name}", **_style(i))
     ax.set_xscale("symlog", linthresh=10)
+    ax.set_xlim(0, a[:, 0].max() * 1.3)
     ax.set_yscale("log")
     ax.set_xlabel("turntable orientation error (arcsec, 1σ per axis)")
     ax.set_ylabel(ylabel)

@@ -187,7 +187,8 @@ def write_report(folder: str | Path) -> Path:
         + (f"Navigation: {spec['navigation']['hours']:g} h static at {spec['navigation']['latitude_deg']:g}° latitude."
            if has_nav else "Navigation: not computed."),
         f"- Wall time {wall:.1f} s over {len(sessions)} session(s): "
-        + "; ".join(f"{s['executor']} ×{s['workers']}: {s['trials']} trials in {s['wall_s']:.1f} s" for s in sessions),
+        + "; ".join(f"{s['executor']} ×{s['workers']}: {s['trials']} trials in {s['wall_s']:.1f} s"
+                    + (f" (code {s['code']})" if s.get("code") else "") for s in sessions),
         "",
         "**How to read.** *success*: share of runs whose final cost is within the 99.9 % χ² quantile of the "
         "cost at the optimum (reached the noise floor). *RMSE/CRLB*: RMS over parameters of each parameter's "
