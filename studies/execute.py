@@ -21,7 +21,7 @@ from optcal.errors import InputError
 
 from .spec import EXECUTORS, Spec
 from .store import Store
-from .trial import Trial, run_trial, trials
+from .trial import Trial, failed_row, run_trial, trials
 
 # One BLAS thread per worker: the workers already use every core, and oversubscribed BLAS pools
 # only make them fight (dask's nanny sets the same variables for its workers).
@@ -77,9 +77,14 @@ def _dask(tasks: list[Trial], workers: int, scheduler: str) -> Iterator[dict]:
         cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True, dashboard_address=None)
         client = Client(cluster)
     try:
-        futures = [client.submit(run_trial, t, key=f"trial-{i}-{t.id}", pure=False) for i, t in enumerate(tasks)]
-        for f in dask_completed(futures):
-            yield f.result()
+        futures = {client.submit(run_trial, t, key=f"trial-{i}-{t.id}", pure=False): t for i, t in enumerate(tasks)}
+        for f in dask_completed(list(futures)):
+            try:
+                row = f.result()
+            except Exception as exc:  # noqa: BLE001 - a worker lost while running this trial (e.g. a crash)
+                row = failed_row(futures[f], f"the Dask worker running this trial was lost: {type(exc).__name__}: "
+                                            f"{exc}")
+            yield row
             f.release()
     finally:
         client.close()

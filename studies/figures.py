@@ -137,26 +137,42 @@ def verification(groups: list[Group], title: str, path: Path) -> Path:
 
 
 def accuracy_runtime(cells: dict, title: str, path: Path) -> Path:
-    """Accuracy (RMSE/CRLB) against median runtime for every solver, one panel per model × scheme."""
+    """Accuracy (RMSE/CRLB) against median runtime for every solver, one panel per model × scheme.
+
+    Solvers that land on the same spot (the least-squares methods all reach the same optimum) share one
+    label, rotated so that neighbours along a row stay readable."""
     plt = _plt()
     n = len(cells)
     ncol = min(2, n)
     nrow = int(np.ceil(n / ncol))
-    fig, axes = plt.subplots(nrow, ncol, figsize=(7 * ncol, 5 * nrow), squeeze=False)
+    fig, axes = plt.subplots(nrow, ncol, figsize=(8 * ncol, 6 * nrow), squeeze=False)
     for ax, ((model, scheme), gs) in zip(axes.flat, cells.items()):
+        pts = []
         for g in gs:
             s = g.summary()
             if not np.isfinite(s["accuracy"]) or not np.isfinite(s["runtime_median_s"]):
                 continue
             staged = g.solver.startswith("staged:")
             ax.scatter(s["runtime_median_s"], s["accuracy"], marker="s" if staged else "o",
-                       c="tab:orange" if staged else ("tab:green" if g.reference else "tab:blue"), s=22)
-            ax.annotate(g.solver, (s["runtime_median_s"], s["accuracy"]), fontsize=6, xytext=(3, 2),
-                        textcoords="offset points")
+                       c="tab:orange" if staged else ("tab:green" if g.reference else "tab:blue"), s=22, zorder=3)
+            pts.append((s["runtime_median_s"], s["accuracy"], g.solver))
+        # one label per cluster: points within 4 % in runtime and 1 % in accuracy
+        pts.sort()
+        clusters: list[list] = []
+        for x, y, name in pts:
+            for c in clusters:
+                if abs(np.log(x / c[0])) < 0.04 and abs(np.log(y / c[1])) < 0.01:
+                    c[2].append(name)
+                    break
+            else:
+                clusters.append([x, y, [name]])
+        for x, y, names in clusters:
+            ax.annotate(", ".join(names), (x, y), fontsize=5.5, xytext=(2, 3), textcoords="offset points",
+                        rotation=35, rotation_mode="anchor")
         ax.set_xscale("log")
         ax.set_yscale("log")
         lo, hi = ax.get_ylim()
-        ax.set_ylim(min(lo, 0.5), max(hi, 2.0))
+        ax.set_ylim(min(lo, 0.5), max(hi * 1.6, 2.0))
         ax.axhline(1.0, color="k", lw=0.8, ls="--")
         ax.set_xlabel("median runtime per calibration (s)")
         ax.set_ylabel("RMSE / CRLB (RMS over parameters)")
@@ -165,6 +181,33 @@ def accuracy_runtime(cells: dict, title: str, path: Path) -> Path:
     for ax in axes.flat[n:]:
         ax.set_visible(False)
     fig.suptitle(title, fontsize=10)
+    fig.tight_layout()
+    return _save(fig, path)
+
+
+def ranking(groups: list[Group], title: str, path: Path) -> Path:
+    """Every solver's RMSE/CRLB as a bar (most accurate at the top), with success rate and median runtime."""
+    plt = _plt()
+    rows = sorted((g for g in groups if np.isfinite(g.accuracy)), key=lambda g: -g.accuracy)
+    fig, ax = plt.subplots(figsize=(8, 0.22 * len(rows) + 1.2))
+    y = np.arange(len(rows))
+    acc = [g.accuracy for g in rows]
+    colours = ["tab:green" if g.reference else ("tab:orange" if g.solver.startswith("staged:") else "tab:blue")
+               for g in rows]
+    ax.barh(y, acc, color=colours, height=0.7)
+    for i, g in enumerate(rows):
+        s = g.summary()
+        ax.text(acc[i] * 1.03, i, f"{100 * s['success_rate']:.0f} %, {s['runtime_median_s']:.3g} s", va="center",
+                fontsize=6.5)
+    ax.set_yticks(y)
+    ax.set_yticklabels([g.solver for g in rows], fontsize=7)
+    ax.set_xscale("log")
+    ax.set_xlim(min(0.5, min(acc) * 0.8), max(acc) * 2.5)
+    ax.axvline(1.0, color="k", lw=0.8, ls="--")
+    ax.set_xlabel("RMSE / Cramér-Rao bound (RMS over parameters; 1 = efficient)   "
+                  "[text: success rate, median runtime]")
+    ax.set_title(title + "\n(blue: joint, orange: staged:)", fontsize=9)
+    ax.grid(True, axis="x", which="both", alpha=0.3)
     fig.tight_layout()
     return _save(fig, path)
 

@@ -178,6 +178,19 @@ def _abs_norm_error_ug(problem: CalibrationProblem, x) -> np.ndarray:
     return np.abs(np.linalg.norm(A, axis=1) - problem.g_local) * 1e6
 
 
+def base_row(t: Trial) -> dict:
+    cfg = t.config
+    return {"trial_id": t.id, "model": t.model, "scheme": t.scheme, "solver": cfg.label, "solver_name": cfg.name,
+            "run": t.run, "reference": int(cfg.reference), "reference_error_arcsec": cfg.reference_error_arcsec,
+            "names": list(get_model(t.model).names)}
+
+
+def failed_row(t: Trial, message: str, wall_s: float | None = None) -> dict:
+    """The row of a trial that produced no result (the solver raised, or its worker was lost)."""
+    return {**base_row(t), "status": "failed", "message": message[:500], "success": 0, "converged": 0,
+            "wall_s": wall_s}
+
+
 def run_trial(t: Trial) -> dict:
     """Run one trial and return its row (see :mod:`studies.store` for the columns)."""
     t_start = time.perf_counter()
@@ -189,11 +202,7 @@ def run_trial(t: Trial) -> dict:
     sim = infield_data(t, truth)
     x_true = sim.truth_vector(model)
     yard = CalibrationProblem(model, sim.data, g_local=t.g_local, presets=presets, noise_g=sigma)
-    row = {
-        "trial_id": t.id, "model": t.model, "scheme": t.scheme, "solver": cfg.label, "solver_name": cfg.name,
-        "run": t.run, "reference": int(cfg.reference), "reference_error_arcsec": cfg.reference_error_arcsec,
-        "names": list(model.names), "x_true": [float(v) for v in x_true],
-    }
+    row = {**base_row(t), "x_true": [float(v) for v in x_true]}
     try:
         if cfg.reference:
             problem = CalibrationProblem(model, turntable_data(t, truth).data, g_local=t.g_local, reference=True,
@@ -211,9 +220,8 @@ def run_trial(t: Trial) -> dict:
     except Exception as exc:  # noqa: BLE001 - any solver error is a failed trial, not a failed study
         tb = traceback.extract_tb(exc.__traceback__)
         where = f" at {tb[-1].filename.rsplit('/', 1)[-1]}:{tb[-1].lineno}" if tb else ""
-        row.update(status="failed", message=f"{type(exc).__name__}: {exc}{where}"[:500], success=0, converged=0,
-                   wall_s=time.perf_counter() - t_start)
-        return row
+        return {**failed_row(t, f"{type(exc).__name__}: {exc}{where}", time.perf_counter() - t_start),
+                "x_true": row["x_true"]}
 
     sd, P, u, obs = projected_crlb(yard, x_true, sigma)
     e = x_est - x_true
