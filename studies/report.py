@@ -91,14 +91,17 @@ def _traditional_section(cell_key, gs: list[Group], figdir: Path, slug: str) -> 
     lines += _table(header, rows)
     for key, name, fn in metrics:
         levels = [(g.reference_error_arcsec, fn(g.summary())) for g in ref]
-        v = fn(best_in.summary())
-        if not all(np.isfinite(y) for _, y in levels) or not np.isfinite(v):
+        if not all(np.isfinite(y) for _, y in levels):
             continue
-        lines.append(f"- **{name}**: in-field calibration (`{best_in.solver}`, {_f(v)}) beats the turntable "
-                     f"calibration {_crossing(levels, v)}.")
-        if len(levels) > 1:
-            p = figures.traditional(levels, [(best_in.solver, v)], name, f"{model}, {scheme} positions: {name}",
-                                    figdir / f"traditional_{key}_{slug}.png")
+        said = [f"`{g.solver}` ({_f(fn(g.summary()))}) {_crossing(levels, fn(g.summary()))}"
+                for g in inf if np.isfinite(fn(g.summary()))]
+        if not said:
+            continue
+        lines.append(f"- **{name}**: in-field calibration beats the turntable calibration: " + "; ".join(said) + ".")
+        v = fn(best_in.summary())
+        if len(levels) > 1 and np.isfinite(v):
+            p = figures.traditional(levels, [(g.solver, fn(g.summary())) for g in inf], name,
+                                    f"{model}, {scheme} positions: {name}", figdir / f"traditional_{key}_{slug}.png")
             lines.append(f"  ![{name}](figures/{p.name})")
     return lines + [""]
 
