@@ -202,7 +202,6 @@ def write_report(folder: str | Path) -> Path:
         "",
     ]
     summary = []
-    figs_all = []
     for (model, scheme), cg in cs.items():
         slug = f"{model}_{scheme}".replace(":", "-")
         L += [f"## {model}, {scheme} positions", ""]
@@ -221,7 +220,6 @@ def write_report(folder: str | Path) -> Path:
         f3 = figures.error_vs_crlb(cg, f"{ttl}: error against the Cramér-Rao bound", figdir / f"crlb_{slug}.png")
         f4 = figures.verification(cg, f"{ttl}: verification error per position", figdir / f"verification_{slug}.png")
         f0 = figures.ranking(cg, f"{ttl}: accuracy of every solver", figdir / f"ranking_{slug}.png")
-        figs_all += [f0, f1, f2, f3, f4]
         L += [f"![ranking](figures/{f0.name})", "",
               f"![final cost per run](figures/{f1.name})", "", f"![convergence](figures/{f2.name})", "",
               f"![error against CRLB](figures/{f3.name})", "", f"![verification](figures/{f4.name})", ""]
