@@ -161,6 +161,7 @@ class Group:
             return e, e, e, e
         top = max(t[-1][0] for t in traces)
         grid = np.unique(np.round(10 ** (np.arange(0, 10 * np.log10(max(top, 1)) + 1) / 10)))
+        grid = np.unique(np.append(grid[grid <= top], top))
         Y = np.full((len(traces), len(grid)), np.nan)
         for i, t in enumerate(traces):
             nf = np.array([p[0] for p in t], float)

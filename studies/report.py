@@ -154,6 +154,29 @@ def headline(folder: str | Path, top: int = 8) -> str:
     return "\n".join(out)
 
 
+def overview(cs) -> list[str]:
+    """One row per solver, one column per model × scheme: RMSE/CRLB (success rate), plus the median
+    runtime over all cells; solvers ordered by their mean rank over the cells."""
+    keys = list(cs)
+    by = {k: {g.solver: g for g in cg} for k, cg in cs.items()}
+    names = list(dict.fromkeys(g.solver for cg in cs.values() for g in cg))
+    rank = {n: [] for n in names}
+    for k in keys:
+        for i, g in enumerate(_rank(list(by[k].values()))):
+            rank[g.solver].append(i)
+    names.sort(key=lambda n: np.mean(rank[n]))
+    rows = []
+    for n in names:
+        cellv = []
+        for k in keys:
+            g = by[k].get(n)
+            cellv.append("–" if g is None else f"{_f(g.accuracy, '.2f')} ({100 * g.success_rate:.0f} %)")
+        rts = [by[k][n].summary()["runtime_median_s"] for k in keys if n in by[k]]
+        first = next(by[k][n] for k in keys if n in by[k])
+        rows.append([f"`{_label(first)}`"] + cellv + [_f(float(np.median(rts)), ".3g")])
+    return _table(["solver"] + [f"{m}, {s}" for m, s in keys] + ["runtime s"], rows)
+
+
 def write_report(folder: str | Path) -> Path:
     """Write ``report.md``, ``parameters.md``, ``summary.json`` and ``figures/*.png`` into ``folder``."""
     folder = Path(folder)
@@ -201,6 +224,10 @@ def write_report(folder: str | Path) -> Path:
         "(SD over positions), averaged over runs. Runtime: solver time per calibration.",
         "",
     ]
+    if len(cs) > 1:
+        L += ["## Overview", "", "RMSE/CRLB (success rate) of every solver in every model × scheme, most accurate "
+              "first (mean rank over the columns); runtime: median over the columns of the median solver time.", ""]
+        L += overview(cs)
     summary = []
     for (model, scheme), cg in cs.items():
         slug = f"{model}_{scheme}".replace(":", "-")
