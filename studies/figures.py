@@ -222,7 +222,10 @@ def navigation(groups: list[Group], hours: float, title: str, path: Path) -> Pat
         C = np.array([r["nav_curve"] for r in g.ok if r["nav_curve"]])
         t = np.linspace(0, hours, C.shape[1])
         label = f"traditional ({g.reference_error_arcsec:g}″ turntable)" if g.reference else g.solver
-        ax.plot(t, np.median(C, 0), label=label, **_style(i))
+        # Calibrations that agree draw on top of each other: later lines are thinner and dashed so that
+        # every one stays visible.
+        style = {**_style(i), "linestyle": ("-", "--", "-.", ":")[i % 4], "lw": max(2.8 - 0.6 * i, 1.0)}
+        ax.plot(t, np.median(C, 0), label=label, **style)
     ax.plot(t, np.zeros_like(t), "k-", lw=2, label="truth calibration")
     ax.set_xlabel("time (h)")
     ax.set_ylabel("position error (nmi), median over runs")
