@@ -143,3 +143,17 @@ def test_counts_data_needs_units(tmp_path, capsys):
     assert code == 0, err
     assert json.loads(out)["parameters"]["K_x"] == pytest.approx(16384, rel=1e-9)
     assert np.isclose(json.loads(out)["parameters"]["b_x"], 20 / 16384, rtol=1e-6)
+
+
+def test_output_cut_short_by_the_reader_is_not_a_traceback():
+    """`optcal solvers | head -1`: the reader closes the pipe early; no traceback, SIGPIPE's status."""
+    import subprocess
+    import sys
+
+    proc = subprocess.Popen([sys.executable, "-c", "import sys; from optcal.cli import main; sys.exit(main())",
+                             "solvers"], stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+    proc.stdout.readline()
+    proc.stdout.close()  # the reader goes away after one line
+    err = proc.stderr.read().decode()
+    assert proc.wait(timeout=120) in (0, 141)
+    assert "Traceback" not in err and "BrokenPipe" not in err
