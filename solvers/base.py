@@ -153,8 +153,11 @@ class Solver:
         t0 = time.perf_counter()
         out: dict = {}
         status, message, success = 0, "", True
+        # The iterations completed so far, as the solver reports them through its callback: what `nit`
+        # is when a budget or the user's callback ends the run before `_solve` can return its own count.
+        done = [0]
         try:
-            out = self._solve(problem, x_start, rng, self._wrap_callback(problem, callback)) or {}
+            out = self._solve(problem, x_start, rng, self._wrap_callback(problem, callback, done)) or {}
             status = out.get("status", 0)
             message = out.get("message", "converged")
             success = out.get("success", True)
@@ -175,7 +178,7 @@ class Solver:
             message = f"{message}; no finite cost was found" if message else "no finite cost was found"
         return SolverResult(
             x=np.asarray(x_best, float), fun=float(f_best), success=bool(success), status=int(status),
-            message=message, nfev=counter.nfev, nit=int(out.get("nit", 0)), runtime_s=runtime,
+            message=message, nfev=counter.nfev, nit=int(out.get("nit", done[0])), runtime_s=runtime,
             trace=list(counter.trace), njev=counter.njev, x_full=problem.to_full(x_best)[0], solver=self.name,
             extra=out.get("extra", {}),
         )
@@ -194,11 +197,13 @@ class Solver:
             raise InputError(f"x0 has {x0.size} values; the problem has {problem.n} parameters")
         return x0
 
-    def _wrap_callback(self, problem, callback):
-        if callback is None:
-            return lambda nit: None
+    def _wrap_callback(self, problem, callback, done: list | None = None):
+        done = [0] if done is None else done
 
         def cb(nit: int):
+            done[0] = int(nit)
+            if callback is None:
+                return
             x, f = problem.best
             if callback({"x": x, "fun": f, "nit": nit, "nfev": problem.nfev}) is True:
                 raise StopSolver

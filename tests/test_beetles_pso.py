@@ -365,3 +365,12 @@ def test_pso_starts_from_x0_and_clamps_velocity():
     np.testing.assert_array_equal(X[0, 0], problem.normalised().from_full(problem.centre))
     assert np.abs(np.diff(X, axis=0)).max() <= 2 * clamp + 1e-15
     assert res.fun <= true_cost(problem, X[0, :1])[0]
+
+
+def test_a_budget_stop_reports_the_iterations_completed():
+    """nit of a run that the budget ends is the iterations done, not 0: PSO with 10 particles evaluates
+    10 at the start and 10 per iteration: 60 evaluations are 5 iterations; with 65 a sixth iteration
+    runs on the 5 candidates the budget still allows."""
+    for budget, nit in ((60, 5), (65, 6)):
+        res = solvers.get("pso", n_particles=10, iterations=100).solve(unit_problem(), budget=budget, rng=1)
+        assert res.status == 1 and res.nfev == budget and res.nit == nit
