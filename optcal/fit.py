@@ -7,7 +7,7 @@ standard errors, observability and goodness of fit.
 from __future__ import annotations
 
 import importlib
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -17,6 +17,9 @@ from .errors import InputError
 from .model import Model, get_model
 from .presets import Presets
 from .problem import CalibrationProblem
+
+# A fit whose χ² has a p-value below this does not match the stated noise (see `calibrate`).
+MISFIT_P = 1e-3
 
 
 def get_solver(name: str, **options):
@@ -40,6 +43,7 @@ class Calibration:
     problem: CalibrationProblem
     solver: str
     result: object  # the SolverResult
+    notes: list = field(default_factory=list)  # what the user should know about these numbers
 
     @property
     def parameters(self) -> dict[str, float]:
@@ -58,6 +62,7 @@ class Calibration:
             "g_local": self.problem.g_local,
             "solver": self.solver,
             "observability": self.observability.to_dict(),
+            "notes": list(self.notes),
             "nfev": r.nfev, "nit": r.nit, "runtime_s": r.runtime_s, "success": r.success, "message": r.message,
         }
 
@@ -83,5 +88,16 @@ def calibrate(data: PositionsData, model: str | Model = "nonlinear12", *, solver
     x = problem.to_full(result.x)[0]
     obs = observability(problem, x)
     gof = goodness_of_fit(problem, x)
-    sd, _ = crlb(problem, x, gof.sigma_g if problem.noise_g is None else problem.noise_g)
-    return Calibration(model, x, sd, obs, gof, problem, solver, result)
+    sigma, notes = gof.sigma_g, []
+    if gof.p_value is not None and gof.p_value < MISFIT_P:
+        # The residuals are larger than the noise of the position means (the within-interval scatter of a
+        # recording, or the given noise): the model misses an effect, or the positions were not static.
+        # Bounds from that noise would be too small; scale them by the Birge ratio sqrt(χ²/dof), which
+        # is the residual-based noise estimate (Birge 1932; the usual practice in metrology).
+        birge = float(np.sqrt(gof.chi2 / gof.dof))
+        sigma = gof.sigma_g * birge
+        notes.append(f"chi2/dof = {gof.chi2 / gof.dof:.3g} (p = {gof.p_value:.2g}): the residuals exceed the noise "
+                     f"of the position means, so the standard errors are scaled by the Birge ratio {birge:.3g}; "
+                     "the model may miss an effect (try optcal discover)")
+    sd, _ = crlb(problem, x, sigma)
+    return Calibration(model, x, sd, obs, gof, problem, solver, result, notes)

@@ -172,3 +172,27 @@ def test_crlb_scales_with_noise_and_positions():
     assert mask.all()
     np.testing.assert_allclose(sd24b, 2 * sd24, rtol=1e-9)
     assert np.all(sd36 < sd24)
+
+
+def test_standard_errors_grow_with_the_residual_when_the_model_misses_an_effect():
+    """Data whose means carry their own noise (n and s*): a fit that matches it keeps the noise-based
+    bounds; a model that misses a cubic term leaves residuals far above that noise, and its standard
+    errors are scaled by the Birge ratio sqrt(χ²/dof), with a note saying so."""
+    from dataclasses import replace
+
+    from optcal.fit import calibrate
+
+    truth = {k: v for k, v in PAPER_TRUTH.items() if k in get_model("linear9").names}
+    for effects, misfit in ((None, False), ({"cubic": {"K3_x": 3e-4, "K3_y": -2e-4, "K3_z": 2e-4}}, True)):
+        sim = simulate("linear9", truth, np.random.default_rng(8), scheme="36", noise_g=10e-6, effects=effects)
+        n = np.full(len(sim.data), 1000)
+        data = replace(sim.data, n_samples=n, std=np.full((len(n), 3), 10e-6 * np.sqrt(1000)))
+        cal = calibrate(data, "linear9")
+        plain = crlb(cal.problem, cal.x, cal.problem.noise_g)[0]
+        birge = np.sqrt(cal.fit.chi2 / cal.fit.dof)
+        if misfit:
+            assert birge > 3 and cal.notes and "Birge ratio" in cal.notes[0]
+            np.testing.assert_allclose(cal.stderr, birge * plain, rtol=1e-9)
+        else:
+            assert birge < 1.5 and cal.notes == []
+            np.testing.assert_allclose(cal.stderr, plain, rtol=1e-9)

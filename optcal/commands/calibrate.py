@@ -57,6 +57,8 @@ def run(args) -> int:
     print(f"residual RMS {cal.fit.rms_g * 1e6:.3f} µg, cost {cal.fit.cost:.6e}, "
           f"{cal.result.nfev} evaluations, {cal.result.runtime_s * 1e3:.1f} ms ({cal.result.message})")
     print("observability: " + cal.observability.describe())
+    for note in cal.notes:
+        print(f"note: {note}")
     print(parameter_table(cal.model.names, cal.x, cal.stderr))
     if args.output:
         print(f"wrote {args.output}")
