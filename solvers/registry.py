@@ -75,6 +75,13 @@ def wrappers() -> list[str]:
     return sorted(_WRAPPERS)
 
 
+def wrapper_factory(prefix: str) -> Callable[..., Solver]:
+    """The factory registered for ``prefix:`` (its ``options`` and docstring describe it)."""
+    if prefix not in _WRAPPERS:
+        raise InputError(f"unknown solver wrapper {prefix!r}; wrappers: {', '.join(wrappers()) or 'none'}")
+    return _WRAPPERS[prefix]
+
+
 def solver_class(name: str) -> tuple[type[Solver], dict]:
     load_entry_points()
     if name not in _SOLVERS:

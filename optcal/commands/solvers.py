@@ -61,9 +61,8 @@ def listing(names: list[str] | None = None) -> dict:
             entry["message"] = cls.unavailable_message()
         out.append(entry)
     wrappers = []
-    factories = getattr(reg, "_WRAPPERS", {})
     for prefix in reg.wrappers():
-        f = factories.get(prefix)
+        f = reg.wrapper_factory(prefix)
         opts = getattr(f, "options", {}) or {}
         doc = (getattr(f, "__doc__", "") or "").strip().splitlines()
         wrappers.append({
