@@ -1,6 +1,7 @@
 """``optcal study run SPEC`` and ``optcal study report DIR``: Monte-Carlo comparison studies (DESIGN §7).
 
-``optcal`` never imports ``studies`` at import time: the package is loaded inside :func:`run`.
+A command plug-in: ``pyproject.toml`` registers this module in the ``optcal.commands`` entry-point group,
+so ``optcal`` (which never imports ``studies``) finds it the way it finds any third-party command.
 """
 
 from __future__ import annotations
@@ -31,10 +32,7 @@ def add_arguments(parser) -> None:
 def run(args) -> int:
     from optcal.errors import InputError
 
-    try:
-        from studies import cli
-    except ImportError as exc:  # pragma: no cover - one distribution installs both packages
-        raise InputError(f"the studies package is not installed ({exc}); reinstall optcal") from None
+    from . import cli
     if args.study_command == "run":
         if args.runs is not None and args.runs < 1:
             raise InputError(f"--runs must be at least 1, got {args.runs}")
