@@ -151,6 +151,7 @@ def run_study(spec: Spec, folder: str | Path, *, executor: str | None = None, wo
     if sched and ex != "dask":
         raise InputError("--scheduler is for --executor dask")
     all_trials = trials(spec)
+    code = code_version()  # the code that runs the trials (later commits do not relabel this session)
     t0 = time.perf_counter()
     with Store(folder, spec.hash, spec_json(spec)) as store:
         done = store.finished()
@@ -173,7 +174,7 @@ def run_study(spec: Spec, folder: str | Path, *, executor: str | None = None, wo
             wall = time.perf_counter() - t0
             store.add_session({"executor": ex, "workers": nw if ex != "serial" else 1, "trials": ran,
                                "wall_s": wall, "ended": time.strftime("%Y-%m-%d %H:%M:%S"),
-                               "code": code_version(), "cpus": os.cpu_count()})
+                               "code": code, "cpus": os.cpu_count()})
         store.export()
         return RunSummary(str(folder), spec.hash, len(all_trials), len(done), ran, failed, wall, ex,
                           nw if ex != "serial" else 1)
