@@ -40,7 +40,7 @@ TOP_KEYS = {
 SOLVER_KEYS = {"name", "label", "options", "grid", "budget", "reference", "reference_error_arcsec",
                "staged", "exclude"}
 VERIFICATION_KEYS = {"scheme", "noise_ug", "tilt_deg"}
-NAVIGATION_KEYS = {"enabled", "hours", "latitude_deg"}
+NAVIGATION_KEYS = {"enabled", "hours", "latitude_deg", "attitude_deg"}
 EXECUTOR_KEYS = {"kind", "workers", "scheduler"}
 BUDGET_KEYS = {"max_evals", "max_time", "target"}
 EXECUTORS = ("serial", "processes", "dask")
@@ -318,9 +318,14 @@ def parse(obj: dict, where: str = "<spec>", default_name: str = "study") -> Spec
         "enabled": _get(nav, "enabled", bool, True, where, "navigation."),
         "hours": _positive(_get(nav, "hours", float, 5.0, where, "navigation."), "navigation.hours", where),
         "latitude_deg": _get(nav, "latitude_deg", float, 45.0, where, "navigation."),
+        "attitude_deg": _get(nav, "attitude_deg", list, [0.0, 0.0, 0.0], where, "navigation."),
     }
-    if not -90.0 <= navigation["latitude_deg"] <= 90.0:
-        raise _err(where, "key 'navigation.latitude_deg' must be within [-90, 90]")
+    if not -89.0 <= navigation["latitude_deg"] <= 89.0:  # the navigation frame is singular at the poles
+        raise _err(where, "key 'navigation.latitude_deg' must be within [-89, 89]")
+    att = navigation["attitude_deg"]
+    if len(att) != 3 or not all(isinstance(a, int | float) and not isinstance(a, bool) for a in att):
+        raise _err(where, "key 'navigation.attitude_deg' must be three numbers [roll, pitch, yaw] in degrees")
+    navigation["attitude_deg"] = [float(a) for a in att]
     ex = _get(obj, "executor", dict, {}, where, "")
     _check_keys(ex, EXECUTOR_KEYS, where, "executor.")
     executor = {

@@ -166,7 +166,8 @@ def _navigation(model, x_true, x_est, nav: dict):
         from optcal.nav import navigation_error
     except ImportError:
         return None
-    r = navigation_error(model, x_true, x_est, hours=nav["hours"], latitude_deg=nav["latitude_deg"])
+    r = navigation_error(model, x_true, x_est, hours=nav["hours"], latitude_deg=nav["latitude_deg"],
+                         attitude_deg=tuple(nav.get("attitude_deg", (0.0, 0.0, 0.0))))
     t = np.asarray(r.t_s, float)
     grid = np.linspace(0.0, nav["hours"] * 3600.0, NAV_POINTS)
     curve = np.interp(grid, t, np.asarray(r.error_nmi, float))

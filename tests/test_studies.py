@@ -17,6 +17,7 @@ from studies import spec as S
 from studies.execute import run_study
 from studies.metrics import Group, groups
 from studies.report import write_report
+from studies.spec import tomllib  # tomllib, or tomli on Python 3.10
 from studies.store import TIMING, Store
 from studies.trial import infield_data, run_trial, stream, trace_on_grid, trials, truth_of
 
@@ -35,8 +36,6 @@ enabled = false
 
 def spec_of(extra: str = "", solvers_toml: str = '[[solvers]]\nname = "scipy-lm"\n', base: str = BASE):
     """A spec from BASE (its [navigation] table kept last) with top-level keys or tables added."""
-    import tomllib
-
     top, nav = base.split("[navigation]")
     text = top + textwrap.dedent(extra) + "[navigation]" + nav + solvers_toml
     return S.parse(tomllib.loads(text), "test.toml")
@@ -72,13 +71,13 @@ BAD = [
     ("[verification]\nschemes = '36'\n", "", "verification.schemes"),
     ("[executor]\nkind = 'mpi'\n", "", "executor.kind"),
     ("[navigation]\nhours = 'five'\n", "", "navigation.hours"),
+    ("[navigation]\nattitude_deg = [20, 30]\n", "", "navigation.attitude_deg"),
+    ("[navigation]\nlatitude_deg = 90\n", "", "navigation.latitude_deg"),
 ]
 
 
 @pytest.mark.parametrize("extra,solvers_toml,key", BAD)
 def test_bad_spec_is_refused_naming_the_key(extra, solvers_toml, key):
-    import tomllib
-
     text = BASE.replace("[navigation]\nenabled = false\n", "") + extra
     if "[navigation]" not in extra:
         text += "[navigation]\nenabled = false\n"
@@ -94,8 +93,6 @@ def test_bad_spec_is_refused_naming_the_key(extra, solvers_toml, key):
     ('presets = "factory"', "'presets'"), ("budget = 2.5", "'budget'"), ("seed = true", "'seed'"),
 ])
 def test_bad_top_level_values(line, key):
-    import tomllib
-
     lines = [x for x in BASE.splitlines() if not x.startswith(line.split(" ")[0] + " ")]
     with pytest.raises(InputError, match=key.replace("[", r"\[").replace("]", r"\]")):
         S.parse(tomllib.loads("\n".join([line] + lines) + '\n[[solvers]]\nname = "scipy-lm"\n'), "bad.toml")
@@ -367,3 +364,20 @@ def test_bsas2020_report_has_the_papers_navigation_table_and_figure(tmp_path):
     assert "figures/navigation_seed15_24.png" in section
     png = tmp_path / "figures" / "navigation_seed15_24.png"
     assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" and png.stat().st_size > 20_000
+
+
+def test_navigation_attitude_reaches_the_metric():
+    """[navigation] attitude_deg: a scale-factor error is invisible to a level static run (only the
+    horizontal biases act there) and visible to a tilted one (docs/navigation.md)."""
+    from optcal.model import get_model
+    from studies.trial import _navigation
+
+    m = get_model("nonlinear12")
+    x_true = m.default_vector(1.0)
+    x_est = x_true.copy()
+    x_est[m.index("K_x")] += 1e-4
+    base = {"enabled": True, "hours": 5.0, "latitude_deg": 45.0}
+    level = _navigation(m, x_true, x_est, {**base, "attitude_deg": [0.0, 0.0, 0.0]})
+    tilted = _navigation(m, x_true, x_est, {**base, "attitude_deg": [20.0, 30.0, 0.0]})
+    assert level[0] < 1e-9 and tilted[0] > 0.01
+    assert S.load("bsas2020").navigation["attitude_deg"] == [0.0, 0.0, 0.0]  # the paper's level test

@@ -7,10 +7,10 @@ from __future__ import annotations
 import textwrap
 
 import pytest
-import tomllib
 
 from studies import spec as S
 from studies.execute import run_study
+from studies.spec import tomllib  # tomllib, or tomli on Python 3.10
 from studies.store import TIMING, Store
 
 SPEC = textwrap.dedent("""
