@@ -85,10 +85,21 @@ def default_halfwidth(model: Model, centre: np.ndarray) -> np.ndarray:
                      for n in model.names])
 
 
+# SD of a manufacturer's calibration error per parameter family (relative to K_x for K, K2, K3).
+MANUFACTURER_ERROR_SD = {"K": 50e-6, "b": 50e-6, "S": 20e-6, "K2": 5e-6, "K3": 2e-6, "kappa": 5e-6, "c": 5e-6,
+                         "beta": 1e-6, "gamma": 5e-6, "d": 2e-9}
+
+
+def manufacturer_sd(names, truth: dict[str, float], error_scale: float = 1.0) -> np.ndarray:
+    """SD of :func:`manufacturer_presets`' error for each parameter in ``names`` (same units)."""
+    k = abs(truth.get("K_x", 1.0))
+    return np.array([error_scale * MANUFACTURER_ERROR_SD[family(n)] * (k if family(n) in ("K", "K2", "K3") else 1.0)
+                     for n in names])
+
+
 def manufacturer_presets(truth: dict[str, float], rng: np.random.Generator, error_scale: float = 1.0) -> Presets:
     """Presets as the truth plus a manufacturer's calibration error (2020 paper §4.1)."""
-    err = {"K": 50e-6, "b": 50e-6, "S": 20e-6, "K2": 5e-6, "K3": 2e-6, "kappa": 5e-6, "c": 5e-6,
-           "beta": 1e-6, "gamma": 5e-6, "d": 2e-9}
+    err = MANUFACTURER_ERROR_SD
     values = {k: float(v + error_scale * err[family(k)] * rng.standard_normal() * (abs(truth.get("K_x", 1.0))
               if family(k) in ("K", "K2", "K3") else 1.0)) for k, v in truth.items()}
     return Presets(values, {})

@@ -7,6 +7,12 @@ error's component along them is set by the presets, not by the data, so it is re
 and not scored; parameters that have weight in those directions are scored by their observable part.
 The one-number summary ``accuracy`` is the RMS over parameters of RMSE / CRLB.
 
+With manufacturer presets a method may also use them as information (the staged procedure keeps the
+last stages' parameters near them) and then beat the data-only bound. ``accuracy_presets`` scores the
+whole error against the bound of data and presets together (:func:`studies.trial.crlb_with_presets`),
+which no method beats: a ratio below 1 against the plain bound with one near 1 against this one means
+the accuracy came from the presets.
+
 A trial *converged* when its final cost is within the 99.9 % quantile of the χ² distribution of the
 cost at the optimum (cost / σ² with m − rank degrees of freedom): it reached the noise floor. The
 success rate is the fraction of a group's trials that converged (failed trials count as not).
@@ -81,6 +87,8 @@ class Group:
         """Per parameter: mean error, RMSE, SD (of the raw error), CRLB and RMSE/CRLB of the observable
         part, and whether the parameter is observable on its own."""
         E, Ep, C = self.matrix("err"), self.matrix("err_proj"), self.matrix("crlb")
+        with_presets = bool(self.ok) and all(r.get("crlb_presets") for r in self.ok)
+        Cp = self.matrix("crlb_presets") if with_presets else None
         obs = np.array(self.ok[0]["observable"], bool) if self.ok else np.ones(len(self.names), bool)
         out = []
         for j, name in enumerate(self.names):
@@ -96,7 +104,16 @@ class Group:
                 "rmse_observable": rmse_p, "crlb": crlb, "ratio": rmse_p / crlb if crlb > 0 else np.nan,
                 "observable": bool(obs[j]),
             })
+            if Cp is not None:  # the whole error against the bound of data and presets together
+                cp = float(np.sqrt(np.mean(Cp[:, j] ** 2)))
+                out[-1].update(crlb_presets=cp, ratio_presets=out[-1]["rmse"] / cp)
         return out
+
+    @property
+    def accuracy_presets(self) -> float:
+        """RMS over parameters of RMSE / (the bound with the presets as a measurement); NaN without presets."""
+        r = np.array([p.get("ratio_presets", np.nan) for p in self.parameters()], float)
+        return float(np.sqrt(np.mean(r**2))) if r.size and np.all(np.isfinite(r)) else float("nan")
 
     @property
     def accuracy(self) -> float:
@@ -144,6 +161,7 @@ class Group:
         return {
             "model": self.model, "scheme": self.scheme, "solver": self.solver, "runs": self.n,
             "failed": self.n_failed, "success_rate": self.success_rate, "accuracy": self.accuracy,
+            "accuracy_presets": self.accuracy_presets,
             "cost_min": _pct(fun, 0), "cost_median": _pct(fun, 50), "cost_max": _pct(fun, 100),
             "ver_mean_ug": _mean(self.column("ver_mean_ug")), "ver_sd_ug": _mean(self.column("ver_sd_ug")),
             "ver_truth_ug": _mean(self.column("ver_truth_mean_ug")),

@@ -28,7 +28,7 @@ SCALAR = [
     ("ver_truth_mean_ug", "REAL"), ("nav_max_nmi", "REAL"), ("nav_mean_nmi", "REAL"),
 ]
 JSON = ["names", "x_true", "x_est", "err", "err_proj", "crlb", "observable", "null_dirs", "null_err", "ver_err",
-        "ver_truth", "trace", "nav_curve"]
+        "ver_truth", "trace", "nav_curve", "crlb_presets"]
 COLUMNS = [c for c, _ in SCALAR] + JSON
 TIMING = ("runtime_s", "wall_s")  # the only columns that may differ between identical runs
 
@@ -49,6 +49,11 @@ class Store:
         self.conn.execute("BEGIN IMMEDIATE")
         self.conn.execute("CREATE TABLE IF NOT EXISTS meta (key TEXT PRIMARY KEY, value TEXT)")
         self.conn.execute(f"CREATE TABLE IF NOT EXISTS trials ({cols})")
+        # A store written by an older optcal lacks the newer (JSON) columns: add them, empty.
+        have = {r[1] for r in self.conn.execute("PRAGMA table_info(trials)")}
+        for c in JSON:
+            if c not in have:
+                self.conn.execute(f"ALTER TABLE trials ADD COLUMN {c} TEXT")
         old = self.meta("spec_hash")
         if old is None:
             self.conn.executemany("INSERT INTO meta VALUES (?, ?)", [
