@@ -13,6 +13,7 @@ import sys
 import time
 from collections.abc import Iterator
 from concurrent.futures import ProcessPoolExecutor, as_completed
+from concurrent.futures.process import BrokenProcessPool
 from contextlib import contextmanager
 from dataclasses import asdict, dataclass
 from pathlib import Path
@@ -21,7 +22,7 @@ from optcal.errors import InputError
 
 from .spec import EXECUTORS, Spec
 from .store import Store
-from .trial import Trial, failed_row, run_trial, trials
+from .trial import Trial, run_trial, trials
 
 # One BLAS thread per worker: the workers already use every core, and oversubscribed BLAS pools
 # only make them fight (dask's nanny sets the same variables for its workers).
@@ -42,26 +43,44 @@ def _env(values: dict):
                 os.environ[k] = v
 
 
-def _serial(tasks: list[Trial], workers: int, scheduler: str) -> Iterator[dict]:
+@dataclass(frozen=True)
+class Lost:
+    """A trial whose worker died under it (crash, out of memory, a lost Dask worker). Not a result: it is
+    not stored, so running the study again retries it."""
+
+    trial_id: str
+    message: str
+
+
+def _serial(tasks: list[Trial], workers: int, scheduler: str, tag: str) -> Iterator[dict | Lost]:
     for t in tasks:
         yield run_trial(t)
 
 
-def _processes(tasks: list[Trial], workers: int, scheduler: str) -> Iterator[dict]:
+def _processes(tasks: list[Trial], workers: int, scheduler: str, tag: str) -> Iterator[dict | Lost]:
     import multiprocessing as mp
 
-    # spawn: workers start clean (no inherited threads or locks from the coordinator)
+    # spawn: workers start clean (no inherited threads or locks from the coordinator). The workers start
+    # at the first submit and read the environment then, so the single-thread settings stay in place
+    # until every task is submitted.
     with _env(_SINGLE_THREAD):
         pool = ProcessPoolExecutor(max_workers=workers, mp_context=mp.get_context("spawn"))
+        try:
+            futures = {pool.submit(run_trial, t): t for t in tasks}
+        except BaseException:
+            pool.shutdown(wait=False, cancel_futures=True)
+            raise
     try:
-        futures = [pool.submit(run_trial, t) for t in tasks]
         for f in as_completed(futures):
-            yield f.result()
+            try:
+                yield f.result()
+            except BrokenProcessPool as exc:  # run_trial never raises: its process died
+                yield Lost(futures[f].id, f"its worker process died ({exc})")
     finally:
         pool.shutdown(wait=True, cancel_futures=True)
 
 
-def _dask(tasks: list[Trial], workers: int, scheduler: str) -> Iterator[dict]:
+def _dask(tasks: list[Trial], workers: int, scheduler: str, tag: str) -> Iterator[dict | Lost]:
     try:
         from dask.distributed import Client, LocalCluster
         from dask.distributed import as_completed as dask_completed
@@ -77,13 +96,15 @@ def _dask(tasks: list[Trial], workers: int, scheduler: str) -> Iterator[dict]:
         cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True, dashboard_address=None)
         client = Client(cluster)
     try:
-        futures = {client.submit(run_trial, t, key=f"trial-{i}-{t.id}", pure=False): t for i, t in enumerate(tasks)}
+        # Keys carry the spec's hash: on a shared scheduler two studies' trials never share a key (Dask
+        # would hand one the other's result).
+        futures = {client.submit(run_trial, t, key=f"optcal-{tag}-{i}-{t.id}", pure=False): t
+                   for i, t in enumerate(tasks)}
         for f in dask_completed(list(futures)):
             try:
                 row = f.result()
-            except Exception as exc:  # noqa: BLE001 - a worker lost while running this trial (e.g. a crash)
-                row = failed_row(futures[f], f"the Dask worker running this trial was lost: {type(exc).__name__}: "
-                                            f"{exc}")
+            except Exception as exc:  # noqa: BLE001 - run_trial never raises: its worker was lost
+                row = Lost(futures[f].id, f"its Dask worker was lost ({type(exc).__name__}: {exc})")
             yield row
             f.release()
     finally:
@@ -106,6 +127,7 @@ class RunSummary:
     wall_s: float
     executor: str
     workers: int
+    lost: int = 0  # trials whose worker died: not stored, retried when the study is run again
 
 
 def _progress(total: int, enabled: bool | None):
@@ -113,6 +135,26 @@ def _progress(total: int, enabled: bool | None):
 
     return tqdm(total=total, unit="trial", file=sys.stderr, disable=None if enabled is None else not enabled,
                 dynamic_ncols=True, smoothing=0.05)
+
+
+@contextmanager
+def _writer_lock(folder: Path):
+    """One writer per study folder: a second `optcal study run` into it is refused, not interleaved."""
+    try:
+        import fcntl
+    except ImportError:  # pragma: no cover - not POSIX: no lock
+        yield
+        return
+    fh = open(folder / ".lock", "w")
+    try:
+        try:
+            fcntl.flock(fh, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except OSError:
+            raise InputError(f"another `optcal study run` is writing to {folder}; wait for it, or use another "
+                             "--out folder") from None
+        yield
+    finally:
+        fh.close()
 
 
 def code_version() -> str:
@@ -153,22 +195,27 @@ def run_study(spec: Spec, folder: str | Path, *, executor: str | None = None, wo
     all_trials = trials(spec)
     code = code_version()  # the code that runs the trials (later commits do not relabel this session)
     t0 = time.perf_counter()
-    with Store(folder, spec.hash, spec_json(spec)) as store:
+    with Store(folder, spec.hash, spec_json(spec)) as store, _writer_lock(Path(folder)):
         done = store.finished()
         pending = [t for t in all_trials if t.id not in done]
         if limit is not None:
             pending = pending[:limit]
         ran = failed = 0
+        lost: list[Lost] = []
         bar = _progress(len(pending), progress)
         try:
             if pending:
-                for row in EXECUTOR_FUNCS[ex](pending, nw, sched):
+                for row in EXECUTOR_FUNCS[ex](pending, nw, sched, spec.hash):
+                    bar.update(1)
+                    if isinstance(row, Lost):
+                        lost.append(row)
+                        bar.set_postfix(failed=failed, lost=len(lost), refresh=False)
+                        continue
                     store.write(row)
                     ran += 1
                     failed += row["status"] == "failed"
-                    bar.update(1)
                     if failed:
-                        bar.set_postfix(failed=failed, refresh=False)
+                        bar.set_postfix(failed=failed, lost=len(lost), refresh=False)
         finally:
             bar.close()
             wall = time.perf_counter() - t0
@@ -176,8 +223,11 @@ def run_study(spec: Spec, folder: str | Path, *, executor: str | None = None, wo
                                "wall_s": wall, "ended": time.strftime("%Y-%m-%d %H:%M:%S"),
                                "code": code, "cpus": os.cpu_count()})
         store.export()
+        if lost:
+            print(f"study {spec.name}: {len(lost)} trial(s) lost with their worker and not stored (first: "
+                  f"{lost[0].trial_id}: {lost[0].message}); run the study again to retry them", file=sys.stderr)
         return RunSummary(str(folder), spec.hash, len(all_trials), len(done), ran, failed, wall, ex,
-                          nw if ex != "serial" else 1)
+                          nw if ex != "serial" else 1, len(lost))
 
 
 def summary_json(s: RunSummary) -> str:

@@ -153,6 +153,18 @@ def _parameters_md(cs) -> str:
     return "\n".join(lines)
 
 
+def _json_safe(v):
+    if isinstance(v, dict):
+        return {k: _json_safe(x) for k, x in v.items()}
+    if isinstance(v, list | tuple):
+        return [_json_safe(x) for x in v]
+    if isinstance(v, float | np.floating):
+        return float(v) if math.isfinite(v) else None
+    if isinstance(v, np.integer | np.bool_):
+        return v.item()
+    return v
+
+
 def headline(folder: str | Path, top: int = 8) -> str:
     """The ``top`` solvers of each model × scheme (success, then accuracy), as markdown tables."""
     with Store.open_existing(folder) as store:
@@ -305,7 +317,8 @@ def write_report(folder: str | Path) -> Path:
     L += ["Per-parameter mean error, RMSE, SD and CRLB: [parameters.md](parameters.md). "
           "Every trial: `trials.csv` / `trials.parquet` / `study.sqlite`.", ""]
     (folder / "parameters.md").write_text(_parameters_md(cs))
-    (folder / "summary.json").write_text(json.dumps(summary, indent=1, default=float))
+    # strict JSON: a value that could not be computed (no presets, no navigation) is null, not NaN
+    (folder / "summary.json").write_text(json.dumps(_json_safe(summary), indent=1, allow_nan=False))
     out = folder / "report.md"
     out.write_text("\n".join(L))
     return out

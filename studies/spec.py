@@ -262,6 +262,11 @@ def _truth(value, models, where: str):
         for k, v in value.items():
             if isinstance(v, bool) or not isinstance(v, int | float):
                 raise _err(where, f"key 'truth.{k}' must be a number, got {v!r}")
+        known = {n for m in models for n in get_model(m).names}
+        unknown = sorted(set(value) - known)
+        if unknown:
+            raise _err(where, f"key 'truth.{unknown[0]}' is not a parameter of the study's models "
+                              f"({', '.join(models)}); their parameters are {', '.join(sorted(known))}")
         for m in models:
             missing = [n for n in get_model(m).names if n not in value]
             if missing:
@@ -293,6 +298,13 @@ def parse(obj: dict, where: str = "<spec>", default_name: str = "study") -> Spec
     if not schemes:
         raise _err(where, "key 'schemes' must not be empty")
     schemes = [_scheme(s, where, f"schemes[{i}]") for i, s in enumerate(schemes)]
+    # Each model and scheme once: a repeat would give two trials one id (the store keys rows by it).
+    for key_name, values in (("models", [get_model(m).name for m in models]), ("schemes", schemes)):
+        seen = set()
+        for i, v in enumerate(values):
+            if v in seen:
+                raise _err(where, f"key '{key_name}[{i}]': {v!r} is listed twice")
+            seen.add(v)
     truth = _truth(obj.get("truth", "paper"), models, where)
     presets = _get(obj, "presets", str, "manufacturer", where, "")
     if presets not in ("manufacturer", "none"):
@@ -317,9 +329,12 @@ def parse(obj: dict, where: str = "<spec>", default_name: str = "study") -> Spec
     navigation = {
         "enabled": _get(nav, "enabled", bool, True, where, "navigation."),
         "hours": _positive(_get(nav, "hours", float, 5.0, where, "navigation."), "navigation.hours", where),
+        # (optcal.nav runs up to 720 h)
         "latitude_deg": _get(nav, "latitude_deg", float, 45.0, where, "navigation."),
         "attitude_deg": _get(nav, "attitude_deg", list, [0.0, 0.0, 0.0], where, "navigation."),
     }
+    if navigation["hours"] > 720.0:
+        raise _err(where, "key 'navigation.hours' must be at most 720 (30 days)")
     if not -89.0 <= navigation["latitude_deg"] <= 89.0:  # the navigation frame is singular at the poles
         raise _err(where, "key 'navigation.latitude_deg' must be within [-89, 89]")
     att = navigation["attitude_deg"]
@@ -335,6 +350,8 @@ def parse(obj: dict, where: str = "<spec>", default_name: str = "study") -> Spec
     }
     if executor["kind"] not in EXECUTORS:
         raise _err(where, f"key 'executor.kind' must be one of {', '.join(EXECUTORS)}, got {executor['kind']!r}")
+    if executor["scheduler"] and executor["kind"] != "dask":
+        raise _err(where, "key 'executor.scheduler' is for kind = \"dask\" (a Dask scheduler address)")
     if "solvers" not in obj:
         raise _err(where, "key 'solvers' is required ([[solvers]] name = \"bsas\" ...)")
     configs = _solver_configs(obj["solvers"], where, budget)

@@ -132,7 +132,7 @@ def projected_crlb(problem: CalibrationProblem, x_true: np.ndarray, sigma_g: flo
     """
     obs = observability(problem, x_true, rtol)
     u = natural_units(problem, x_true)
-    J = problem.jacobian_full(x_true) * u
+    J = problem.jacobian_full(x_true)[: len(problem.data)] * u  # the positions' rows, not the gauge's
     F = J.T @ J / sigma_g**2
     Nsp = obs.null_space
     P = np.eye(len(u))
@@ -239,7 +239,18 @@ def run_trial(t: Trial) -> dict:
         where = f" at {tb[-1].filename.rsplit('/', 1)[-1]}:{tb[-1].lineno}" if tb else ""
         return {**failed_row(t, f"{type(exc).__name__}: {exc}{where}", time.perf_counter() - t_start),
                 "x_true": row["x_true"]}
+    try:
+        row.update(_score(t, model, truth, x_true, x_est, res, problem, yard, sigma))
+    except Exception as exc:  # noqa: BLE001 - a trial never raises: scoring errors fail this trial only
+        return {**failed_row(t, f"scoring failed: {type(exc).__name__}: {exc}", time.perf_counter() - t_start),
+                "x_true": row["x_true"]}
+    row["wall_s"] = time.perf_counter() - t_start
+    return row
 
+
+def _score(t: Trial, model, truth, x_true, x_est, res, problem, yard, sigma) -> dict:
+    """The metrics of one finished solve (the columns of :mod:`studies.store`)."""
+    cfg = t.config
     sd, P, u, obs = projected_crlb(yard, x_true, sigma)
     sd_presets = None
     if t.presets == "manufacturer":
@@ -250,7 +261,8 @@ def run_trial(t: Trial) -> dict:
     null = obs.null_space
     null_coef = (np.linalg.pinv(null) @ (e / u)) if null.size else np.zeros(0)
     rank = obs.rank if not cfg.reference else observability(problem, x_true).rank
-    dof = max(problem.n_residuals - rank, 1)
+    # The positions' residuals only: the gauge rows (seed15) hold unobservable directions, not data.
+    dof = max(len(problem.data) * (3 if cfg.reference else 1) - rank, 1)
     chi2 = float(res.fun) / sigma**2
     converged = chi2 <= stats.chi2.ppf(CONVERGED_QUANTILE, dof)
 
@@ -258,7 +270,7 @@ def run_trial(t: Trial) -> dict:
     ver_err = _abs_norm_error_ug(ver, x_est)
     ver_truth = _abs_norm_error_ug(ver, x_true)
     nav = _navigation(model, x_true, x_est, t.navigation)
-    row.update(
+    return dict(
         status="ok", message=str(res.message)[:500], success=int(bool(res.success)), converged=int(converged),
         fun=float(res.fun), chi2=chi2, dof=int(dof), nfev=int(res.nfev), nit=int(res.nit),
         runtime_s=float(res.runtime_s),
@@ -272,5 +284,3 @@ def run_trial(t: Trial) -> dict:
         ver_err=[float(v) for v in ver_err], ver_truth=[float(v) for v in ver_truth],
         trace=trace_on_grid(res.trace), nav_curve=None if nav is None else nav[2],
     )
-    row["wall_s"] = time.perf_counter() - t_start
-    return row

@@ -73,6 +73,8 @@ BAD = [
     ("[navigation]\nhours = 'five'\n", "", "navigation.hours"),
     ("[navigation]\nattitude_deg = [20, 30]\n", "", "navigation.attitude_deg"),
     ("[navigation]\nlatitude_deg = 90\n", "", "navigation.latitude_deg"),
+    ("[navigation]\nhours = 1000\n", "", "navigation.hours"),
+    ("[executor]\nkind = 'processes'\nscheduler = 'tcp://h:8786'\n", "", "executor.scheduler"),
 ]
 
 
@@ -91,6 +93,8 @@ def test_bad_spec_is_refused_naming_the_key(extra, solvers_toml, key):
     ('runs = "many"', "'runs'"), ("runs = 0", "'runs'"), ('schemes = ["25"]', "schemes[0]"),
     ('models = ["linear99"]', "'models'"), ("noise_ug = -1", "noise_ug"), ('truth = "random"', "'truth'"),
     ('presets = "factory"', "'presets'"), ("budget = 2.5", "'budget'"), ("seed = true", "'seed'"),
+    ('schemes = ["24", 24]', "schemes[1]"), ('models = ["seed15", "scale+bias+misalignment6+quadratic"]', "models[1]"),
+    ("truth = {K_x = 1.0, K_q = 2.0}", "truth.K_q"),
 ])
 def test_bad_top_level_values(line, key):
     lines = [x for x in BASE.splitlines() if not x.startswith(line.split(" ")[0] + " ")]
@@ -273,6 +277,10 @@ def test_trace_on_grid_is_the_best_so_far_at_ten_points_per_decade():
     g = trace_on_grid(tr)
     assert g[0] == [1, 5.0] and [3, 4.0] in g and [10, 4.0] in g and [13, 1.0] in g and g[-1] == [100, 0.5]
     assert len(g) == 18 and [x[0] for x in g[:8]] == [1, 2, 3, 4, 5, 6, 8, 10]
+    # an improvement between two grid points is still the curve's last value
+    # (the grid's last point is at or past the last improvement)
+    g = trace_on_grid([(1, 5.0, 0.0), (90, 0.25, 0.0)])
+    assert g[-1] == [100, 0.25] and [79, 5.0] in g
 
 
 def test_least_squares_reaches_the_cramer_rao_bound_and_seed15_reports_its_unobservable_directions(tmp_path):
@@ -439,3 +447,39 @@ def test_a_store_from_before_a_new_column_still_reports(tmp_path):
         rows = st.rows()
     assert sum(r["crlb_presets"] is None for r in rows) == 2
     assert "RMSE/CRLB" in write_report(tmp_path).read_text()
+
+
+def test_a_scoring_error_fails_its_trial_not_the_study(tmp_path, monkeypatch):
+    """Anything after the solve (metrics, verification, navigation) that raises is a failed trial."""
+    import studies.trial as T
+
+    def broken(*a, **k):
+        raise ValueError("navigation blew up")
+
+    monkeypatch.setattr(T, "_navigation", broken)
+    s = run_study(spec_of(), tmp_path, progress=False)
+    with Store.open_existing(tmp_path) as st:
+        rows = st.rows()
+    assert s.ran == s.total == len(rows) == s.failed
+    assert all(r["status"] == "failed" and "scoring failed: ValueError: navigation blew up" in r["message"]
+               for r in rows)
+
+
+def test_a_second_writer_is_refused_while_a_study_runs(tmp_path):
+    import fcntl
+
+    sp = spec_of()
+    run_study(sp, tmp_path, progress=False, limit=1)
+    with open(tmp_path / ".lock", "w") as fh:  # what a running `optcal study run` holds
+        fcntl.flock(fh, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        with pytest.raises(InputError, match="another `optcal study run` is writing"):
+            run_study(sp, tmp_path, progress=False)
+    assert run_study(sp, tmp_path, progress=False).skipped == 1  # free again once the first has ended
+
+
+def test_summary_json_is_strict_json(tmp_path):
+    sp = spec_of('presets = "none"\n')
+    run_study(sp, tmp_path, progress=False)
+    write_report(tmp_path)
+    text = (tmp_path / "summary.json").read_text()
+    assert "NaN" not in text and json.loads(text)[0]["accuracy_presets"] is None
