@@ -246,10 +246,15 @@ class Model:
     # model, instead of a few hundred per-axis ones. Single-candidate calls (what NLopt and the
     # derivative-free methods make) are overhead-bound, and this form makes them 3-4x faster; at large
     # S both forms cost the same. `tests/test_model.py` checks the two forms agree for every term.
-    def _params(self, X):
+    def _columns(self, X) -> np.ndarray:
+        """X as (S, p), refusing a parameter count that is not this model's."""
         X = np.atleast_2d(X)
         if X.shape[-1] != self.n_params:
             raise ValueError(f"parameters have {X.shape[-1]} columns, model {self.name} has {self.n_params}")
+        return X
+
+    def _params(self, X):
+        X = self._columns(X)
         return {n: X[:, k, None] for k, n in enumerate(self.names)}
 
     @cached_property
@@ -261,10 +266,10 @@ class Model:
             cols = [ix.get(f"{prefix}_{a}") for a in AXES]
             return None if cols[0] is None else np.array(cols)
 
-        def offdiag(prefix, names):
+        def offdiag(prefix):
             pairs = [(i, j) for i in range(3) for j in range(3) if i != j]
             got = [(i, j, ix[f"{prefix}_{AXES[i]}{AXES[j]}"]) for i, j in pairs
-                   if f"{prefix}_{AXES[i]}{AXES[j]}" in names]
+                   if f"{prefix}_{AXES[i]}{AXES[j]}" in ix]
             return tuple(np.array(c) for c in zip(*got)) if got else None
 
         # T's off-diagonal cells (DESIGN §3), as `components` reads them: row i, column j.
@@ -275,14 +280,12 @@ class Model:
             "beta": axes("beta"), "gamma": axes("gamma"), "d": axes("d"),
             "S": tuple(np.array(c) for c in zip(*present)) if present else None,
             # c_ij multiplies A_i·A_j in axis i's output: C[i, j] = c_ij.
-            "c": offdiag("c", ix),
+            "c": offdiag("c"),
         }
 
     def _pack(self, X) -> dict:
         """The parameters of a population X (S, p) as (S, 1, 3) rows and the (S, 3, 3) matrix T."""
-        X = np.atleast_2d(X)
-        if X.shape[-1] != self.n_params:
-            raise ValueError(f"parameters have {X.shape[-1]} columns, model {self.name} has {self.n_params}")
+        X = self._columns(X)
         L = self._layout
         S = X.shape[0]
         pk = {k: (None if L[k] is None else X[:, None, L[k]])
