@@ -33,6 +33,9 @@ class Term:
     # A typical magnitude of each parameter relative to the scale factor (for normalised search boxes
     # and for the natural scaling used in observability analysis).
     unit: float = 1.0
+    # The term's output is affine in the specific force and needs no data column: a model made only of
+    # such terms is inverted in closed form.
+    affine: bool = False
 
 
 def _axes(prefix: str) -> tuple[str, ...]:
@@ -42,19 +45,21 @@ def _axes(prefix: str) -> tuple[str, ...]:
 TERMS: dict[str, Term] = {
     t.name: t
     for t in (
-        Term("scale", _axes("K"), "scale", description="scale factors, output units per g"),
-        Term("bias", _axes("b"), "bias", description="biases in g (output offset K·b)"),
+        Term("scale", _axes("K"), "scale", description="scale factors, output units per g", affine=True),
+        Term("bias", _axes("b"), "bias", description="biases in g (output offset K·b)", affine=True),
         Term(
             "misalignment",
             ("S_yz", "S_zy", "S_zx"),
             "misalignment",
             description="installation angles in the identifiable gauge S_xz = S_xy = S_yx = 0, rad",
+            affine=True,
         ),
         Term(
             "misalignment6",
             ("S_xz", "S_xy", "S_yz", "S_yx", "S_zy", "S_zx"),
             "misalignment",
             description="the seeds' six installation angles, rad (three directions unobservable)",
+            affine=True,
         ),
         Term("quadratic", _axes("K2"), "nonlinear", description="second-order scale, output units per g²"),
         Term("cubic", _axes("K3"), "nonlinear", description="third-order scale, output units per g³"),
@@ -146,6 +151,11 @@ class Model:
     @property
     def needs(self) -> tuple[str, ...]:
         return tuple(sorted({c for t in self.terms for c in TERMS[t].needs}))
+
+    @property
+    def is_affine(self) -> bool:
+        """True when every term is affine in the specific force (the inverse is then closed-form)."""
+        return all(TERMS[t].affine for t in self.terms)
 
     def index(self, name: str) -> int:
         return self.names.index(name)
@@ -363,9 +373,8 @@ class Model:
             TiT = self._inverse_T(pk["T"]).transpose(0, 2, 1)
         K, b = pk["K"], pk["b"]
         A = (N / K - (0.0 if b is None else b)) @ TiT
-        linear = all(t in ("scale", "bias", "misalignment", "misalignment6") for t in self.terms)
         prev = np.inf
-        for _ in range(0 if linear else max_iter):
+        for _ in range(0 if self.is_affine else max_iter):
             r = (N - self._apply(pk, A, ctx)) / K
             A = A + r @ TiT
             # Stop when the error left after this step, |r|·ρ/(1−ρ) with ρ the observed contraction
