@@ -103,15 +103,16 @@ class Counter:
 
 
 _NO_RESIDUALS = np.empty((0, 0))
+_FLOAT64 = np.dtype(np.float64)
 
 
-def _cost_one(x, fb, ib) -> float:
-    # Bound to the compiled kernel at first use, so that importing optcal does not import numba.
-    global _cost_one
-    from .kernels.evaluate import cost_one
+def _kernel():
+    """The compiled kernels, imported at first use: importing optcal does not import numba."""
+    global _kernel
+    from .kernels import evaluate
 
-    _cost_one = cost_one
-    return cost_one(x, fb, ib)
+    _kernel = lambda: evaluate  # noqa: E731
+    return evaluate
 
 
 class CalibrationProblem:
@@ -277,9 +278,11 @@ class CalibrationProblem:
         return (None if c.best_x is None else self.from_full(c.best_x)), c.best_f
 
     # -- the compiled kernel's buffers -----------------------------------------------------
-    def _pack(self, full: bool) -> tuple[np.ndarray, np.ndarray]:
+    def _pack(self, full: bool) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The kernel's buffers for this view (``full``: for full parameter vectors) and its scratch."""
         from .kernels.codegen import slot_indices, variant_of
-        from .kernels.evaluate import pack
+
+        kernel = _kernel()
 
         p = self.model.n_params
         if full:
@@ -288,31 +291,29 @@ class CalibrationProblem:
             free = self.free
             offset = self.centre[free] if self.is_normalised else np.zeros(len(free))
             scale = self.halfwidth[free] if self.is_normalised else np.ones(len(free))
-        return pack(N=self.data.N, ref=self.data.ref if self.reference else None, dtemp=self.ctx.dtemp,
-                    dtime=self.ctx.dt, K0=self._K0, g=self.g_local, centre=self.centre, gauge=self._gauge,
-                    slots=slot_indices(self.model), affine=self.model.is_affine,
-                    variant=variant_of(self.model), free=free,
-                    x_fixed=self.x_fixed, offset=offset, scale=scale)
+        return kernel.pack(N=self.data.N, ref=self.data.ref if self.reference else None, dtemp=self.ctx.dtemp,
+                           dtime=self.ctx.dt, K0=self._K0, g=self.g_local, centre=self.centre, gauge=self._gauge,
+                           slots=slot_indices(self.model), affine=self.model.is_affine,
+                           variant=variant_of(self.model), free=free, x_fixed=self.x_fixed, offset=offset,
+                           scale=scale)
 
-    def _buffers(self) -> tuple[np.ndarray, np.ndarray]:
+    def _buffers(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, int]:
+        """This view's kernel buffers and its number of free coordinates (built at first use)."""
         if self._view_buffers is None:
-            self._view_buffers = self._pack(full=False)
+            self._view_buffers = (*self._pack(full=False), len(self.free))
         return self._view_buffers
 
     # -- residuals and cost (uncounted kernels on full vectors) -----------------------------
     def residuals_full(self, X_full) -> np.ndarray:
         """Residuals (S, m) for full parameter vectors (S, p); not counted against the budget."""
-        from .kernels.evaluate import evaluate_batch
-
         X_full = np.ascontiguousarray(np.atleast_2d(X_full), dtype=float)
-        if X_full.shape[1] != self.model.n_params:
-            raise ValueError(f"parameters have {X_full.shape[1]} columns, model {self.model.name} has "
+        if X_full.ndim != 2 or X_full.shape[1] != self.model.n_params:
+            raise ValueError(f"parameters have {X_full.shape[-1]} columns, model {self.model.name} has "
                              f"{self.model.n_params}")
         if self._full_buffers is None:
             self._full_buffers = self._pack(full=True)
-        fb, ib = self._full_buffers
         R = np.empty((len(X_full), self.n_residuals))
-        evaluate_batch(X_full, fb, ib, np.empty(len(X_full)), R, True)
+        _kernel().evaluate_batch(X_full, *self._full_buffers, np.empty(len(X_full)), R, True)
         return R
 
     def residuals_full_numpy(self, X_full) -> np.ndarray:
@@ -346,30 +347,36 @@ class CalibrationProblem:
     def _evaluate(self, X, keep_residuals: bool = True) -> tuple[np.ndarray | None, np.ndarray]:
         """Residuals (S, m) (when kept) and costs (S,) of candidates X (S, n), counted; candidates past
         the budget cost inf (residuals NaN), non-finite costs are NaN."""
-        X = np.ascontiguousarray(np.atleast_2d(X), dtype=float)
+        if not (type(X) is np.ndarray and X.dtype == np.float64 and X.ndim == 2 and X.flags.c_contiguous):
+            X = np.ascontiguousarray(np.atleast_2d(X), dtype=float)
+        S = X.shape[0]
         if X.ndim != 2 or X.shape[1] != self.n:
             raise ValueError(f"expected {self.n} coordinates, got {X.shape[-1]}")
         counter = self.counter
-        k = counter.allow(len(X))
-        f = np.full(len(X), np.inf)
-        R = np.full((len(X), self.n_residuals), np.nan) if keep_residuals else None
+        k = S if (counter.nfev + S <= counter.limit and not counter.stopped) else counter.allow(S)
+        f = np.empty(S)
+        R = np.empty((S, self.n_residuals)) if keep_residuals else None
+        Xk = X if k == S else X[:k]
+        if k < S:
+            f[k:] = np.inf
+            if R is not None:
+                R[k:] = np.nan
         if self._compiled:
-            from .kernels.evaluate import evaluate_batch
-
-            fb, ib = self._buffers()
-            evaluate_batch(X[:k], fb, ib, f[:k], _NO_RESIDUALS if R is None else R[:k], R is not None)
+            fb, ib, work, _ = self._view_buffers or self._buffers()
+            i = _kernel().evaluate_batch(Xk, fb, ib, work, f, _NO_RESIDUALS if R is None else R, R is not None)
         else:
-            Rk = self.residuals_full(self.to_full(X[:k]))
-            f[:k] = np.sum(Rk**2, axis=1)
-            f[:k][~np.isfinite(f[:k])] = np.nan
+            Rk = self.residuals_full(self.to_full(Xk))
+            with np.errstate(all="ignore"):
+                fk = np.sum(Rk**2, axis=1)
+            fk[~np.isfinite(fk)] = np.nan
+            f[:k] = fk
             if R is not None:
                 R[:k] = Rk
+            i = -1 if np.all(np.isnan(fk)) else int(np.nanargmin(fk))
         counter.nfev += k
-        if k:
-            i = int(np.argmin(np.where(np.isnan(f[:k]), np.inf, f[:k])))
-            if f[i] < counter.best_f:
-                counter.best_f, counter.best_x = float(f[i]), self.to_full(X[i])[0]
-                counter.trace.append((counter.nfev, counter.best_f, counter.elapsed()))
+        if i >= 0 and f[i] < counter.best_f:
+            counter.best_f, counter.best_x = float(f[i]), self.to_full(Xk[i])[0]
+            counter.trace.append((counter.nfev, counter.best_f, counter.elapsed()))
         return R, f
 
     @property
@@ -393,12 +400,12 @@ class CalibrationProblem:
         counter = self.counter
         if not self._compiled or counter.nfev >= counter.limit or counter.stopped:
             return float(self._evaluate(np.asarray(x, float)[None], keep_residuals=False)[1][0])
-        if not (type(x) is np.ndarray and x.dtype == np.float64 and x.flags.c_contiguous):
+        if not (type(x) is np.ndarray and x.dtype is _FLOAT64 and x.ndim == 1 and x.flags.c_contiguous):
             x = np.ascontiguousarray(x, dtype=float)
-        if x.shape != (self.n,):
-            raise ValueError(f"expected {self.n} coordinates, got shape {x.shape}")
-        fb, ib = self._view_buffers or self._buffers()
-        f = _cost_one(x, fb, ib)
+        fb, ib, work, n_free = self._view_buffers or self._buffers()
+        if x.shape[0] != n_free:
+            raise ValueError(f"expected {n_free} coordinates, got shape {x.shape}")
+        f = _kernel().cost_one(x, fb, ib, work)
         counter.nfev += 1
         if f < counter.best_f:
             counter.best_f, counter.best_x = f, self.to_full(x)[0]
@@ -409,15 +416,13 @@ class CalibrationProblem:
     def jacobian_full(self, x_full) -> np.ndarray:
         """Analytic Jacobian (m, p) of the residuals w.r.t. all parameters (implicit function theorem for
         the norm cost); not counted."""
-        from .kernels.evaluate import jacobian
-
         x_full = np.ascontiguousarray(x_full, dtype=float)
         if x_full.shape != (self.model.n_params,):
             raise ValueError(f"expected {self.model.n_params} parameters, got shape {x_full.shape}")
         if self._full_buffers is None:
             self._full_buffers = self._pack(full=True)
         J = np.empty((self.n_residuals, self.model.n_params))
-        jacobian(x_full, *self._full_buffers, J)
+        _kernel().jacobian(x_full, *self._full_buffers, J)
         return J
 
     def jacobian_full_numpy(self, x_full) -> np.ndarray:
@@ -440,13 +445,11 @@ class CalibrationProblem:
         self.counter.njev += 1
         self.counter.nfev += 1
         if self._compiled:
-            from .kernels.evaluate import jacobian
-
             x = np.ascontiguousarray(x, dtype=float)
             if x.shape != (self.n,):
                 raise ValueError(f"expected {self.n} coordinates, got shape {x.shape}")
             J = np.empty((self.n_residuals, self.n))
-            jacobian(x, *self._buffers(), J)
+            _kernel().jacobian(x, *self._buffers()[:3], J)
             return J
         J = self.jacobian_full(self.to_full(x)[0])[:, self.free]
         return J * self.halfwidth[self.free] if self.is_normalised else J

@@ -11,10 +11,12 @@ adds what the problem does with them, one candidate per outer iteration:
 * the analytic Jacobian: for the norm cost, ∂e_j/∂x = −wᵀ ∂F/∂x with (∂F/∂A)ᵀ w = A_j/‖A_j‖ (implicit
   function theorem); for the reference residuals, −∂F/∂x / K0.
 
-Everything a call needs travels in two flat buffers (floats and integers, laid out by :func:`pack`):
-numba checks the type of every argument on each call, and two buffers cost a fraction of a microsecond
-where a dozen separate arrays cost about one. The buffers also carry the *view*: which parameters are
-free, the fixed values of the others, and the affine map z → x of normalised coordinates.
+Everything a call needs travels in a few flat buffers laid out by :func:`pack` (floats, integers, and a
+scratch buffer allocated once per view): numba checks the type of every argument on each call, and
+three buffers cost a fraction of a microsecond where a dozen separate arrays cost about one. The
+buffers also carry the *view*: which parameters are free, the fixed values of the others, and the
+affine map z → x of normalised coordinates. Per-position data are stored axis by axis (rows of an
+(8, n) block), so the sweep over positions reads memory in order and vectorises.
 """
 
 from __future__ import annotations
@@ -24,10 +26,12 @@ from numba import njit
 
 from ._terms import NQ, forward_all, forward_dA, forward_dq, forward_seed, linear_part
 
-# Header of the integer buffer: sizes and flags, then where each array starts.
-(H_N, H_P, H_NF, H_NG, H_MODE, H_AFFINE, H_MAXIT, H_VARIANT, O_SLOTS, O_FREE, O_N, O_REF, O_DTEMP, O_DTIME, O_K0, O_G,
- O_CENTRE, O_GAUGE, O_XFIXED, O_OFFSET, O_SCALE, O_TOL, HEADER) = range(23)
+# The integer buffer: sizes and flags, then the slots of the model's parameters and the free indices.
+H_N, H_P, H_NF, H_NG, H_MODE, H_AFFINE, H_MAXIT, H_VARIANT, HEADER = range(9)
 NORM, REFERENCE = 0, 1
+# Rows of the per-position block: N (3 rows), the reference specific force (3), dT, dt.
+ROW_N, ROW_REF, ROW_DTEMP, ROW_DTIME, POS_ROWS = 0, 3, 6, 7, 8
+N_SCALARS = 5  # K0 (3), g, tol
 
 JIT = dict(cache=True, error_model="numpy")  # IEEE results (inf, nan) instead of ZeroDivisionError
 # Helpers of the per-candidate loop are inlined by numba itself: as separate functions, every array
@@ -36,46 +40,42 @@ INLINE = dict(JIT, inline="always")
 
 
 def pack(*, N, ref, dtemp, dtime, K0, g, centre, gauge, slots, affine: bool, variant: int, free, x_fixed,
-         offset, scale,
-         tol: float = 1e-15, max_iter: int = 60) -> tuple[np.ndarray, np.ndarray]:
-    """The float and integer buffers of one problem view (see the module docstring)."""
-    n, p = len(N), len(centre)
-    zeros = np.zeros(n)
-    floats = [np.ravel(N), np.ravel(ref) if ref is not None else np.zeros(3 * n),
-              zeros if dtemp is None else np.asarray(dtemp, float),
-              zeros if dtime is None else np.asarray(dtime, float),
-              np.asarray(K0, float), np.array([g], float), np.asarray(centre, float),
-              np.zeros(0) if gauge is None else np.ravel(gauge), np.asarray(x_fixed, float),
-              np.asarray(offset, float), np.asarray(scale, float), np.array([tol])]
-    starts = np.cumsum([0] + [len(f) for f in floats])[:-1]
-    fb = np.ascontiguousarray(np.concatenate(floats), dtype=np.float64)
-    ints = [np.asarray(slots, np.int64), np.asarray(free, np.int64)]
+         offset, scale, tol: float = 1e-15, max_iter: int = 60) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The float, integer and scratch buffers of one problem view (see the module docstring).
+
+    Floats: the scalars K0, g, tol; the (8, n) per-position block; the (2 + n_gauge, p) per-parameter
+    block (centre, fixed values, gauge rows); the (2, n_free) view block (offset, scale of z → x)."""
+    n, p, nf = len(N), len(centre), len(free)
+    ng = 0 if gauge is None else len(gauge)
+    pos = np.zeros((POS_ROWS, n))
+    pos[ROW_N:ROW_N + 3] = np.asarray(N, float).T
+    if ref is not None:
+        pos[ROW_REF:ROW_REF + 3] = np.asarray(ref, float).T
+    if dtemp is not None:
+        pos[ROW_DTEMP] = dtemp
+    if dtime is not None:
+        pos[ROW_DTIME] = dtime
+    par = np.vstack([centre, x_fixed] + ([] if gauge is None else [gauge])).astype(float)
+    fb = np.concatenate([np.asarray(K0, float), [g, tol], pos.ravel(), par.ravel(),
+                         np.asarray(offset, float), np.asarray(scale, float)])
     head = np.zeros(HEADER, np.int64)
-    head[[H_N, H_P, H_NF, H_NG]] = n, p, len(free), 0 if gauge is None else len(gauge)
+    head[[H_N, H_P, H_NF, H_NG]] = n, p, nf, ng
     head[H_MODE] = NORM if ref is None else REFERENCE
     head[H_AFFINE], head[H_MAXIT], head[H_VARIANT] = int(affine), max_iter, variant
-    head[O_SLOTS], head[O_FREE] = HEADER, HEADER + p
-    head[O_N:O_TOL + 1] = starts
-    ib = np.ascontiguousarray(np.concatenate([head] + ints), dtype=np.int64)
-    return fb, ib
+    ib = np.concatenate([head, np.asarray(slots, np.int64), np.asarray(free, np.int64)])
+    m = (3 * n if ref is not None else n) + ng
+    work = np.empty(p + NQ + m + 4 * n + 1)
+    return np.ascontiguousarray(fb), np.ascontiguousarray(ib), work
 
 
 @njit(**INLINE)
 def _view(fb, ib):
+    """(slots, free, per-position block, per-parameter block, view block) of the buffers."""
     n, p, nf, ng = ib[H_N], ib[H_P], ib[H_NF], ib[H_NG]
-    slots = ib[ib[O_SLOTS]:ib[O_SLOTS] + p]
-    free = ib[ib[O_FREE]:ib[O_FREE] + nf]
-    N = fb[ib[O_N]:ib[O_N] + 3 * n].reshape((n, 3))
-    ref = fb[ib[O_REF]:ib[O_REF] + 3 * n].reshape((n, 3))
-    dtemp = fb[ib[O_DTEMP]:ib[O_DTEMP] + n]
-    dtime = fb[ib[O_DTIME]:ib[O_DTIME] + n]
-    K0 = fb[ib[O_K0]:ib[O_K0] + 3]
-    centre = fb[ib[O_CENTRE]:ib[O_CENTRE] + p]
-    gauge = fb[ib[O_GAUGE]:ib[O_GAUGE] + ng * p].reshape((ng, p))
-    x_fixed = fb[ib[O_XFIXED]:ib[O_XFIXED] + p]
-    offset = fb[ib[O_OFFSET]:ib[O_OFFSET] + nf]
-    scale = fb[ib[O_SCALE]:ib[O_SCALE] + nf]
-    return slots, free, N, ref, dtemp, dtime, K0, fb[ib[O_G]], centre, gauge, x_fixed, offset, scale, fb[ib[O_TOL]]
+    o_par = N_SCALARS + POS_ROWS * n
+    o_view = o_par + (2 + ng) * p
+    return (ib[HEADER:HEADER + p], ib[HEADER + p:HEADER + p + nf], fb[N_SCALARS:o_par].reshape((POS_ROWS, n)),
+            fb[o_par:o_view].reshape((2 + ng, p)), fb[o_view:o_view + 2 * nf].reshape((2, nf)))
 
 
 @njit(**JIT)
@@ -85,15 +85,19 @@ def n_residuals(ib):
 
 
 @njit(**INLINE)
-def _full(Z, s, free, x_fixed, offset, scale, x):
-    """Row s of the candidates Z in the view's coordinates, as a full parameter vector into x."""
-    x[:] = x_fixed
-    for c in range(free.size):
-        x[free[c]] = offset[c] + scale[c] * Z[s, c]
+def _scratch(work, ib):
+    """x (p), q (NQ), r (m), A and step sizes (4, n) in the scratch buffer."""
+    n, p, m = ib[H_N], ib[H_P], n_residuals(ib)
+    o = p + NQ + m
+    return work[:p], work[p:p + NQ], work[p + NQ:o], work[o:o + 4 * n].reshape((4, n))
 
 
 @njit(**INLINE)
-def _canonical(x, slots, q):
+def _full(Z, s, free, par, view, x, q, slots):
+    """Row s of the candidates Z (view coordinates) as a full parameter vector x and its canonical q."""
+    x[:] = par[1]
+    for c in range(free.size):
+        x[free[c]] = view[0, c] + view[1, c] * Z[s, c]
     q[:] = 0.0
     for k in range(slots.size):
         q[slots[k]] = x[k]
@@ -113,29 +117,32 @@ def _inverse3(m):
 
 
 @njit(**INLINE)
-def _invert_all(forward, q, N, dT, dt, affine, tol, max_iter, A, step):
-    """Specific force A (3, n) of every position from its outputs N (n, 3): Model.inverse's iteration,
+def _invert_all(forward, q, pos, affine, tol, max_iter, A):
+    """Specific force A[0:3] (3, n) of every position from its outputs: Model.inverse's iteration,
     sweeping all positions per step (a loop without branches, which the compiler vectorises)."""
-    mi, c = _linear_inverse(q)
-    n = N.shape[0]
+    lp = linear_part(q)
+    mi, c = _inverse3(lp[:9]), lp[9:]
+    N0, N1, N2, dT, dt = pos[ROW_N], pos[ROW_N + 1], pos[ROW_N + 2], pos[ROW_DTEMP], pos[ROW_DTIME]
+    A0, A1, A2, step = A[0], A[1], A[2], A[3]
+    n = N0.size
     for j in range(n):
-        r0, r1, r2 = N[j, 0] - c[0], N[j, 1] - c[1], N[j, 2] - c[2]
-        A[0, j] = mi[0] * r0 + mi[1] * r1 + mi[2] * r2
-        A[1, j] = mi[3] * r0 + mi[4] * r1 + mi[5] * r2
-        A[2, j] = mi[6] * r0 + mi[7] * r1 + mi[8] * r2
+        r0, r1, r2 = N0[j] - c[0], N1[j] - c[1], N2[j] - c[2]
+        A0[j] = mi[0] * r0 + mi[1] * r1 + mi[2] * r2
+        A1[j] = mi[3] * r0 + mi[4] * r1 + mi[5] * r2
+        A2[j] = mi[6] * r0 + mi[7] * r1 + mi[8] * r2
     if affine:
         return
     prev = np.inf
     for _ in range(max_iter):
         for j in range(n):
-            f0, f1, f2 = forward(q, A[0, j], A[1, j], A[2, j], dT[j], dt[j])
-            r0, r1, r2 = N[j, 0] - f0, N[j, 1] - f1, N[j, 2] - f2
+            f0, f1, f2 = forward(q, A0[j], A1[j], A2[j], dT[j], dt[j])
+            r0, r1, r2 = N0[j] - f0, N1[j] - f1, N2[j] - f2
             d0 = mi[0] * r0 + mi[1] * r1 + mi[2] * r2
             d1 = mi[3] * r0 + mi[4] * r1 + mi[5] * r2
             d2 = mi[6] * r0 + mi[7] * r1 + mi[8] * r2
-            A[0, j] += d0
-            A[1, j] += d1
-            A[2, j] += d2
+            A0[j] += d0
+            A1[j] += d1
+            A2[j] += d2
             # |δA|₁ ≥ the max-norm the NumPy oracle uses, so this stops no earlier than it does.
             step[j] = abs(d0) + abs(d1) + abs(d2)
         size = 0.0
@@ -151,104 +158,101 @@ def _invert_all(forward, q, N, dT, dt, affine, tol, max_iter, A, step):
 
 
 @njit(**INLINE)
-def _linear_inverse(q):
-    lp = linear_part(q)
-    return _inverse3(lp[:9]), lp[9:]
-
-
-@njit(**INLINE)
-def _residuals_of(forward, x, q, slots, N, ref, dtemp, dtime, K0, g, centre, gauge, tol, mode, affine, max_iter, r,
-                  A, step):
-    n = N.shape[0]
-    _canonical(x, slots, q)
+def _residuals_of(forward, fb, ib, x, q, pos, par, r, A):
+    """Residuals of the candidate x (canonical q) into r; returns Σ r²."""
+    n = ib[H_N]
     s = 0.0
-    if mode == REFERENCE:
+    if ib[H_MODE] == REFERENCE:
+        k0, k1, k2 = fb[0], fb[1], fb[2]
         for j in range(n):
-            f0, f1, f2 = forward(q, ref[j, 0], ref[j, 1], ref[j, 2], dtemp[j], dtime[j])
-            e0, e1, e2 = (N[j, 0] - f0) / K0[0], (N[j, 1] - f1) / K0[1], (N[j, 2] - f2) / K0[2]
+            f0, f1, f2 = forward(q, pos[ROW_REF, j], pos[ROW_REF + 1, j], pos[ROW_REF + 2, j], pos[ROW_DTEMP, j],
+                                 pos[ROW_DTIME, j])
+            e0, e1, e2 = (pos[ROW_N, j] - f0) / k0, (pos[ROW_N + 1, j] - f1) / k1, (pos[ROW_N + 2, j] - f2) / k2
             r[3 * j], r[3 * j + 1], r[3 * j + 2] = e0, e1, e2
             s += e0 * e0 + e1 * e1 + e2 * e2
         return s
-    _invert_all(forward, q, N, dtemp, dtime, affine, tol, max_iter, A, step)
+    _invert_all(forward, q, pos, ib[H_AFFINE] != 0, fb[4], ib[H_MAXIT], A)
+    g = fb[3]
     for j in range(n):
         e = np.sqrt(A[0, j] * A[0, j] + A[1, j] * A[1, j] + A[2, j] * A[2, j]) - g
         r[j] = e
         s += e * e
-    for k in range(gauge.shape[0]):
+    for k in range(ib[H_NG]):
         e = 0.0
         for i in range(x.size):
-            e += (x[i] - centre[i]) * gauge[k, i]
+            e += (x[i] - par[0, i]) * par[2 + k, i]
         r[n + k] = e
         s += e * e
     return s
 
 
 @njit(**JIT)
-def cost_one(z, fb, ib):
+def cost_one(z, fb, ib, work):
     """Σ r² of one candidate z in the view's coordinates (NaN when it is not finite)."""
-    f = np.empty(1)
-    evaluate_batch(z.reshape((1, z.size)), fb, ib, f, np.empty((0, 0)), False)
+    f = work[work.size - 1:]
+    evaluate_batch(z.reshape((1, z.size)), fb, ib, work, f, work[:0].reshape((0, 0)), False)
     return f[0]
 
 
 @njit(**JIT)
-def evaluate_batch(Z, fb, ib, f, R, keep_residuals):
-    """Costs of the candidates Z (S, nf) into f (S,), and their residuals into R (S, m) when asked."""
+def evaluate_batch(Z, fb, ib, work, f, R, keep_residuals):
+    """Costs of the candidates Z (S, nf) into f (S,), and their residuals into R (S, m) when asked.
+
+    Returns the row of the lowest finite cost (−1 when none is finite)."""
     if ib[H_VARIANT] == 0:
-        _batch(forward_seed, Z, fb, ib, f, R, keep_residuals)
-    else:
-        _batch(forward_all, Z, fb, ib, f, R, keep_residuals)
+        return _batch(forward_seed, Z, fb, ib, work, f, R, keep_residuals)
+    return _batch(forward_all, Z, fb, ib, work, f, R, keep_residuals)
 
 
 @njit(**INLINE)
-def _batch(forward, Z, fb, ib, f, R, keep_residuals):
-    slots, free, N, ref, dtemp, dtime, K0, g, centre, gauge, x_fixed, offset, scale, tol = _view(fb, ib)
-    mode, affine, max_iter = ib[H_MODE], ib[H_AFFINE] != 0, ib[H_MAXIT]
-    x, q = np.empty(ib[H_P]), np.empty(NQ)
-    r = np.empty(n_residuals(ib))
-    A, step = np.empty((3, N.shape[0])), np.empty(N.shape[0])
+def _batch(forward, Z, fb, ib, work, f, R, keep_residuals):
+    slots, free, pos, par, view = _view(fb, ib)
+    x, q, r, A = _scratch(work, ib)
+    best, best_f = -1, np.inf
     for s in range(Z.shape[0]):
-        _full(Z, s, free, x_fixed, offset, scale, x)
-        c = _residuals_of(forward, x, q, slots, N, ref, dtemp, dtime, K0, g, centre, gauge, tol, mode, affine,
-                          max_iter, r, A, step)
-        f[s] = c if np.isfinite(c) else np.nan
+        _full(Z, s, free, par, view, x, q, slots)
+        c = _residuals_of(forward, fb, ib, x, q, pos, par, r, A)
+        if np.isfinite(c):
+            f[s] = c
+            if c < best_f:
+                best, best_f = s, c
+        else:
+            f[s] = np.nan
         if keep_residuals:
             R[s, :] = r
+    return best
 
 
 @njit(**JIT)
-def jacobian(z, fb, ib, J):
+def jacobian(z, fb, ib, work, J):
     """The analytic Jacobian (m, nf) of the residuals at z, in the view's coordinates, into J."""
-    slots, free, N, ref, dtemp, dtime, K0, g, centre, gauge, x_fixed, offset, scale, tol = _view(fb, ib)
-    n, p = N.shape[0], ib[H_P]
-    x, q = np.empty(p), np.empty(NQ)
-    _full(z.reshape((1, z.size)), 0, free, x_fixed, offset, scale, x)
-    _canonical(x, slots, q)
+    slots, free, pos, par, view = _view(fb, ib)
+    x, q, r, A = _scratch(work, ib)
+    _full(z.reshape((1, z.size)), 0, free, par, view, x, q, slots)
+    n, nf = ib[H_N], free.size
     dq = np.zeros((3, NQ))
-    nf = free.size
+    dT, dt = pos[ROW_DTEMP], pos[ROW_DTIME]
     if ib[H_MODE] == REFERENCE:
         for j in range(n):
-            forward_dq(q, ref[j, 0], ref[j, 1], ref[j, 2], dtemp[j], dtime[j], dq)
+            forward_dq(q, pos[ROW_REF, j], pos[ROW_REF + 1, j], pos[ROW_REF + 2, j], dT[j], dt[j], dq)
             for i in range(3):
                 for c in range(nf):
-                    J[3 * j + i, c] = -dq[i, slots[free[c]]] / K0[i] * scale[c]
+                    J[3 * j + i, c] = -dq[i, slots[free[c]]] / fb[i] * view[1, c]
         return
-    A, step = np.empty((3, n)), np.empty(n)
-    _invert_all(forward_all, q, N, dtemp, dtime, ib[H_AFFINE] != 0, tol, ib[H_MAXIT], A, step)
+    _invert_all(forward_all, q, pos, ib[H_AFFINE] != 0, fb[4], ib[H_MAXIT], A)
     for j in range(n):
         a0, a1, a2 = A[0, j], A[1, j], A[2, j]
         norm = np.sqrt(a0 * a0 + a1 * a1 + a2 * a2)
         # w solves (∂F/∂A)ᵀ w = A/‖A‖; then ∂e/∂x = −wᵀ ∂F/∂x.
-        fa = forward_dA(q, a0, a1, a2, dtemp[j], dtime[j])
-        fi = _inverse3(fa)
+        fi = _inverse3(forward_dA(q, a0, a1, a2, dT[j], dt[j]))
         u0, u1, u2 = a0 / norm, a1 / norm, a2 / norm
         w0 = fi[0] * u0 + fi[3] * u1 + fi[6] * u2
         w1 = fi[1] * u0 + fi[4] * u1 + fi[7] * u2
         w2 = fi[2] * u0 + fi[5] * u1 + fi[8] * u2
-        forward_dq(q, a0, a1, a2, dtemp[j], dtime[j], dq)
+        forward_dq(q, a0, a1, a2, dT[j], dt[j], dq)
         for c in range(nf):
             k = slots[free[c]]
-            J[j, c] = -(w0 * dq[0, k] + w1 * dq[1, k] + w2 * dq[2, k]) * scale[c]
-    for k in range(gauge.shape[0]):
+            J[j, c] = -(w0 * dq[0, k] + w1 * dq[1, k] + w2 * dq[2, k]) * view[1, c]
+    for k in range(ib[H_NG]):
         for c in range(nf):
-            J[n + k, c] = gauge[k, free[c]] * scale[c]
+            J[n + k, c] = par[2 + k, free[c]] * view[1, c]
