@@ -13,18 +13,20 @@ message, and the study goes on.
 
 from __future__ import annotations
 
+import copy
+import functools
+import json
 import time
 import traceback
 import zlib
 from dataclasses import dataclass
 
 import numpy as np
-from scipy import stats
 
 from optcal.analysis import natural_units, observability
 from optcal.model import get_model
 from optcal.presets import PAPER_TRUTH, draw_truth, manufacturer_presets, manufacturer_sd
-from optcal.problem import CalibrationProblem
+from optcal.problem import CalibrationProblem, Counter
 from optcal.simulate import simulate
 
 from .spec import SolverConfig, Spec
@@ -190,6 +192,68 @@ def _navigation(model, x_true, x_est, nav: dict):
     return float(r.max_error_nmi), float(r.mean_error_nmi), [float(v) for v in curve]
 
 
+@dataclass
+class World:
+    """What every solver of run i on one model and scheme shares: truth, presets, data, the in-field
+    problem, its bounds and the verification set. Built once per process for the consecutive trials of a
+    chunk (the solvers of one run), instead of once per trial."""
+
+    model: object
+    truth: dict
+    presets: object
+    x_true: np.ndarray
+    yard: CalibrationProblem
+    bound: tuple  # projected_crlb(yard, x_true, sigma)
+    sd_presets: list | None
+    ver: CalibrationProblem
+    ver_truth: np.ndarray
+
+
+def world_key(t: Trial) -> str:
+    """The inputs a World depends on (everything of a Trial but its solver)."""
+    return json.dumps([t.seed, t.run, t.model, t.scheme, t.truth, t.presets, t.presets_error_scale, t.noise_ug,
+                       t.tilt_deg, t.g_local, t.verification], sort_keys=True)
+
+
+_WORLDS: dict[str, World] = {}
+
+
+def world(t: Trial) -> World:
+    """The World of ``t``, from this process's cache of the last few."""
+    k = world_key(t)
+    w = _WORLDS.get(k)
+    if w is None:
+        if len(_WORLDS) >= 4:
+            _WORLDS.pop(next(iter(_WORLDS)))
+        w = _WORLDS[k] = _build_world(t)
+    return w
+
+
+def _build_world(t: Trial) -> World:
+    model = get_model(t.model)
+    sigma = t.noise_ug * 1e-6
+    truth = truth_of(t)
+    presets = presets_of(t, truth)
+    sim = infield_data(t, truth)
+    x_true = sim.truth_vector(model)
+    yard = CalibrationProblem(model, sim.data, g_local=t.g_local, presets=presets, noise_g=sigma)
+    sd_presets = None
+    if t.presets == "manufacturer":
+        prior = manufacturer_sd(model.names, truth, t.presets_error_scale)
+        sd_presets = [float(v) for v in crlb_with_presets(yard, x_true, sigma, prior)]
+    ver = CalibrationProblem(model, verification_data(t, truth).data, g_local=t.g_local, check=False)
+    return World(model, truth, presets, x_true, yard, projected_crlb(yard, x_true, sigma), sd_presets, ver,
+                 _abs_norm_error_ug(ver, x_true))
+
+
+@functools.lru_cache(maxsize=64)
+def converged_threshold(dof: int) -> float:
+    """The χ² quantile CONVERGED_QUANTILE of ``dof`` degrees of freedom (cost/σ² at the noise floor)."""
+    from scipy import stats
+
+    return float(stats.chi2.ppf(CONVERGED_QUANTILE, dof))
+
+
 def _abs_norm_error_ug(problem: CalibrationProblem, x) -> np.ndarray:
     A = problem.specific_force(x)
     return np.abs(np.linalg.norm(A, axis=1) - problem.g_local) * 1e6
@@ -212,20 +276,17 @@ def run_trial(t: Trial) -> dict:
     """Run one trial and return its row (see :mod:`studies.store` for the columns)."""
     t_start = time.perf_counter()
     cfg = t.config
-    model = get_model(t.model)
+    w = world(t)
     sigma = t.noise_ug * 1e-6
-    truth = truth_of(t)
-    presets = presets_of(t, truth)
-    sim = infield_data(t, truth)
-    x_true = sim.truth_vector(model)
-    yard = CalibrationProblem(model, sim.data, g_local=t.g_local, presets=presets, noise_g=sigma)
-    row = {**base_row(t), "x_true": [float(v) for v in x_true]}
+    row = {**base_row(t), "x_true": [float(v) for v in w.x_true]}
     try:
         if cfg.reference:
-            problem = CalibrationProblem(model, turntable_data(t, truth).data, g_local=t.g_local, reference=True,
-                                         presets=presets, noise_g=sigma)
+            problem = CalibrationProblem(w.model, turntable_data(t, w.truth).data, g_local=t.g_local,
+                                         reference=True, presets=w.presets, noise_g=sigma)
         else:
-            problem = yard
+            # The shared in-field problem with an evaluation counter of this trial's own.
+            problem = copy.copy(w.yard)
+            problem.counter = Counter()
         import solvers
 
         solver = solvers.get(cfg.name, **cfg.options)
@@ -240,7 +301,7 @@ def run_trial(t: Trial) -> dict:
         return {**failed_row(t, f"{type(exc).__name__}: {exc}{where}", time.perf_counter() - t_start),
                 "x_true": row["x_true"]}
     try:
-        row.update(_score(t, model, truth, x_true, x_est, res, problem, yard, sigma))
+        row.update(_score(t, w, x_est, res, problem, sigma))
     except Exception as exc:  # noqa: BLE001 - a trial never raises: scoring errors fail this trial only
         return {**failed_row(t, f"scoring failed: {type(exc).__name__}: {exc}", time.perf_counter() - t_start),
                 "x_true": row["x_true"]}
@@ -248,14 +309,17 @@ def run_trial(t: Trial) -> dict:
     return row
 
 
-def _score(t: Trial, model, truth, x_true, x_est, res, problem, yard, sigma) -> dict:
+def run_chunk(chunk: list[Trial]) -> list[dict]:
+    """Run consecutive trials in one worker call (they share their World): one scheduling round trip per
+    chunk instead of per trial."""
+    return [run_trial(t) for t in chunk]
+
+
+def _score(t: Trial, w: World, x_est, res, problem, sigma) -> dict:
     """The metrics of one finished solve (the columns of :mod:`studies.store`)."""
     cfg = t.config
-    sd, P, u, obs = projected_crlb(yard, x_true, sigma)
-    sd_presets = None
-    if t.presets == "manufacturer":
-        prior = manufacturer_sd(model.names, truth, t.presets_error_scale)
-        sd_presets = [float(v) for v in crlb_with_presets(yard, x_true, sigma, prior)]
+    model, x_true = w.model, w.x_true
+    sd, P, u, obs = w.bound
     e = x_est - x_true
     e_proj = (P @ (e / u)) * u
     null = obs.null_space
@@ -264,11 +328,10 @@ def _score(t: Trial, model, truth, x_true, x_est, res, problem, yard, sigma) -> 
     # The positions' residuals only: the gauge rows (seed15) hold unobservable directions, not data.
     dof = max(len(problem.data) * (3 if cfg.reference else 1) - rank, 1)
     chi2 = float(res.fun) / sigma**2
-    converged = chi2 <= stats.chi2.ppf(CONVERGED_QUANTILE, dof)
+    converged = chi2 <= converged_threshold(dof)
 
-    ver = CalibrationProblem(model, verification_data(t, truth).data, g_local=t.g_local, check=False)
-    ver_err = _abs_norm_error_ug(ver, x_est)
-    ver_truth = _abs_norm_error_ug(ver, x_true)
+    ver_err = _abs_norm_error_ug(w.ver, x_est)
+    ver_truth = w.ver_truth
     nav = _navigation(model, x_true, x_est, t.navigation)
     return dict(
         status="ok", message=str(res.message)[:500], success=int(bool(res.success)), converged=int(converged),
@@ -279,7 +342,7 @@ def _score(t: Trial, model, truth, x_true, x_est, res, problem, yard, sigma) -> 
         ver_truth_mean_ug=float(np.mean(ver_truth)),
         nav_max_nmi=None if nav is None else nav[0], nav_mean_nmi=None if nav is None else nav[1],
         x_est=[float(v) for v in x_est], err=[float(v) for v in e], err_proj=[float(v) for v in e_proj],
-        crlb=[float(v) for v in sd], crlb_presets=sd_presets, observable=[int(v) for v in obs.observable_mask()],
+        crlb=[float(v) for v in sd], crlb_presets=w.sd_presets, observable=[int(v) for v in obs.observable_mask()],
         null_dirs=obs.unobservable, null_err=[float(v) for v in null_coef],
         ver_err=[float(v) for v in ver_err], ver_truth=[float(v) for v in ver_truth],
         trace=trace_on_grid(res.trace), nav_curve=None if nav is None else nav[2],
