@@ -3,14 +3,18 @@
 The problem library: models, schemes, simulation, data I/O, the calibration problem, analysis
 (observability, Cramér-Rao bounds), discovery, navigation, calibration files and the CLI. It never
 imports ``solvers`` or ``studies``; where it needs a fit it asks the registry by name at run time.
+
+The public names are loaded at first use (PEP 562), so that ``import optcal`` and ``optcal --help`` do not
+import NumPy, SciPy or anything heavier; ``from optcal import simulate`` works as before.
 """
 
-from .data import PositionsData, read_positions
-from .discovery import DiscoveryReport, discover
+from __future__ import annotations
+
+import importlib
+import sys
+import types
+
 from .errors import BudgetExhausted, InputError
-from .model import NAMED_MODELS, TERMS, Context, Model, get_model
-from .problem import Budget, CalibrationProblem
-from .simulate import Simulation, simulate
 
 __version__ = "0.1.0"
 
@@ -18,3 +22,42 @@ __all__ = [
     "NAMED_MODELS", "TERMS", "Budget", "BudgetExhausted", "CalibrationProblem", "Context", "InputError", "Model",
     "DiscoveryReport", "PositionsData", "Simulation", "discover", "get_model", "read_positions", "simulate",
 ]
+
+# name -> the submodule that defines it, imported when the name is first looked up.
+_LAZY = {
+    "PositionsData": "data", "read_positions": "data",
+    "DiscoveryReport": "discovery", "discover": "discovery",
+    "NAMED_MODELS": "model", "TERMS": "model", "Context": "model", "Model": "model", "get_model": "model",
+    "Budget": "problem", "CalibrationProblem": "problem",
+    "Simulation": "simulate", "simulate": "simulate",
+}
+# Submodules that an eager ``import optcal`` used to leave reachable as attributes (``optcal.model``).
+_SUBMODULES = frozenset({"analysis", "data", "discovery", "errors", "linfit", "model", "presets", "problem",
+                         "schemes"})
+
+
+def __getattr__(name: str):
+    if name in _LAZY:
+        value = getattr(importlib.import_module(f"{__name__}.{_LAZY[name]}"), name)
+        globals()[name] = value
+        return value
+    if name in _SUBMODULES:
+        return importlib.import_module(f"{__name__}.{name}")
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+
+
+def __dir__() -> list[str]:
+    return sorted(set(globals()) | set(__all__))
+
+
+class _Package(types.ModuleType):
+    """``optcal.simulate`` is the function, as it was when the package imported it eagerly: importing the
+    submodule ``optcal.simulate`` (which Python records as an attribute of the package) must not replace it."""
+
+    def __setattr__(self, name, value):
+        if isinstance(value, types.ModuleType) and name in _LAZY and value.__name__ == f"{__name__}.{name}":
+            return  # the submodule of the same name; the attribute stays the public function
+        super().__setattr__(name, value)
+
+
+sys.modules[__name__].__class__ = _Package

@@ -12,7 +12,6 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy import stats
 
 from .model import Model
 from .presets import family
@@ -172,6 +171,8 @@ class GoodnessOfFit:
 
 def goodness_of_fit(problem: CalibrationProblem, x_full: np.ndarray, sigma_g: float | None = None) -> GoodnessOfFit:
     """Residual RMS, and χ² with its p-value when the noise is known."""
+    from scipy import stats  # here, not at module level: importing optcal stays light
+
     r = problem.position_residuals(x_full)
     obs = observability(problem, x_full)
     dof = max(len(r) - obs.rank, 1)

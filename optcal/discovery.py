@@ -27,7 +27,6 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy import stats
 
 from .analysis import crlb, observability
 from .data import PositionsData
@@ -171,6 +170,8 @@ def fit_model(model: Model, data: PositionsData, g_local: float, x0=None, *, sol
 
 def score(current: Fit, term: str, *, solver: str = "scipy-lm", budget: int = 2000) -> Score:
     """Refit with ``term`` added (warm start: current fit, new parameters zero) and test the gain."""
+    from scipy import stats  # here, not at module level: importing optcal stays light
+
     data = current.problem.data
     missing = [c for c in TERMS[term].needs if getattr(data, c) is None]
     if missing:
@@ -311,6 +312,8 @@ class DiscoveryReport:
     @property
     def chi2(self) -> tuple[float, int, float] | None:
         """χ² goodness of fit of the final model against the known noise, Σ (e_j/σ_j)²: (χ², dof, p-value)."""
+        from scipy import stats
+
         if self.sigma_j is None or self.dof < 1:
             return None
         c = float(np.sum((self.final.residuals / self.sigma_j) ** 2))

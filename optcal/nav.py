@@ -38,7 +38,6 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.linalg import expm
 
 from .errors import InputError
 from .gravity import A_WGS84, E2_WGS84, G0, OMEGA_E, normal_gravity
@@ -158,6 +157,8 @@ def propagate(F: np.ndarray, b: np.ndarray, x0: np.ndarray, dt: float, n_steps: 
     One matrix exponential gives the step of the augmented system, Φ = expm(M·dt) with
     M = [[F, b], [0, 0]]; :func:`_fill` then covers the grid by doubling.
     """
+    from scipy.linalg import expm  # here, not at module level: importing optcal stays light
+
     n = F.shape[0]
     M = np.zeros((n + 1, n + 1))
     M[:n, :n] = F
@@ -188,6 +189,8 @@ def _site_step(latitude_deg: float, height_m: float, earth_rate_coupling: bool, 
     """(Φ, Γ, consts) for one site and step: Φ = expm(F·dt) and Γ = ∫₀^dt expm(F·s) ds, from one
     exponential of [[F, I], [0, 0]]·dt. Cached, so the runs of a study (one site, many calibrations)
     compute no matrix exponential after the first; the step for input b is [[Φ, Γ·b], [0, 1]]."""
+    from scipy.linalg import expm
+
     F, consts = error_dynamics(latitude_deg, height_m, earth_rate_coupling)
     n = F.shape[0]
     M = np.zeros((2 * n, 2 * n))

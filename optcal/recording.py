@@ -29,16 +29,27 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
-from scipy.ndimage import uniform_filter1d
 
 from .data import UNITS, PositionsData, check_units
 from .errors import InputError
 from .model import Model, get_model
 
-try:  # optional: a faster reader for large delimited files
-    import pyarrow.csv as _arrow_csv
-except ImportError:  # pragma: no cover - depends on the installation
-    _arrow_csv = None
+# optional: pyarrow.csv, a faster reader for large delimited files. Imported at the first read (pyarrow is
+# heavy), then kept here; None when it is not installed (or, in tests, to force the NumPy reader).
+_NOT_LOADED = object()
+_arrow_csv = _NOT_LOADED
+
+
+def _arrow_reader():
+    """pyarrow.csv, or None without pyarrow."""
+    global _arrow_csv
+    if _arrow_csv is _NOT_LOADED:
+        try:
+            import pyarrow.csv as arrow_csv
+        except ImportError:  # pragma: no cover - depends on the installation
+            arrow_csv = None
+        _arrow_csv = arrow_csv
+    return _arrow_csv
 
 ROLES = ("t", "ax", "ay", "az", "temp")
 ALIASES = {
@@ -286,7 +297,7 @@ def _load_numeric(path: Path, lay: _Layout, usecols: list[int]) -> np.ndarray:
     CSV reader when pyarrow is installed (several times faster than NumPy's); anything it does not read
     cleanly (comment lines, ragged rows, text in a number column, whitespace-separated files) goes through
     numpy.loadtxt, a C reader too, whose messages name the offending row."""
-    if _arrow_csv is not None and lay.delimiter is not None:
+    if lay.delimiter is not None and _arrow_reader() is not None:
         out = _load_arrow(path, lay, usecols)
         if out is not None:
             return out
@@ -301,13 +312,14 @@ def _load_numeric(path: Path, lay: _Layout, usecols: list[int]) -> np.ndarray:
 def _load_arrow(path: Path, lay: _Layout, usecols: list[int]) -> np.ndarray | None:
     import pyarrow as pa
 
+    arrow_csv = _arrow_reader()
     names = [f"c{j}" for j in range(lay.ncol)]
     try:
-        table = _arrow_csv.read_csv(
+        table = arrow_csv.read_csv(
             path,
-            read_options=_arrow_csv.ReadOptions(skip_rows=lay.skiprows, column_names=names),
-            parse_options=_arrow_csv.ParseOptions(delimiter=lay.delimiter),
-            convert_options=_arrow_csv.ConvertOptions(include_columns=[names[j] for j in usecols],
+            read_options=arrow_csv.ReadOptions(skip_rows=lay.skiprows, column_names=names),
+            parse_options=arrow_csv.ParseOptions(delimiter=lay.delimiter),
+            convert_options=arrow_csv.ConvertOptions(include_columns=[names[j] for j in usecols],
                                                       column_types={names[j]: pa.float64() for j in usecols}),
         )
         out = np.column_stack([table.column(names[j]).to_numpy() for j in usecols]).astype(float, copy=False)
@@ -362,6 +374,8 @@ def variance_statistic(N: np.ndarray, window: int) -> np.ndarray:
     h = window // 2
     # Centred (the running sums of squares keep their precision) and one contiguous row per axis (the
     # filter then runs along memory: three times faster than along axis 0 of an (n, 3) array).
+    from scipy.ndimage import uniform_filter1d  # here, not at module level: importing optcal stays light
+
     X = np.ascontiguousarray((N - N.mean(axis=0)).T)
     m = uniform_filter1d(X, window, axis=1, mode="nearest")
     m2 = uniform_filter1d(X * X, window, axis=1, mode="nearest")

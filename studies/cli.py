@@ -1,13 +1,13 @@
-"""The ``optcal study`` command's work: ``run`` a spec into a folder (then write its report), ``report``."""
+"""The ``optcal study`` command's work: ``run`` a spec into a folder (then write its report), ``report``.
+
+The study machinery (trials, NumPy, SciPy, the solvers, matplotlib for the report) is imported inside the
+functions, so that importing this module costs nothing.
+"""
 
 from __future__ import annotations
 
 import sys
 from pathlib import Path
-
-from .execute import run_study
-from .report import headline, write_report
-from .spec import load
 
 
 def default_folder(spec) -> Path:
@@ -15,6 +15,10 @@ def default_folder(spec) -> Path:
 
 
 def run(args) -> int:
+    from .execute import run_study
+    from .report import headline, write_report
+    from .spec import load
+
     spec = load(args.spec)
     if args.quick:
         spec = spec.quick()
@@ -36,6 +40,8 @@ def run(args) -> int:
 
 
 def report(args) -> int:
+    from .report import write_report
+
     out = write_report(args.dir)
     print(f"report: {out}")
     return 0

@@ -5,8 +5,6 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
-import numpy as np
-
 from ..errors import InputError
 
 
@@ -45,6 +43,8 @@ def refuse_overwrite(path: str | None, force: bool) -> None:
 
 def parameter_table(names, values, stderr=None, truth: dict | None = None) -> str:
     """A fixed-width table: name, estimate, standard error, and the truth and error in SEs when given."""
+    import numpy as np
+
     head = f"{'parameter':<10} {'estimate':>16} {'std. error':>12}"
     if truth:
         head += f" {'truth':>16} {'error/SE':>9}"

@@ -4,9 +4,12 @@ raw recording, its units and local gravity."""
 from __future__ import annotations
 
 import argparse
+from typing import TYPE_CHECKING
 
-from ..data import PositionsData, check_units, read_positions
 from ..gravity import local_gravity_g
+
+if TYPE_CHECKING:
+    from ..data import PositionsData
 
 
 def add_gravity_options(p: argparse.ArgumentParser) -> None:
@@ -52,6 +55,8 @@ def load_positions(args, path) -> PositionsData:
         from .. import recording  # the raw-recording path (static detection)
 
         return recording.positions_from_args(args, path)
+    from ..data import check_units, read_positions
+
     data = read_positions(path, units=args.units)
     check_units(data, args.units)
     return data

@@ -3,14 +3,15 @@
 from __future__ import annotations
 
 from pathlib import Path
+from typing import TYPE_CHECKING
 
-import numpy as np
-
-from ..calfile import G0, read_calibration
 from ..errors import InputError
-from ..recording import read_recording
+from ..gravity import G0
 from ._common import refuse_overwrite
 from ._dataopts import add_data_options, gravity_from_args
+
+if TYPE_CHECKING:
+    import numpy as np
 
 HELP = "apply a calibration file to a raw recording: raw outputs -> specific force in g or m/s²"
 OUTPUT_UNITS = {"g": 1.0, "m/s2": G0}
@@ -28,6 +29,8 @@ def add_arguments(p):
 
 def write_csv(path: Path, columns: dict[str, np.ndarray], fmt: dict[str, str]) -> None:
     """A header and one row per sample, written in blocks (no Python loop over values)."""
+    import numpy as np
+
     names = list(columns)
     M = np.column_stack([np.asarray(columns[c], float) for c in names])
     row = ",".join(fmt[c] for c in names)
@@ -40,6 +43,11 @@ def write_csv(path: Path, columns: dict[str, np.ndarray], fmt: dict[str, str]) -
 
 
 def run(args) -> int:
+    import numpy as np
+
+    from ..calfile import read_calibration
+    from ..recording import read_recording
+
     refuse_overwrite(args.output, args.force)
     cal = read_calibration(args.calibration)
     if args.units is not None and args.units != cal.units_out:

@@ -6,8 +6,6 @@ import importlib
 import json
 
 from ..errors import InputError
-from ..fit import calibrate
-from ..presets import load_presets
 from ._common import parameter_table, parse_options, refuse_overwrite
 from ._dataopts import add_data_options, gravity_from_args, load_positions
 
@@ -31,6 +29,9 @@ def add_arguments(p):
 
 
 def run(args) -> int:
+    from ..fit import calibrate
+    from ..presets import load_presets
+
     refuse_overwrite(args.output, args.force)
     g_local = gravity_from_args(args)
     data = load_positions(args, args.data)

@@ -2,12 +2,6 @@
 
 from __future__ import annotations
 
-import numpy as np
-
-from ..fit import calibrate
-from ..model import get_model
-from ..presets import draw_truth
-from ..simulate import simulate
 from ._common import parameter_table
 
 HELP = "simulate a 24-position data set and calibrate it (the first end-to-end example)"
@@ -22,6 +16,13 @@ def add_arguments(p):
 
 
 def run(args) -> int:
+    import numpy as np
+
+    from ..fit import calibrate
+    from ..model import get_model
+    from ..presets import draw_truth
+    from ..simulate import simulate
+
     model = get_model(args.model)
     rng = np.random.default_rng(args.seed)
     truth = draw_truth(model, rng)

@@ -5,11 +5,17 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
-from ..discovery import CANDIDATES, DEFAULT_ALPHA, DEFAULT_BIC_THRESHOLD, discover
 from ..errors import InputError
 from ._dataopts import add_data_options, gravity_from_args, load_positions
 
 HELP = "discover the terms a model is missing (F-test and BIC, forward selection)"
+
+# Copies of optcal.discovery's defaults for the help text: importing optcal.discovery (NumPy, the
+# calibration problem) would slow every `optcal --help`. tests/test_startup.py checks that they agree.
+CANDIDATES = ("quadratic", "cubic", "scale_asymmetry", "cross_coupling", "temperature_bias",
+              "temperature_scale", "bias_drift", "misalignment")
+DEFAULT_ALPHA = 0.01
+DEFAULT_BIC_THRESHOLD = -2.0
 
 
 def add_arguments(p):
@@ -29,6 +35,8 @@ def add_arguments(p):
 
 
 def run(args) -> int:
+    from ..discovery import discover
+
     if args.plot:
         out = Path(args.plot)
         if out.parent and not out.parent.is_dir():

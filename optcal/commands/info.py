@@ -4,14 +4,6 @@ from __future__ import annotations
 
 import json
 
-import numpy as np
-
-from ..analysis import crlb, observability
-from ..model import get_model
-from ..presets import PAPER_TRUTH
-from ..problem import CalibrationProblem
-from ..simulate import simulate
-
 HELP = "observability and Cramér-Rao table for a scheme and model"
 
 
@@ -24,6 +16,14 @@ def add_arguments(p):
 
 
 def run(args) -> int:
+    import numpy as np
+
+    from ..analysis import crlb, observability
+    from ..model import get_model
+    from ..presets import PAPER_TRUTH
+    from ..problem import CalibrationProblem
+    from ..simulate import simulate
+
     model = get_model(args.model)
     # Noise-free data at a representative truth: the 2020-paper-like values where the model has them.
     truth = {n: PAPER_TRUTH.get(n, 1.0 if n.startswith("K_") else 0.0) for n in model.names}

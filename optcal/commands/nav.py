@@ -2,25 +2,34 @@
 
 from __future__ import annotations
 
+import functools
 import json
 import math
 from pathlib import Path
+from typing import TYPE_CHECKING
 
-import numpy as np
-
-from ..calfile import FORMAT, read_calibration
 from ..errors import InputError
-from ..model import TERMS, Model, get_model
-from ..nav import navigation_error, plot_navigation
+
+if TYPE_CHECKING:
+    import numpy as np
+
+    from ..model import Model
 
 HELP = "position error of a 5-hour static navigation run with a calibration, against the truth"
 
-# A name shared by `misalignment` and `misalignment6` goes to the 3-angle gauge unless a six-angle-only
-# name is present (DESIGN §3); every other name has exactly one owning term.
-_OWNER = {}
-for _t in TERMS.values():
-    for _p in _t.params:
-        _OWNER.setdefault(_p, _t.name)
+
+@functools.cache
+def _owners() -> dict[str, str]:
+    """{parameter name: the term that owns it}. A name shared by `misalignment` and `misalignment6` goes to
+    the 3-angle gauge unless a six-angle-only name is present (DESIGN §3); every other name has exactly one
+    owning term."""
+    from ..model import TERMS
+
+    owner: dict[str, str] = {}
+    for t in TERMS.values():
+        for p in t.params:
+            owner.setdefault(p, t.name)
+    return owner
 
 
 def add_arguments(p):
@@ -54,6 +63,8 @@ def _triple(text: str, option: str) -> tuple[float, float, float]:
 
 def _load_truth(path: str) -> tuple[dict[str, float], tuple[str, ...], str | None]:
     """(parameters, terms, output units) of TRUTH.json: a calibration file or a plain {name: value}."""
+    from ..calfile import FORMAT, read_calibration
+
     try:
         obj = json.loads(Path(path).read_text())
     except OSError as exc:
@@ -65,7 +76,7 @@ def _load_truth(path: str) -> tuple[dict[str, float], tuple[str, ...], str | Non
     if obj.get("format") == FORMAT:
         cal = read_calibration(path)
         return cal.parameters, cal.model.terms, cal.units_out
-    unknown = sorted(k for k in obj if k not in _OWNER)
+    unknown = sorted(k for k in obj if k not in _owners())
     if unknown:
         raise InputError(f"truth {path} has unknown parameter name(s) {', '.join(unknown)}; "
                          f"known names are those of DESIGN §3, e.g. K_x, b_x, S_yz, K2_x")
@@ -78,14 +89,17 @@ def _load_truth(path: str) -> tuple[dict[str, float], tuple[str, ...], str | Non
 
 
 def _terms_of(names) -> tuple[str, ...]:
-    six = any(_OWNER[n] == "misalignment6" for n in names)
-    terms = {("misalignment6" if six and _OWNER[n] == "misalignment" else _OWNER[n]) for n in names}
+    owner = _owners()
+    six = any(owner[n] == "misalignment6" for n in names)
+    terms = {("misalignment6" if six and owner[n] == "misalignment" else owner[n]) for n in names}
     return tuple(terms)
 
 
 def union_model(*term_sets) -> Model:
     """The model holding every parameter of the given term sets (3-angle and 6-angle misalignment merge
     into the six angles, which contain the three)."""
+    from ..model import get_model
+
     terms = {"scale"}.union(*term_sets)
     if {"misalignment", "misalignment6"} <= terms:
         terms.discard("misalignment")
@@ -95,6 +109,8 @@ def union_model(*term_sets) -> Model:
 def vectors(model: Model, truth: dict[str, float], estimate: dict[str, float]) -> tuple[np.ndarray, np.ndarray]:
     """Truth and estimate on ``model``: missing parameters are 0, a missing scale factor is the truth's
     (or 1 if neither has it)."""
+    import numpy as np
+
     x_true = model.from_dict(truth)
     base = np.zeros(model.n_params)
     scale = model.groups()["scale"]
@@ -104,6 +120,11 @@ def vectors(model: Model, truth: dict[str, float], estimate: dict[str, float]) -
 
 
 def run(args) -> int:
+    import numpy as np
+
+    from ..calfile import read_calibration
+    from ..nav import navigation_error, plot_navigation
+
     attitude = _triple(args.attitude, "--attitude")
     gyro = _triple(args.gyro_bias, "--gyro-bias")
     cal = read_calibration(args.calibration)

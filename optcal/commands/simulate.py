@@ -4,12 +4,7 @@ from __future__ import annotations
 
 import json
 
-import numpy as np
-
 from ..errors import InputError
-from ..model import TERMS, get_model
-from ..presets import draw_truth
-from ..simulate import simulate
 from ._common import read_json_object, refuse_overwrite
 
 HELP = "simulate static positions of an accelerometer and write a positions CSV"
@@ -35,6 +30,8 @@ def add_arguments(p):
 
 
 def parse_effects(items: list[str]) -> dict[str, dict[str, float]]:
+    from ..model import TERMS
+
     effects: dict[str, dict[str, float]] = {}
     for item in items:
         term, _, rest = item.partition(":")
@@ -58,6 +55,12 @@ def parse_effects(items: list[str]) -> dict[str, dict[str, float]]:
 
 
 def run(args) -> int:
+    import numpy as np
+
+    from ..model import get_model
+    from ..presets import draw_truth
+    from ..simulate import simulate
+
     refuse_overwrite(args.output, args.force)
     refuse_overwrite(args.truth_out, args.force)
     model = get_model(args.model)

@@ -10,8 +10,6 @@ from __future__ import annotations
 import importlib
 import json
 
-import numpy as np
-
 from ..errors import InputError
 
 HELP = "list the registered solvers with their options, defaults and availability, and the wrappers"
@@ -31,6 +29,8 @@ def _registry():
 
 def _plain(v):
     """A JSON-safe copy of an option default (numpy scalars and tuples included)."""
+    import numpy as np
+
     if isinstance(v, np.generic):
         return v.item()
     if isinstance(v, tuple | list):

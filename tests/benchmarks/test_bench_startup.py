@@ -1,0 +1,58 @@
+"""Benchmarks of start-up: ``optcal --help`` and ``optcal calibrate --help`` as a user runs them, one fresh
+process per round (the console script beside the interpreter, or ``python -c`` running optcal.cli.main when
+there is none). extra_info holds the best time in seconds and the heavy libraries the same help imports
+(tests/test_startup.py's list; it should be empty), found in a separate process so that the timed one does
+nothing but start. No timed assertions.
+"""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+HEAVY = ("scipy", "matplotlib", "casadi", "cvxpy", "nlopt", "dask", "distributed", "numba", "pandas", "pyarrow",
+         "tqdm")
+
+
+def _command() -> list[str]:
+    script = Path(sys.executable).parent / "optcal"
+    if script.is_file():
+        return [str(script)]
+    return [sys.executable, "-c", "import sys; from optcal.cli import main; sys.exit(main())"]
+
+
+def _run(argv: list[str]) -> float:
+    """Seconds for one fresh ``optcal ARGV``, which must exit 0 and print its usage."""
+    t = time.perf_counter()
+    proc = subprocess.run([*_command(), *argv], capture_output=True, text=True, timeout=120)
+    seconds = time.perf_counter() - t
+    assert proc.returncode == 0 and proc.stdout.startswith("usage: optcal"), proc.stderr
+    return seconds
+
+
+def _heavy_imported(argv: list[str]) -> list[str]:
+    code = ("import contextlib, io, json, sys\n"
+            "from optcal.cli import main\n"
+            "with contextlib.redirect_stdout(io.StringIO()):\n"
+            "    try:\n"
+            f"        main({argv!r})\n"
+            "    except SystemExit:\n"
+            "        pass\n"
+            "print(json.dumps(sorted({m.split('.')[0] for m in sys.modules} & set(sys.argv[1:]))))\n")
+    proc = subprocess.run([sys.executable, "-c", code, *HEAVY], capture_output=True, text=True, timeout=120)
+    assert proc.returncode == 0, proc.stderr
+    return json.loads(proc.stdout.strip().splitlines()[-1])
+
+
+@pytest.mark.parametrize("argv", [["--help"], ["calibrate", "--help"]], ids=["help", "calibrate-help"])
+def test_bench_cli_help(benchmark, argv):
+    seconds = benchmark.pedantic(_run, args=(argv,), rounds=5, iterations=1, warmup_rounds=1)
+    if benchmark.stats is not None:
+        seconds = benchmark.stats.stats.min
+    benchmark.extra_info.update({"command": " ".join(["optcal", *argv]), "seconds": seconds,
+                                 "heavy_modules": _heavy_imported(argv)})
