@@ -167,6 +167,8 @@ class Group:
             "ver_truth_ug": _mean(self.column("ver_truth_mean_ug")),
             "runtime_median_s": _pct(rt, 50), "runtime_p10_s": _pct(rt, 10), "runtime_p90_s": _pct(rt, 90),
             "nfev_median": _pct(nfev, 50),
+            # the solver's evaluation rate: every evaluation of the group over its summed solver time
+            "evals_per_s": float(np.nansum(nfev) / np.nansum(rt)) if len(rt) and np.nansum(rt) > 0 else float("nan"),
             "nav_max_nmi": _pct(self.column("nav_max_nmi"), 50), "nav_mean_nmi": _pct(self.column("nav_mean_nmi"), 50),
         }
 

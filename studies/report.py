@@ -53,6 +53,7 @@ def _summary_rows(gs: list[Group], nav: bool) -> list[list[str]]:
             f"{_f(s['cost_median'], '.3e')} [{_f(s['cost_min'], '.2e')}, {_f(s['cost_max'], '.2e')}]",
             f"{_f(s['runtime_median_s'], '.3g')} [{_f(s['runtime_p10_s'], '.2g')}, {_f(s['runtime_p90_s'], '.2g')}]",
             _f(s["nfev_median"], ".0f"),
+            _f(s["evals_per_s"], ",.0f"),
         ]
         if nav:
             r.append(f"{_f(s['nav_max_nmi'], '.3f')} / {_f(s['nav_mean_nmi'], '.3f')}")
@@ -62,7 +63,7 @@ def _summary_rows(gs: list[Group], nav: bool) -> list[list[str]]:
 
 
 SUMMARY_HEADER = ["solver", "success", "RMSE/CRLB", "verification µg mean (SD)", "final cost median [min, max]",
-                  "runtime s median [p10, p90]", "evaluations"]
+                  "runtime s median [p10, p90]", "evaluations", "evaluations/s"]
 
 
 def _crossing(levels: list[tuple[float, float]], value: float) -> str:
@@ -207,9 +208,11 @@ def overview(cs) -> list[str]:
             both = _f(g.accuracy, ".2f") + (f" / {_f(bp, '.2f')}" if np.isfinite(bp) else "")
             cellv.append(f"{both} ({100 * g.success_rate:.0f} %)")
         rts = [by[k][n].summary()["runtime_median_s"] for k in keys if n in by[k]]
+        rates = [by[k][n].summary()["evals_per_s"] for k in keys if n in by[k]]
         first = next(by[k][n] for k in keys if n in by[k])
-        rows.append([f"`{_label(first)}`"] + cellv + [_f(float(np.median(rts)), ".3g")])
-    return _table(["solver"] + [f"{m}, {s}" for m, s in keys] + ["runtime s"], rows)
+        rows.append([f"`{_label(first)}`"] + cellv + [_f(float(np.median(rts)), ".3g"),
+                                                      _f(float(np.median(rates)), ",.0f")])
+    return _table(["solver"] + [f"{m}, {s}" for m, s in keys] + ["runtime s", "evaluations/s"], rows)
 
 
 def write_report(folder: str | Path) -> Path:

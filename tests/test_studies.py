@@ -338,6 +338,15 @@ def test_report_writes_tables_figures_and_summary(tmp_path):
         assert f"figures/{f}.png" in text
     summary = json.loads((tmp_path / "summary.json").read_text())
     assert [s["solver"] for s in summary] == ["scipy-lm", "staged:scipy-lm"]
+    # every solver's evaluation rate from the study's own records, as a column of the report
+    assert "| runtime s median [p10, p90] | evaluations | evaluations/s |" in text
+    from studies.store import Store
+
+    with Store.open_existing(tmp_path) as st:
+        rows = [r for r in st.rows() if r["solver"] == "scipy-lm" and r["status"] == "ok"]
+    rate = sum(r["nfev"] for r in rows) / sum(r["runtime_s"] for r in rows)
+    assert summary[0]["evals_per_s"] == pytest.approx(rate, rel=1e-9) and rate > 0
+    assert f"| {rate:,.0f} |" in text
     assert (tmp_path / "parameters.md").read_text().count("| K_x |") == 2
     try:
         import optcal.nav  # noqa: F401
