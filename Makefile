@@ -4,19 +4,24 @@ VENV   := .venv
 PY     := $(VENV)/bin/python
 STAMP  := $(VENV)/.installed
 
-.PHONY: run test lint bench bench-compare clean
+.PHONY: run run-quick test lint bench bench-compare clean
 
+# The install compiles optcal's evaluation kernels once (numba caches them; the time is printed).
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
 	$(PY) -m pip install --quiet --upgrade pip
 	$(PY) -m pip install --quiet -e ".[test]"
+	$(PY) -m optcal.kernels.warm
 	touch $(STAMP)
 
-# The headline comparison study (studies/specs/compare.toml) and its report, out/compare-quick/report.md.
-# The full study (50 runs) takes longer than 15 minutes on 2 cores (docs/studies.md), so `make run` runs
-# its --quick variant; the full one: .venv/bin/optcal study run compare  (report: out/compare/report.md).
-# A study that is stopped resumes where it stopped when run again.
+# The headline comparison study (studies/specs/compare.toml: 50 runs, 7,200 trials) and its report,
+# out/compare/report.md, on every core (docs/performance.md gives its wall time). A study that is stopped
+# resumes where it stopped when run again. `make run-quick` runs its 10-run variant.
 run: $(STAMP)
+	$(VENV)/bin/optcal study run compare --executor processes --workers $$(nproc 2>/dev/null || echo 2) \
+		--out out/compare
+
+run-quick: $(STAMP)
 	$(VENV)/bin/optcal study run compare --quick --executor processes --workers $$(nproc 2>/dev/null || echo 2) \
 		--out out/compare-quick
 

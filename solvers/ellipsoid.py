@@ -26,6 +26,7 @@ optimiser. It is the default starting point of the local methods (:func:`ellipso
 
 from __future__ import annotations
 
+import functools
 from collections import OrderedDict
 
 import numpy as np
@@ -122,26 +123,39 @@ def check_ellipsoid(N, g_local: float = 1.0, *, misalignment: bool = True) -> No
     _to_params(_kkt(D), keep, mu, s, g_local)
 
 
+@functools.lru_cache(maxsize=16)
+def _conic(n: int, misalignment: bool):
+    """The convex problem for n points, built once and solved again with new data: its design matrix is
+    a cvxpy Parameter (the problem is DPP), so cvxpy compiles it on the first solve only.
+
+    The objective ‖D·v‖²/n is the algebraic residual hᵀ𝐌h of every point (divided by n so that it is
+    O(1) whatever the number of positions), with v = (Q11, Q22, Q33, Q12, Q13, Q23, q, c), or
+    (Q11, Q22, Q33, q, c) for a diagonal Q."""
+    if misalignment:
+        Q = cp.Variable((3, 3), symmetric=True)
+        cons = [Q >> 0]
+        quad = [Q[0, 0], Q[1, 1], Q[2, 2], Q[0, 1], Q[0, 2], Q[1, 2]]
+    else:
+        d = cp.Variable(3)
+        Q = cp.diag(d)
+        cons = [d >= 0]
+        quad = [d[0], d[1], d[2]]
+    q, c = cp.Variable(3), cp.Variable()
+    cons.append(cp.trace(Q) == 1)
+    v = cp.hstack(quad + [q[0], q[1], q[2], c])
+    Dp = cp.Parameter((n, len(quad) + 4))
+    prob = cp.Problem(cp.Minimize(cp.sum_squares(Dp @ v) / n), cons)
+    return prob, Dp, Q, q, c
+
+
 def fit_ellipsoid(N: np.ndarray, g_local: float = 1.0, *, misalignment: bool = True, solver: str = "auto",
                   polish: bool = True) -> dict:
     """The convex fit: returns K, b, T (gauge of DESIGN §3), the centre o, Q (radius g_local) and
     solver details. Raises InputError for data that cannot be an ellipsoid."""
     mu, s, P, D, keep = _prepare(N, misalignment)
-    n = len(P)
-    if misalignment:
-        Q = cp.Variable((3, 3), symmetric=True)
-        cons = [Q >> 0]
-        quad = cp.sum(cp.multiply(P @ Q, P), axis=1)
-    else:
-        d = cp.Variable(3)
-        Q = cp.diag(d)
-        cons = [d >= 0]
-        quad = (P**2) @ d
-    q, c = cp.Variable(3), cp.Variable()
-    cons.append(cp.trace(Q) == 1)
-    # Residuals divided by √n so that the objective is O(1) whatever the number of positions.
-    prob = cp.Problem(cp.Minimize(cp.sum_squares(quad + 2 * P @ q + c) / n), cons)
     name = _solver_name(solver)
+    prob, Dp, Q, q, c = _conic(len(P), misalignment)
+    Dp.value = D
     kwargs = {"tol_gap_abs": 1e-12, "tol_gap_rel": 1e-12, "tol_feas": 1e-12} if name == "CLARABEL" else \
         {"eps": 1e-10, "max_iters": 100000}
     try:
