@@ -230,6 +230,7 @@ def run_study(spec: Spec, folder: str | Path, *, executor: str | None = None, wo
         if limit is not None:
             pending = pending[:limit]
         ran = failed = 0
+        busy = 0.0  # the trials' own wall time: the workers' useful share of the session
         lost: list[Lost] = []
         bar = _progress(len(pending), progress)
         try:
@@ -246,6 +247,7 @@ def run_study(spec: Spec, folder: str | Path, *, executor: str | None = None, wo
                         bar.set_postfix(failed=failed, lost=len(lost), refresh=False)
                         continue
                     store.write(row)
+                    busy += row.get("wall_s") or 0.0
                     ran += 1
                     failed += row["status"] == "failed"
                     if failed:
@@ -254,7 +256,7 @@ def run_study(spec: Spec, folder: str | Path, *, executor: str | None = None, wo
             bar.close()
             wall = time.perf_counter() - t0
             store.add_session({"executor": ex, "workers": nw if ex != "serial" else 1, "trials": ran,
-                               "wall_s": wall, "ended": time.strftime("%Y-%m-%d %H:%M:%S"),
+                               "wall_s": wall, "trials_wall_s": busy, "ended": time.strftime("%Y-%m-%d %H:%M:%S"),
                                "code": code, "cpus": os.cpu_count()})
         store.export()
         if lost:

@@ -215,6 +215,20 @@ def overview(cs) -> list[str]:
     return _table(["solver"] + [f"{m}, {s}" for m, s in keys] + ["runtime s", "evaluations/s"], rows)
 
 
+def busy_share(session: dict) -> float | None:
+    """The share of the session's worker time spent inside trials: the rest is start-up, scheduling,
+    writing results and idle workers at the end."""
+    t = session.get("trials_wall_s")
+    if t is None or not session.get("wall_s") or not session.get("trials"):
+        return None
+    return t / (session["wall_s"] * session["workers"])
+
+
+def _busy(session: dict) -> str:
+    b = busy_share(session)
+    return "" if b is None else f", workers in trials {100 * b:.1f} % of the time"
+
+
 def write_report(folder: str | Path) -> Path:
     """Write ``report.md``, ``parameters.md``, ``summary.json`` and ``figures/*.png`` into ``folder``."""
     folder = Path(folder)
@@ -252,7 +266,7 @@ def write_report(folder: str | Path) -> Path:
            if has_nav else "Navigation: not computed."),
         f"- Wall time {wall:.1f} s over {len(sessions)} session(s): "
         + "; ".join(f"{s['executor']} ×{s['workers']}: {s['trials']} trials in {s['wall_s']:.1f} s"
-                    + (f" (code {s['code']})" if s.get("code") else "") for s in sessions),
+                    + _busy(s) + (f" (code {s['code']})" if s.get("code") else "") for s in sessions),
         "",
         "**How to read.** *success*: share of runs whose final cost is within the 99.9 % χ² quantile of the "
         "cost at the optimum (reached the noise floor). *RMSE/CRLB*: RMS over parameters of each parameter's "

@@ -62,6 +62,28 @@ def test_processes_match_serial(spec, serial_rows, tmp_path):
     s = run_study(spec, tmp_path, executor="processes", workers=2, progress=False)
     assert (s.ran, s.workers) == (18, 2)
     assert _diff(_rows(tmp_path), serial_rows) == []
+    # the session records the trials' own wall time, from which the report gives the workers' busy share
+    import json
+
+    from studies.report import busy_share
+
+    with Store.open_existing(tmp_path) as st:
+        session = json.loads(st.meta("sessions"))[-1]
+        trials_wall = sum(r["wall_s"] for r in st.rows())
+    assert session["trials_wall_s"] == pytest.approx(trials_wall, rel=1e-9)
+    assert 0 < busy_share(session) <= 1
+
+
+def test_trials_go_to_workers_in_chunks_of_consecutive_trials():
+    from studies.execute import CHUNKS_PER_WORKER, MAX_CHUNK, chunks
+
+    tasks = list(range(7200))
+    cs = chunks(tasks, 2)
+    assert [t for c in cs for t in c] == tasks  # every trial once, in order
+    assert {len(c) for c in cs[:-1]} == {MAX_CHUNK}
+    few = chunks(list(range(50)), 2)
+    assert len(few) >= 2 * CHUNKS_PER_WORKER - 2 and max(map(len, few)) == 3
+    assert chunks(list(range(5)), 4) == [[0], [1], [2], [3], [4]]
 
 
 def test_dask_cluster_by_address_matches_serial(spec, serial_rows, tmp_path):
