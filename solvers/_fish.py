@@ -21,6 +21,8 @@ from __future__ import annotations
 import numpy as np
 from scipy.spatial.distance import cdist
 
+from .bas import clip_unit, nan_to_inf, row_norms, uniform_pm1
+
 
 class Board:
     """The bulletin board: the best point ever evaluated and its cost (strict improvement only)."""
@@ -46,9 +48,10 @@ class Evaluator:
     def __call__(self, X: np.ndarray) -> np.ndarray:
         if len(X) == 0:
             return np.empty(0)
-        f = np.asarray(self.problem.cost_batch(X), float)
-        f = np.where(np.isfinite(f), f, np.inf)
-        self.board.update(X, f)
+        f = self.problem.cost_batch(X)
+        i = nan_to_inf(f)  # what Board.update does, with the index the NaN check found anyway
+        if f[i] < self.board.f:
+            self.board.x, self.board.f = X[i].copy(), float(f[i])
         return f
 
 
@@ -63,22 +66,27 @@ def start_z(problem, zproblem, x0) -> np.ndarray:
 
 def initial_school(z0: np.ndarray, spread, n_fish: int, rng: np.random.Generator) -> np.ndarray:
     """Fish 0 at the start point; the others uniform within ``spread`` (scalar or per dimension) of it."""
-    X = clip(z0 + spread * rng.uniform(-1.0, 1.0, (n_fish, z0.size)))
+    X = clip(z0 + spread * uniform_pm1(rng, (n_fish, z0.size)))
     X[0] = z0
     return X
 
 
 def free_move(X: np.ndarray, visual, rng: np.random.Generator) -> np.ndarray:
     """Free move (Li 2002): a random point within the visual, clip(Xi + visual·U(−1, 1)^D)."""
-    return clip(X + visual * rng.uniform(-1.0, 1.0, X.shape))
+    P = uniform_pm1(rng, X.shape)
+    np.multiply(P, visual, out=P)
+    return clip_unit(np.add(X, P, out=P))
 
 
 def moveto(X: np.ndarray, T: np.ndarray, step, rng: np.random.Generator) -> np.ndarray:
     """One step towards the targets: clip(Xi + rand·step·(Xt − Xi)/‖Xt − Xi‖), rand ~ U(0, 1) per fish."""
     d = T - X
-    norm = np.linalg.norm(d, axis=1, keepdims=True)
+    norm = row_norms(d)
     unit = np.divide(d, norm, out=np.zeros_like(d), where=norm > 0)
-    return clip(X + rng.uniform(0.0, 1.0, (len(X), 1)) * step * unit)
+    a = rng.random((len(X), 1))  # rng.uniform(0, 1, ...): the same numbers
+    a *= step
+    np.multiply(a, unit, out=unit)
+    return clip_unit(np.add(X, unit, out=unit))
 
 
 def prey(ev: Evaluator, X: np.ndarray, f: np.ndarray, visual, try_number: int,
@@ -90,15 +98,18 @@ def prey(ev: Evaluator, X: np.ndarray, f: np.ndarray, visual, try_number: int,
     try with only the fish still searching (see the module docstring)."""
     T, fT = X.copy(), f.copy()
     found = np.zeros(len(X), bool)
+    open_, Xo, fo = np.arange(len(X)), X, f  # the fish still searching, in order, their positions and costs
     for _ in range(try_number):
-        open_ = np.flatnonzero(~found)
         if open_.size == 0:
             break
-        P = free_move(X[open_], visual, rng)
+        P = free_move(Xo, visual, rng)
         fp = ev(P)
-        ok = fp < f[open_]
+        ok = fp < fo
         hit = open_[ok]
-        T[hit], fT[hit], found[hit] = P[ok], fp[ok], True
+        if hit.size:
+            T[hit], fT[hit], found[hit] = P[ok], fp[ok], True
+            ok = ~ok
+            open_, Xo, fo = open_[ok], Xo[ok], fo[ok]
     return T, fT, found
 
 
@@ -137,8 +148,9 @@ def afsa_generation(ev: Evaluator, X: np.ndarray, f: np.ndarray, visual: float, 
 
     # Prey for every failed behaviour, both kinds in the same batches.
     rows = np.concatenate([np.flatnonzero(~swarm_ok), np.flatnonzero(~follow_ok)])
-    T, _, found = prey(ev, X[rows], f[rows], visual, try_number, rng)
-    fallback = np.where(found[:, None], moveto(X[rows], T, step, rng), free_move(X[rows], visual, rng))
+    Xr = X[rows]
+    T, _, found = prey(ev, Xr, f[rows], visual, try_number, rng)
+    fallback = np.where(found[:, None], moveto(Xr, T, step, rng), free_move(Xr, visual, rng))
 
     targets = np.concatenate([Xc, X[b]])
     ok = np.concatenate([swarm_ok, follow_ok])

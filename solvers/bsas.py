@@ -6,16 +6,62 @@ from __future__ import annotations
 
 import numpy as np
 
-from .bas import finite_costs, normalised_start, unit_directions
+from .bas import clip_unit, nan_to_inf, normalised_start, unit_rows
 from .base import Option, Solver, positive, probability
 from .registry import register
 
 
-def _sign2(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """sign(a − b) with 0 read as +1 (the toolbox's ``sign2``); a tie of two infinite costs is a tie too."""
-    with np.errstate(invalid="ignore"):
-        s = np.sign(a - b)
-    return np.where(s == 0.0, 1.0, np.nan_to_num(s, nan=1.0))
+class _Draws:
+    """BSAS's random numbers drawn ahead for several iterations at once, the same numbers in the same order.
+
+    An iteration draws its m directions, r ~ U(−1, 1)^(m×n), then one U(0, 1) number for its decision
+    (greedy or random pick, or step update): m·n + 1 doubles, the same count every iteration. NumPy's
+    generators fill arrays one double after the other, and ``uniform(-1, 1)`` is −1 + 2·``random()``
+    bit for bit, so one ``random((k, m·n + 1))`` holds k iterations' numbers. The pick of a random
+    better beetle (``rng.choice``) draws integers, not doubles, from wherever the generator is:
+    ``sync`` first puts it where per-iteration draws would have left it (the state saved before the
+    block, advanced by drawing again the doubles taken), and the next iteration starts a new block.
+    ``sync`` also ends every run, so the generator is left as the per-iteration draws would leave it.
+    Blocks start at 4 iterations and double, up to 64 iterations or about 16k doubles, while no sync cuts
+    them short.
+    """
+
+    def __init__(self, rng: np.random.Generator, m: int, n: int, iterations: int):
+        self.rng, self.m, self.n, self.width = rng, m, n, m * n + 1
+        self.left = iterations  # iterations not yet drawn
+        self.max_rows = max(4, min(64, 16384 // self.width))
+        self.rows = 4  # iterations in the next block
+        self.k = self.j = self.taken = 0  # iterations in the block, iterations done, doubles taken
+
+    def directions(self) -> np.ndarray:
+        """The next iteration's m unit directions b = r / (ε + ‖r‖) (BAS Eq. 1), (m, n)."""
+        if self.j == self.k:
+            self.k, self.j = min(self.rows, self.left), 0
+            self.left -= self.k
+            self.state = self.rng.bit_generator.state
+            u = self.rng.random((self.k, self.width))
+            r = np.multiply(u[:, :-1], 2.0)
+            r -= 1.0  # rng.uniform(-1, 1)'s own arithmetic, −1 + 2·u (see bas.uniform_pm1)
+            self.b = unit_rows(r.reshape(self.k, self.m, self.n))
+            self.u = u[:, -1].tolist()
+            self.rows = min(2 * self.rows, self.max_rows)
+        self.taken = self.j * self.width + self.width - 1
+        return self.b[self.j]
+
+    def uniform(self) -> float:
+        """This iteration's U(0, 1) number (after its directions)."""
+        self.j += 1
+        self.taken = self.j * self.width
+        return self.u[self.j - 1]
+
+    def sync(self) -> None:
+        if self.taken < self.k * self.width:
+            self.rng.bit_generator.state = self.state
+            if self.taken:
+                self.rng.random(self.taken)
+            self.left += self.k - self.j
+            self.rows = 4
+        self.k = self.j = self.taken = 0
 
 
 @register
@@ -85,32 +131,52 @@ class BSAS(Solver):
     def _solve(self, problem, x0, rng, callback):
         cfg = self.config
         m, c = cfg["m"], cfg["c"]
+        eta, s0, d0, p_pos, p_st, n_flag = cfg["eta"], cfg["s0"], cfg["d0"], cfg["p_pos"], cfg["p_st"], cfg["n_flag"]
         zp, z = normalised_start(problem, x0)
         n = zp.n
         step = cfg["step_init"]
         d = cfg["d_init"] if c is None else step / c
-        f_best = finite_costs(zp.cost_batch(z[None]))[0]
+        cost_batch = zp.cost_batch
+        # Per iteration: a few ufuncs on these (m, n) and (2m, n) arrays, and two calls of the problem.
+        antennae = np.empty((2 * m, n))
+        left, right = antennae[:m], antennae[m:]
+        moves = np.empty((m, n))
+        f_best = zp.cost_batch(z[None])[0]
+        f_best = float(f_best) if f_best < np.inf else np.inf  # NaN counts as +inf
         flag = 0
-        for t in range(1, cfg["iterations"] + 1):
-            b = unit_directions(rng, m, n)
-            antennae = np.clip(np.concatenate([z + b * (d / 2), z - b * (d / 2)]), -1.0, 1.0)
-            f_ant = finite_costs(zp.cost_batch(antennae))
-            s = _sign2(f_ant[:m], f_ant[m:])
-            moves = np.clip(z - step * b * s[:, None], -1.0, 1.0)
-            f_moves = finite_costs(zp.cost_batch(moves))
-            better = np.flatnonzero(f_moves < f_best)
-            if better.size:
-                i = int(np.argmin(f_moves)) if rng.random() < cfg["p_pos"] else int(rng.choice(better))
-                z, f_best = moves[i], f_moves[i]
-            elif rng.random() < cfg["p_st"] or flag > cfg["n_flag"]:
-                step = cfg["eta"] * step + cfg["s0"]
-                d = cfg["eta"] * d + cfg["d0"] if c is None else step / c
-                flag = 0
-            else:
-                flag += 1
-            callback(t)
-            if step < cfg["step_tol"]:
-                return {"nit": t, "status": 0, "message": f"step {step:.3g} below step_tol", "success": True,
-                        "extra": {"step": step, "d": d}}
+        draws = _Draws(rng, m, n, cfg["iterations"])
+        try:
+            for t in range(1, cfg["iterations"] + 1):
+                b = draws.directions()
+                np.multiply(b, d / 2, out=left)
+                np.subtract(z, left, out=right)
+                np.add(z, left, out=left)
+                clip_unit(antennae)
+                f_ant = cost_batch(antennae)
+                nan_to_inf(f_ant)
+                # x − δ·b·sign2(f(x_l) − f(x_r)): sign2 is −1 where the left antenna is better, else +1
+                # (a tie, two infinite costs included, counts as +1)
+                np.multiply(b, step, out=moves)
+                np.negative(moves, out=moves, where=(f_ant[:m] >= f_ant[m:])[:, None])
+                clip_unit(np.add(z, moves, out=moves))
+                f_moves = cost_batch(moves)
+                i = nan_to_inf(f_moves)
+                if f_moves[i] < f_best:  # some beetle beats the best: move (greedy with probability p_pos)
+                    if draws.uniform() >= p_pos:
+                        draws.sync()
+                        i = int(rng.choice(np.flatnonzero(f_moves < f_best)))
+                    z, f_best = moves[i].copy(), float(f_moves[i])
+                elif draws.uniform() < p_st or flag > n_flag:
+                    step = eta * step + s0
+                    d = eta * d + d0 if c is None else step / c
+                    flag = 0
+                else:
+                    flag += 1
+                callback(t)
+                if step < cfg["step_tol"]:
+                    return {"nit": t, "status": 0, "message": f"step {step:.3g} below step_tol", "success": True,
+                            "extra": {"step": step, "d": d}}
+        finally:
+            draws.sync()
         return {"nit": cfg["iterations"], "status": 0, "message": "maximum number of iterations reached",
                 "success": True, "extra": {"step": step, "d": d}}

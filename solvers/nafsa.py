@@ -48,6 +48,7 @@ from optcal.model import TERMS
 
 from . import _fish
 from .afsa import FISH_OPTIONS
+from .bas import clip_unit
 from .base import Option, Solver, positive
 from .registry import register
 
@@ -145,7 +146,9 @@ class NAFSA(Solver):
             f[lost], fc = fr[:-1], fr[-1]  # the board took the centre if it beats the best (Eq. 14)
             # Group behaviour: towards the centre where it is better, else towards the best.
             target = np.where((fc < f)[:, None], Xc, board.x)
-            X = _fish.clip(X + rng.uniform(0.0, 1.0, X.shape) * (target - X))
+            move = rng.random(X.shape)  # rand ~ U(0, 1)^D per fish: the numbers of rng.uniform(0, 1, X.shape)
+            move *= np.subtract(target, X, out=target)
+            X = clip_unit(np.add(X, move, out=move))
             f = ev(X)
             cf = rng.uniform(c["cf_min"], c["cf_max"])
             visual = cf * visual

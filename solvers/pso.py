@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .bas import finite_costs, normalised_start
+from .bas import clip_unit, finite_costs, nan_to_inf, normalised_start
 from .base import Option, Solver, positive
 from .registry import register
 
@@ -60,18 +60,33 @@ class PSO(Solver):
         if cfg["init"] == "start":
             x[0] = z0
         v = np.zeros_like(x)
-        p, f_p = x.copy(), finite_costs(zp.cost_batch(x))
-        g = p[np.argmin(f_p)].copy()
+        # p (personal bests) and g (the global best, broadcast to every particle) in one array, so that
+        # p − x and g − x are one ufunc call; every array is updated in place.
+        pg = np.empty((2, n_p, n))
+        p, g = pg
+        p[...] = x
+        f_p = finite_costs(zp.cost_batch(x))
+        g[...] = p[f_p.argmin()]
+        coeffs = np.array([c1, c2])[:, None, None]
+        diff, r = np.empty_like(pg), np.empty_like(pg)
         for t in range(1, cfg["iterations"] + 1):
-            r1, r2 = rng.random((2, n_p, n))
-            v = w * v + c1 * r1 * (p - x) + c2 * r2 * (g - x)
+            rng.random(out=r)  # r1, r2: the numbers of rng.random((2, n_p, n))
+            # v = w·v + c1·r1 ⊙ (p − x) + c2·r2 ⊙ (g − x), the terms in that order
+            np.multiply(r, coeffs, out=r)
+            np.subtract(pg, x, out=diff)
+            np.multiply(r, diff, out=r)
+            np.multiply(v, w, out=v)
+            np.add(v, r[0], out=v)
+            np.add(v, r[1], out=v)
             if vmax is not None:
                 np.clip(v, -vmax, vmax, out=v)
-            x = np.clip(x + v, -1.0, 1.0)
-            f = finite_costs(zp.cost_batch(x))
+            clip_unit(np.add(x, v, out=x))
+            f = zp.cost_batch(x)
+            nan_to_inf(f)
             improved = f < f_p
-            p[improved], f_p[improved] = x[improved], f[improved]
-            g = p[np.argmin(f_p)].copy()
+            np.copyto(p, x, where=improved[:, None])
+            np.copyto(f_p, f, where=improved)
+            g[...] = p[f_p.argmin()]
             callback(t)
         return {"nit": cfg["iterations"], "status": 0, "message": "maximum number of iterations reached",
                 "success": True}
