@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import importlib.util
 import time
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 from typing import Any, ClassVar
 
@@ -99,6 +100,38 @@ class SolverResult:
             "status": int(self.status), "message": self.message, "nfev": int(self.nfev), "nit": int(self.nit),
             "runtime_s": float(self.runtime_s), "solver": self.solver,
         }
+
+
+class CallbackInfo(Mapping):
+    """What a user's callback receives after each iteration: ``x`` (the best point so far, in the
+    problem's coordinates), ``fun`` (its cost), ``nit`` and ``nfev``, as they were at the call. The best
+    point is converted to the problem's coordinates only if ``x`` is read: callbacks that only count
+    iterations (the wrappers' own) then cost almost nothing per iteration."""
+
+    __slots__ = ("_problem", "_x_full", "_fun", "_nit", "_nfev")
+    KEYS = ("x", "fun", "nit", "nfev")
+
+    def __init__(self, problem: CalibrationProblem, nit: int):
+        c = problem.counter
+        # best_x is replaced, never changed in place, when the best improves: holding it is a snapshot
+        self._problem, self._x_full, self._fun, self._nit, self._nfev = problem, c.best_x, c.best_f, nit, c.nfev
+
+    def __getitem__(self, key: str):
+        if key == "x":
+            return None if self._x_full is None else self._problem.from_full(self._x_full)
+        if key == "fun":
+            return self._fun
+        if key == "nit":
+            return self._nit
+        if key == "nfev":
+            return self._nfev
+        raise KeyError(key)
+
+    def __iter__(self):
+        return iter(self.KEYS)
+
+    def __len__(self) -> int:
+        return len(self.KEYS)
 
 
 class StopSolver(Exception):
@@ -204,8 +237,7 @@ class Solver:
             done[0] = int(nit)
             if callback is None:
                 return
-            x, f = problem.best
-            if callback({"x": x, "fun": f, "nit": nit, "nfev": problem.nfev}) is True:
+            if callback(CallbackInfo(problem, nit)) is True:
                 raise StopSolver
 
         return cb
