@@ -109,7 +109,9 @@ _FLOAT64 = np.dtype(np.float64)
 def _kernel():
     """The compiled kernels, imported at first use: importing optcal does not import numba."""
     global _kernel
-    from .kernels import evaluate
+    from .kernels.warm import load
+
+    evaluate = load()
 
     _kernel = lambda: evaluate  # noqa: E731
     return evaluate

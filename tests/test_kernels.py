@@ -148,3 +148,24 @@ def test_non_finite_candidates_cost_nan_and_never_become_best():
     f = p.cost_batch(np.stack([bad, x]))
     assert np.isnan(f[0]) and np.isfinite(f[1])
     assert np.isnan(p.cost(bad)) and p.counter.best_f == f[1]
+
+
+def test_a_cold_cache_is_announced_and_a_warm_one_is_not(tmp_path, monkeypatch, caplog):
+    """The first evaluation after an install compiles the kernel (tens of seconds): it says so."""
+    import logging
+
+    from optcal.kernels import warm
+
+    warm.warm()
+    assert warm.is_cold() is False
+    with caplog.at_level(logging.WARNING, logger="optcal"):
+        warm.load()
+    assert caplog.text == ""
+    # a tree with no cache beside it, and no cache anywhere else
+    monkeypatch.setattr(warm, "__file__", str(tmp_path / "warm.py"))
+    monkeypatch.setenv("NUMBA_CACHE_DIR", str(tmp_path))
+    monkeypatch.setattr(warm.Path, "home", lambda: tmp_path)
+    assert warm.is_cold() is True
+    with caplog.at_level(logging.WARNING, logger="optcal"):
+        warm.load()
+    assert "compiling the evaluation kernels" in caplog.text

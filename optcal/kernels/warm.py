@@ -9,10 +9,41 @@ install and reports the time.
 
 from __future__ import annotations
 
+import logging
+import os
 import sys
 import time
+from pathlib import Path
 
 import numpy as np
+
+COLD_NOTE = ("optcal: compiling the evaluation kernels (the first use after an install: about half a minute; "
+             "numba caches them for every later run)")
+
+
+def is_cold() -> bool:
+    """True when numba has no cached machine code of the kernel yet (the next evaluation compiles it).
+
+    Looks where numba's cache locators put the index files, without importing numba: ``__pycache__``
+    beside the source, ``$NUMBA_CACHE_DIR``, and the user-wide cache (for a read-only install)."""
+    here = Path(__file__).parent
+    pattern = "evaluate.cost_one-*.nbi"
+    if any((here / "__pycache__").glob(pattern)):
+        return False
+    for root in (os.environ.get("NUMBA_CACHE_DIR"), Path.home() / ".cache" / "numba"):
+        if root and Path(root).is_dir() and any(Path(root).rglob(pattern)):
+            return False
+    return True
+
+
+def load():
+    """The compiled kernel module; a first use that has to compile it (after an install) says so on the
+    ``optcal`` logger, rather than pausing silently."""
+    if is_cold():
+        logging.getLogger("optcal").warning(COLD_NOTE)
+    from . import evaluate
+
+    return evaluate
 
 
 def warm() -> float:
