@@ -79,15 +79,20 @@ def test_compiled_residuals_equal_the_numpy_path(name, reference):
 @pytest.mark.parametrize("name", MODELS)
 def test_analytic_jacobian_agrees_with_finite_differences_and_the_complex_step(name):
     p = make_problem(name)
-    X = random_vectors(p, S=5, seed=1)
-    h = 1e-6 * np.maximum(p.halfwidth, 1e-3)
-    for x in X:
+    X = random_vectors(p, seed=1)
+    # central differences: truncation error ~h², rounding ~ε/h; steps of 1e-5 search half-widths balance them
+    h = 1e-5 * p.halfwidth
+    worst_fd = worst_cs = 0.0
+    for k, x in enumerate(X):
         J = p.jacobian_full(x)
         steps = h[:, None] * np.eye(x.size)
         fd = ((p.residuals_full(x + steps) - p.residuals_full(x - steps)) / (2 * h[:, None])).T
         col = np.max(np.abs(J), axis=0)
-        assert np.max(np.abs(J - fd) / col) <= 1e-6
-        np.testing.assert_allclose(J, p.jacobian_full_numpy(x), rtol=0, atol=1e-11 * np.max(np.abs(J)))
+        worst_fd = max(worst_fd, float(np.max(np.abs(J - fd) / col)))
+        if k < 20:  # the complex step through the NumPy model is slow: a tenth of the vectors
+            worst_cs = max(worst_cs, float(np.max(np.abs(J - p.jacobian_full_numpy(x))) / np.max(np.abs(J))))
+    print(f"{name}: Jacobian vs central differences {worst_fd:.1e}, vs complex step {worst_cs:.1e}")
+    assert worst_fd <= 1e-6 and worst_cs <= 1e-11
 
 
 @pytest.mark.parametrize("name", ["seed15", "linear9+scale_asymmetry"])
