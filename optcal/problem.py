@@ -65,7 +65,8 @@ class Counter:
     t0: float = field(default_factory=time.perf_counter)
     best_f: float = np.inf
     best_x: np.ndarray | None = None
-    trace: list = field(default_factory=list)
+    trace: list = field(default_factory=list)  # (evaluations, best cost, seconds) at each improvement
+    trace_x: list = field(default_factory=list)  # the best full parameter vector at each improvement
     stopped: str = ""
 
     def __post_init__(self):
@@ -100,6 +101,7 @@ class Counter:
             if f[i] < self.best_f:
                 self.best_f, self.best_x = float(f[i]), X_full[i].copy()
                 self.trace.append((self.nfev, self.best_f, self.elapsed()))
+                self.trace_x.append(self.best_x)
 
 
 _NO_RESIDUALS = np.empty((0, 0))
@@ -379,6 +381,7 @@ class CalibrationProblem:
         if i >= 0 and f[i] < counter.best_f:
             counter.best_f, counter.best_x = float(f[i]), self.to_full(Xk[i])[0]
             counter.trace.append((counter.nfev, counter.best_f, counter.elapsed()))
+            counter.trace_x.append(counter.best_x)
         return R, f
 
     @property
@@ -412,6 +415,7 @@ class CalibrationProblem:
         if f < counter.best_f:
             counter.best_f, counter.best_x = f, self.to_full(x)[0]
             counter.trace.append((counter.nfev, f, counter.elapsed()))
+            counter.trace_x.append(counter.best_x)
         return f
 
     # -- derivatives ----------------------------------------------------------------------

@@ -1,4 +1,4 @@
-"""The solver contract (DESIGN §6).
+"""The solver contract (docs/design.md §10).
 
 A solver is constructed with its options (an unknown option or a bad value is an error) and has
 ``solve(problem, *, x0=None, budget, rng, callback=None) -> SolverResult``. The result uses SciPy's field
@@ -90,6 +90,7 @@ class SolverResult:
     runtime_s: float
     trace: list = field(default_factory=list)
     njev: int = 0
+    trace_x: list = field(default_factory=list)  # the best full parameter vector at each trace entry
     x_full: np.ndarray | None = None
     solver: str = ""
     extra: dict = field(default_factory=dict)
@@ -212,7 +213,8 @@ class Solver:
         return SolverResult(
             x=np.asarray(x_best, float), fun=float(f_best), success=bool(success), status=int(status),
             message=message, nfev=counter.nfev, nit=int(out.get("nit", done[0])), runtime_s=runtime,
-            trace=list(counter.trace), njev=counter.njev, x_full=problem.to_full(x_best)[0], solver=self.name,
+            trace=list(counter.trace), njev=counter.njev, trace_x=list(counter.trace_x),
+            x_full=problem.to_full(x_best)[0], solver=self.name,
             extra=out.get("extra", {}),
         )
 

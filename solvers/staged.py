@@ -4,7 +4,7 @@
 optimised first with every other parameter held at its preset, then the biases (scale factors loaded
 from stage 1), then the installation angles, then the second-order terms; "the above steps can be
 repeated until the requirements are met". Here the stages are the model's parameter groups
-(``model.groups()``: scale, bias, misalignment, nonlinear, temperature, drift, in DESIGN §3 order), so
+(``model.groups()``: scale, bias, misalignment, nonlinear, temperature, drift, in docs/design.md §3.1 order), so
 the procedure works on any model, and the cycles repeat until a cycle lowers the cost by less than the
 fraction ``rtol`` or ``max_cycles`` cycles have run.
 
@@ -49,9 +49,10 @@ class _Merge:
         # The child's trace lists its own improvements; those below the enclosing best are exactly the
         # enclosing run's improvements, at shifted evaluation counts and times.
         shift, best = c.t0 - p.t0, p.best_f
-        for nfev, f, t in c.trace[self.seen:]:
+        for (nfev, f, t), x in zip(c.trace[self.seen:], c.trace_x[self.seen:]):
             if f < best:
                 p.trace.append((self.nfev0 + nfev, f, shift + t))
+                p.trace_x.append(x)
                 best = f
         self.seen = len(c.trace)
         if c.best_x is not None and c.best_f < p.best_f:
@@ -129,7 +130,7 @@ class Staged(Solver):
     Each stage solves ``problem.restrict(group, at=current)`` with the inner solver, the other groups
     held at the current values; its start is the current values of its group, and its result (the best
     point the stage found, never worse than its start once that was evaluated) becomes the current
-    point. A cycle runs every group in ``groups`` order (default: all the model's groups, DESIGN §3
+    point. A cycle runs every group in ``groups`` order (default: all the model's groups, docs/design.md §3.1
     order, which is the papers' order: scale factors, biases, installation angles, nonlinear terms).
     Cycles repeat until one lowers the best cost by less than ``rtol`` relative, or ``max_cycles``. A
     stochastic inner solver with a small stage budget can fail to improve in a cycle by chance (a
@@ -158,7 +159,7 @@ class Staged(Solver):
         "split": Option("equal", str, "stage budgets: 'equal' share of what is left, or the 'inner' "
                         "solver's default per stage", choices=("equal", "inner")),
         "groups": Option("", str, "comma-separated stage order, e.g. 'scale,bias'; empty: every group of the "
-                         "model in DESIGN §3 order"),
+                         "model in docs/design.md §3.1 order"),
     }
 
     def __init__(self, inner: Solver, **options):

@@ -174,3 +174,17 @@ def test_a_cold_cache_is_announced_and_a_warm_one_is_not(tmp_path, monkeypatch, 
     with caplog.at_level(logging.WARNING, logger="optcal"):
         warm.load()
     assert "compiling the evaluation kernels" in caplog.text
+
+
+@pytest.mark.parametrize("name", ["scipy-lm", "bsas", "staged:bas", "nlopt-bobyqa"])
+def test_the_trace_keeps_the_best_point_of_every_improvement(name):
+    """Anytime analyses need the point behind each entry of the convergence trace, not only its cost."""
+    import solvers
+
+    p = make_problem("nonlinear12")
+    res = solvers.get(name).solve(p, budget=3000, rng=3)
+    assert len(res.trace_x) == len(res.trace) > 1
+    costs = np.sum(p.residuals_full(np.array(res.trace_x)) ** 2, axis=1)
+    np.testing.assert_allclose(costs, [t[1] for t in res.trace], rtol=1e-12)
+    assert np.all(np.diff([t[0] for t in res.trace]) > 0) and np.all(np.diff(costs) < 0)
+    np.testing.assert_array_equal(res.trace_x[-1], res.x_full)
