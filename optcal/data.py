@@ -1,4 +1,4 @@
-"""Positions data sets and the positions CSV of DESIGN §5.
+"""Positions data sets and the positions CSV of docs/design.md §9.1.
 
 One row per static position: ``position``, the mean raw output ``ax, ay, az``, and optionally ``t`` (s),
 ``temp`` (°C), ``n`` (samples averaged), ``sx, sy, sz`` (sample standard deviation per axis) and, for
@@ -42,6 +42,11 @@ class PositionsData:
         N = np.asarray(self.N, float)
         if N.ndim != 2 or N.shape[1] != 3:
             raise InputError(f"positions must have three output columns ax, ay, az; got shape {N.shape}")
+        bad = np.flatnonzero(~np.all(np.isfinite(N), axis=1))
+        if bad.size:
+            rows = ", ".join(str(int(i) + 1) for i in bad[:5]) + (" …" if bad.size > 5 else "")
+            raise InputError(f"positions row(s) {rows} have a missing or non-finite output (ax, ay, az); fix or "
+                             "remove them")
         object.__setattr__(self, "N", N)
         if self.position is None:
             object.__setattr__(self, "position", np.arange(len(N)))
@@ -106,7 +111,7 @@ def _fmt(v) -> str:
 
 
 def read_positions(path: str | Path, units: str = "g") -> PositionsData:
-    """Read and validate a positions CSV (DESIGN §5). Every problem is an :class:`InputError`."""
+    """Read and validate a positions CSV (docs/design.md §9.1). Every problem is an :class:`InputError`."""
     path = Path(path)
     try:
         text = path.read_text()
@@ -180,7 +185,8 @@ def check_units(data: PositionsData, units: str) -> None:
     """Refuse data whose norms say they are in m/s² while the user declared other units."""
     if units not in UNITS:
         raise InputError(f"unknown units {units!r}; use one of {', '.join(UNITS)}")
-    med = float(np.median(np.linalg.norm(data.N, axis=1)))
+    with np.errstate(over="ignore"):  # a wild value overflows to inf: the problem names that position later
+        med = float(np.median(np.linalg.norm(data.N, axis=1)))
     looks_ms2 = 9.70 <= med <= 9.90
     if units != "m/s2" and looks_ms2:
         raise InputError(

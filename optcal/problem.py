@@ -119,6 +119,25 @@ def _kernel():
     return evaluate
 
 
+# Every static position sees the same specific force, 1 g: output magnitudes of a sensor differ by its
+# scale-factor differences and biases (a few per cent; up to ~1.4x for raw counts around an offset), never by
+# this factor. A position beyond it is a typo, a unit mix-up or a sensor that moved.
+MAGNITUDE_FACTOR = 4.0
+
+
+def _check_magnitudes(data: PositionsData) -> None:
+    with np.errstate(over="ignore"):  # a value near 1e300 overflows to inf here, which is what it is reported as
+        norms = np.linalg.norm(data.N, axis=1)
+    med = float(np.median(norms))
+    if not med > 0:
+        raise InputError("the position means are all zero: no sensor output to calibrate; check the file's columns")
+    bad = np.flatnonzero((norms > MAGNITUDE_FACTOR * med) | (norms < med / MAGNITUDE_FACTOR))
+    if bad.size:
+        labels = ", ".join(f"{data.position[i]} (|output| {norms[i]:.3g})" for i in bad[:5])
+        raise InputError(f"position(s) {labels} are more than {MAGNITUDE_FACTOR:g}x away from the other positions' "
+                         f"output magnitude ({med:.4g}): a typo, a unit mix-up or a moved sensor? fix or remove them")
+
+
 class CalibrationProblem:
     """Calibration of ``model`` from static positions ``data``.
 
@@ -151,6 +170,7 @@ class CalibrationProblem:
                 f"model {self.model.name} needs column(s) {', '.join(missing)} that the data lack; "
                 "add them or drop the terms that need them"
             )
+        _check_magnitudes(data)
         m = len(data) * (3 if reference else 1)
         if check and m < self.model.n_params:
             raise InputError(
@@ -176,9 +196,14 @@ class CalibrationProblem:
         self.centre = centre
         self.halfwidth = width
         self._K0 = np.abs(centre[self.model.groups()["scale"]])
+        if noise_g is not None and not (np.isfinite(noise_g) and noise_g > 0):
+            raise InputError(f"the noise SD must be a positive number of g, got {noise_g!r}")
         self.noise_g = noise_g
         if noise_g is None and data.noise_of_mean() is not None:
             self.noise_g = float(np.sqrt(np.mean((data.noise_of_mean() / self._K0) ** 2)))
+            if not (np.isfinite(self.noise_g) and self.noise_g > 0):
+                raise InputError("the positions' sample SDs (columns sx, sy, sz) are all zero or invalid, so they "
+                                 "give no noise level; fix them, or drop the columns and state the noise")
         # Gauge: directions the norm cost cannot see (seed15's three rotations) are held at the centre
         # (presets or linear fit) by minimum-constraint residuals, as geodesy fixes a datum. They are zero
         # at the centre and orthogonal to every observable direction, so the fit of those is unchanged.

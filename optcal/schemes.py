@@ -1,4 +1,4 @@
-"""Static position schemes (DESIGN §4): unit gravity directions in the body frame.
+"""Static position schemes (docs/design.md §4): unit gravity directions in the body frame.
 
 Group x turns about the horizontal x axis: A = (0, sin θ, cos θ); group y: A = (cos θ, 0, sin θ);
 group z: A = (sin θ, cos θ, 0). The 24-position scheme uses 45° steps (2020 paper §3.3, 2015 paper §7.1),
@@ -41,6 +41,10 @@ def tilt(directions: np.ndarray, sigma_deg: float, rng: np.random.Generator) -> 
             + k * np.sum(k * v, axis=1, keepdims=True) * (1 - np.cos(angle)))
 
 
+# A calibration uses tens of positions; a million already takes 100 MB per array of outputs and samples.
+MAX_RANDOM_POSITIONS = 1_000_000
+
+
 def scheme(spec: str | int, rng: np.random.Generator | None = None) -> np.ndarray:
     """Directions for a scheme given as ``6``, ``24``, ``36`` or ``random:N``."""
     spec = str(spec).strip()
@@ -57,5 +61,8 @@ def scheme(spec: str | int, rng: np.random.Generator | None = None) -> np.ndarra
             n = 0
         if n < 1:
             raise InputError(f"scheme {spec!r}: give the number of orientations, e.g. random:30")
+        if n > MAX_RANDOM_POSITIONS:
+            raise InputError(f"scheme {spec!r}: {n:,} orientations is more than optcal handles "
+                             f"({MAX_RANDOM_POSITIONS:,}); a calibration needs tens, e.g. random:30")
         return random_orientations(n, rng if rng is not None else np.random.default_rng(0))
     raise InputError(f"unknown scheme {spec!r}; use 6, 24, 36 or random:N")
