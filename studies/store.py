@@ -25,10 +25,11 @@ SCALAR = [
     ("status", "TEXT"), ("message", "TEXT"), ("success", "INTEGER"), ("converged", "INTEGER"), ("fun", "REAL"),
     ("chi2", "REAL"), ("dof", "INTEGER"), ("nfev", "INTEGER"), ("nit", "INTEGER"), ("runtime_s", "REAL"),
     ("wall_s", "REAL"), ("accuracy", "REAL"), ("ver_mean_ug", "REAL"), ("ver_sd_ug", "REAL"),
-    ("ver_truth_mean_ug", "REAL"), ("nav_max_nmi", "REAL"), ("nav_mean_nmi", "REAL"),
+    ("ver_truth_mean_ug", "REAL"), ("nav_max_nmi", "REAL"), ("nav_mean_nmi", "REAL"), ("f_opt", "REAL"),
 ]
+# anytime: [evaluations, best cost, accuracy] on the trace's grid (studies.trial.anytime_on_grid)
 JSON = ["names", "x_true", "x_est", "err", "err_proj", "crlb", "observable", "null_dirs", "null_err", "ver_err",
-        "ver_truth", "trace", "nav_curve", "crlb_presets"]
+        "ver_truth", "trace", "nav_curve", "crlb_presets", "anytime"]
 COLUMNS = [c for c, _ in SCALAR] + JSON
 TIMING = ("runtime_s", "wall_s")  # the only columns that may differ between identical runs
 
@@ -49,11 +50,12 @@ class Store:
         self.conn.execute("BEGIN IMMEDIATE")
         self.conn.execute("CREATE TABLE IF NOT EXISTS meta (key TEXT PRIMARY KEY, value TEXT)")
         self.conn.execute(f"CREATE TABLE IF NOT EXISTS trials ({cols})")
-        # A store written by an older optcal lacks the newer (JSON) columns: add them, empty.
+        # A store written by an older optcal lacks the newer columns (crlb_presets, f_opt, anytime): add
+        # them, empty (NULL in the old rows).
         have = {r[1] for r in self.conn.execute("PRAGMA table_info(trials)")}
-        for c in JSON:
+        for c, typ in SCALAR[1:] + [(c, "TEXT") for c in JSON]:
             if c not in have:
-                self.conn.execute(f"ALTER TABLE trials ADD COLUMN {c} TEXT")
+                self.conn.execute(f"ALTER TABLE trials ADD COLUMN {c} {typ}")
         old = self.meta("spec_hash")
         if old is None:
             self.conn.executemany("INSERT INTO meta VALUES (?, ?)", [

@@ -31,7 +31,7 @@ from optcal.simulate import simulate
 
 from .spec import SolverConfig, Spec
 
-TRUTH, PRESETS, DATA, VERIFY, TURNTABLE, SOLVER = range(6)
+TRUTH, PRESETS, DATA, VERIFY, TURNTABLE, SOLVER, OPTIMUM = range(7)
 CONVERGED_QUANTILE = 0.999  # χ² quantile of the final cost that counts as "reached the noise floor"
 NAV_POINTS = 61
 
@@ -163,17 +163,50 @@ def crlb_with_presets(problem: CalibrationProblem, x_true: np.ndarray, sigma_g: 
     return np.sqrt(np.clip(np.diag(np.linalg.inv(F)), 0, None)) * u
 
 
+def _grid_index(trace) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The evaluation grid 1, 1.26, 1.58, ... (ten points per decade, rounded) up to the trace's last
+    evaluation, the best cost at each grid point, and the index of the trace entry that holds it."""
+    nf = np.array([t[0] for t in trace], float)
+    c = np.array([t[1] for t in trace], float)
+    best = np.minimum.accumulate(c)
+    # the entry of the running minimum (the trace holds improvements, so normally the entry itself)
+    holder = np.maximum.accumulate(np.where(c <= best, np.arange(len(c)), -1))
+    grid = np.unique(np.round(10 ** (np.arange(0, 10 * np.log10(max(nf[-1], 1.0)) + 1) / 10)))
+    idx = np.searchsorted(nf, grid, side="right") - 1
+    keep = idx >= 0
+    idx = idx[keep]
+    return grid[keep], best[idx], holder[idx]
+
+
 def trace_on_grid(trace) -> list[list[float]]:
     """The best cost at evaluations 1, 1.26, 1.58, ... (ten points per decade), from a solver's trace of
     (evaluations, best cost, seconds): compact, and the same grid for every trial so curves line up."""
     if not trace:
         return []
-    nf = np.array([t[0] for t in trace], float)
-    best = np.minimum.accumulate(np.array([t[1] for t in trace], float))
-    grid = np.unique(np.round(10 ** (np.arange(0, 10 * np.log10(max(nf[-1], 1.0)) + 1) / 10)))
-    idx = np.searchsorted(nf, grid, side="right") - 1
-    keep = idx >= 0
-    return [[int(g), float(best[i])] for g, i in zip(grid[keep], idx[keep])]
+    grid, best, _ = _grid_index(trace)
+    return [[int(g), float(b)] for g, b in zip(grid, best)]
+
+
+def accuracy_of(X, x_true, bound) -> np.ndarray:
+    """The per-trial accuracy of estimates X (k, n) at once: the RMS over parameters of |projected
+    error| / CRLB (the ``accuracy`` column's definition, :func:`_score`); ``bound`` is projected_crlb's."""
+    sd, P, u = bound[0], bound[1], bound[2]
+    E = (np.atleast_2d(np.asarray(X, float)) - x_true) / u
+    Ep = (E @ P.T) * u  # each row's observable part, back in the parameters' units
+    return np.sqrt(np.mean((Ep / sd) ** 2, axis=1))
+
+
+def anytime_on_grid(trace, trace_x, x_true, bound) -> list[list[float]]:
+    """[evaluations, best cost, accuracy] at the grid of :func:`trace_on_grid`: the accuracy
+    (:func:`accuracy_of`) of the best point so far at each grid point, one vectorised computation per
+    trial. The accuracy is None when the solver's trace carries no points (``trace_x`` shorter than it)."""
+    if not trace:
+        return []
+    grid, best, holder = _grid_index(trace)
+    if len(trace_x) != len(trace):
+        return [[int(g), float(b), None] for g, b in zip(grid, best)]
+    acc = accuracy_of(np.array([trace_x[i] for i in holder]), x_true, bound)
+    return [[int(g), float(b), float(a) if np.isfinite(a) else None] for g, b, a in zip(grid, best, acc)]
 
 
 def _navigation(model, x_true, x_est, nav: dict):
@@ -207,6 +240,7 @@ class World:
     sd_presets: list | None
     ver: CalibrationProblem
     ver_truth: np.ndarray
+    f_opt: float | None  # the in-field problem's optimum cost (reference least-squares fit), None if it failed
 
 
 def world_key(t: Trial) -> str:
@@ -243,7 +277,23 @@ def _build_world(t: Trial) -> World:
         sd_presets = [float(v) for v in crlb_with_presets(yard, x_true, sigma, prior)]
     ver = CalibrationProblem(model, verification_data(t, truth).data, g_local=t.g_local, check=False)
     return World(model, truth, presets, x_true, yard, projected_crlb(yard, x_true, sigma), sd_presets, ver,
-                 _abs_norm_error_ug(ver, x_true))
+                 _abs_norm_error_ug(ver, x_true), optimum_cost(t, yard))
+
+
+def optimum_cost(t: Trial, yard: CalibrationProblem) -> float | None:
+    """The optimum cost of run i's in-field data: a reference least-squares fit (scipy-lm from the presets,
+    or from the solvers' usual start without them) on a detached copy of the problem, so the World's
+    problem and its counter are untouched. The cost targets of the anytime analyses are gaps to it
+    (:mod:`studies.anytime`). None when the fit fails (the trials then have no cost targets)."""
+    import solvers
+
+    problem = copy.copy(yard)
+    problem.counter = Counter()
+    try:
+        res = solvers.get("scipy-lm").solve(problem, rng=stream(t.seed, OPTIMUM, t.run, key(t.model), key(t.scheme)))
+    except Exception:  # noqa: BLE001 - no optimum: the study goes on without cost targets for this run
+        return None
+    return float(res.fun) if np.isfinite(res.fun) else None
 
 
 @functools.lru_cache(maxsize=64)
@@ -333,6 +383,7 @@ def _score(t: Trial, w: World, x_est, res, problem, sigma) -> dict:
     ver_err = _abs_norm_error_ug(w.ver, x_est)
     ver_truth = w.ver_truth
     nav = _navigation(model, x_true, x_est, t.navigation)
+    anytime = anytime_on_grid(res.trace, res.trace_x, x_true, w.bound)
     return dict(
         status="ok", message=str(res.message)[:500], success=int(bool(res.success)), converged=int(converged),
         fun=float(res.fun), chi2=chi2, dof=int(dof), nfev=int(res.nfev), nit=int(res.nit),
@@ -345,5 +396,7 @@ def _score(t: Trial, w: World, x_est, res, problem, sigma) -> dict:
         crlb=[float(v) for v in sd], crlb_presets=w.sd_presets, observable=[int(v) for v in obs.observable_mask()],
         null_dirs=obs.unobservable, null_err=[float(v) for v in null_coef],
         ver_err=[float(v) for v in ver_err], ver_truth=[float(v) for v in ver_truth],
-        trace=trace_on_grid(res.trace), nav_curve=None if nav is None else nav[2],
+        trace=[a[:2] for a in anytime], nav_curve=None if nav is None else nav[2],  # = trace_on_grid(res.trace)
+        # the in-field optimum: meaningless for a turntable fit, which minimises another cost
+        f_opt=None if cfg.reference else w.f_opt, anytime=anytime,
     )
