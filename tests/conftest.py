@@ -11,5 +11,5 @@ matplotlib.use("Agg")
 def rng():
     return np.random.default_rng(12345)
 
-# The shared data folder sits beside the repository (../shared), on a developer's machine and in CI.
-REAL_DATA = Path(__file__).resolve().parents[2] / "shared" / "data" / "real"
+# Real recordings made by others, kept in the repository with their licences (tests/data/README.md).
+REAL_DATA = Path(__file__).resolve().parent / "data"

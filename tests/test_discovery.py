@@ -1,4 +1,4 @@
-"""Discovery (issue 7, DESIGN §8): on data with a hidden effect, the workflow names the missing term, adds
+"""Discovery (issue 7, docs/design.md §12): on data with a hidden effect, the workflow names the missing term, adds
 it, and the residual shrinks to what the true model leaves; on data without one it adds nothing."""
 
 import dataclasses
@@ -287,8 +287,7 @@ def test_cli_bad_input_is_one_line(tmp_path, capsys, argv, match):
     assert err.count("\n") == 1 and match in err and "Traceback" not in err
 
 
-REAL = str(Path(__file__).resolve().parents[2] / "shared" / "data" / "real" / "mpu6050"
-           / "example_data_calibration.csv")
+REAL = str(Path(__file__).resolve().parent / "data" / "mpu6050" / "example_data_calibration.csv")
 
 
 @pytest.mark.skipif(not __import__("os").path.exists(REAL), reason="real recordings not present")

@@ -1,4 +1,4 @@
-"""Real recordings made by others (``/work/shared/data/real``, see its README):
+"""Real recordings made by others (``tests/data/``, each folder with its licence and a README):
 
 - ``imucal/``: from the imucal project (MIT licence; github.com/mad-lab-fau/imucal): a labelled
   six-position session in raw counts (``annotated_session.csv``) with imucal's own Ferraris calibration of
@@ -28,7 +28,7 @@ from optcal.recording import (
     read_recording,
 )
 
-REAL = Path(__file__).resolve().parents[2] / "shared" / "data" / "real"
+REAL = Path(__file__).resolve().parent / "data"
 IMUCAL, MPU = REAL / "imucal", REAL / "mpu6050"
 POSES = ["x_p", "x_a", "y_p", "y_a", "z_p", "z_a"]
 G_IMUCAL = 9.81  # imucal's Ferraris calibration assumes |g| = 9.81 m/s² (reproduced exactly below)

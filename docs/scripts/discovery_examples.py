@@ -1,5 +1,5 @@
 """The discovery reports and figures shown in docs/discovery.md: a simulated two-effect example and the
-real recordings in /work/shared/data/real/ (read and cut into static positions by optcal.recording).
+real recordings in tests/data/ (read and cut into static positions by optcal.recording).
 
     .venv/bin/python docs/scripts/discovery_examples.py [--real DIR] [--figures docs/figures]
 
@@ -21,7 +21,7 @@ from optcal.discovery import discover
 from optcal.errors import InputError
 from optcal.presets import draw_truth
 
-REAL = Path(__file__).resolve().parents[3] / "shared" / "data" / "real"
+REAL = Path(__file__).resolve().parents[2] / "tests" / "data"
 
 
 def halves(detection: rc.DetectionResult) -> np.ndarray:
