@@ -1,7 +1,7 @@
 """Observability, Cramér-Rao bounds and goodness of fit of a calibration problem.
 
 The norm ‖A‖ does not change when the body frame rotates, so with the norm cost only six of the nine
-entries of diag(K)·T are observable (DESIGN §3): ``seed15`` holds three unobservable directions, which
+entries of diag(K)·T are observable (docs/design.md §6): ``seed15`` holds three unobservable directions, which
 only the small nonlinear terms tie down. They show up here as near-zero singular values of the Jacobian,
 after each column is put in natural units (relative scale change, g, rad, ...), so that the threshold
 does not depend on the sensor's output units.

@@ -1,11 +1,11 @@
-"""The calibration file (DESIGN §5): a versioned JSON record of a fitted calibration that can be applied
+"""The calibration file (docs/design.md §9.3): a versioned JSON record of a fitted calibration that can be applied
 to new raw data to give calibrated specific force.
 
 Content: ``format``, ``format_version``, ``model``, ``terms``, ``parameters`` {name: value},
 ``stderr`` {name: value or null}, ``units`` {``input``: "g", ``output``: the data's units}, ``g_local``
 (in g), ``data`` {``n_positions``, ``rms_residual_g``, ``source``}, ``solver``, ``created`` (ISO-8601 UTC),
 ``observability`` {rank, n_parameters, unobservable}, and, for models with temperature or drift terms,
-``context`` {``T0``, ``t0``}: the reference temperature and time of the calibration data (DESIGN §3),
+``context`` {``T0``, ``t0``}: the reference temperature and time of the calibration data (docs/design.md §3.4),
 which applying the file to new data must reuse.
 
 Floats are written with ``repr`` precision (Python's ``json`` does this), so a round trip is exact.
@@ -122,7 +122,7 @@ class CalibrationFile:
 
     def apply(self, N, temp=None, t=None, *, chunk: int = CHUNK) -> np.ndarray:
         """Specific force A (n, 3) in g from raw outputs N (n, 3) in ``units_out``: the model's inverse
-        (DESIGN §3), vectorised over samples and done in chunks to bound memory."""
+        (docs/design.md §3.5), vectorised over samples and done in chunks to bound memory."""
         N = np.asarray(N, float)
         if N.ndim != 2 or N.shape[1] != 3:
             raise InputError(f"raw outputs must have three columns ax, ay, az; got shape {N.shape}")

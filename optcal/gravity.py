@@ -1,6 +1,6 @@
 """Local gravity: WGS84 normal gravity (Somigliana's closed form) with the free-air height correction.
 
-Values in m/s²; the problem works in units of standard gravity G0 (DESIGN §3).
+Values in m/s²; the problem works in units of standard gravity G0 (docs/design.md §2).
 Constants from NIMA TR8350.2 (WGS84), Table 3.4 and Eq. 4-1 / 4-3.
 """
 

@@ -1,4 +1,4 @@
-"""The accelerometer sensor model as a sum of named terms (DESIGN §3).
+"""The accelerometer sensor model as a sum of named terms (docs/design.md §3).
 
 The seeds' model (2020 paper, Eq. 10) is ``N = diag(K)·(T·A + b) + K2 ⊙ A²``. Here it is one instance
 of a general sum of terms; each term owns named parameters and says which data columns it needs.
@@ -114,7 +114,7 @@ class NumpyOps:
 
 @dataclass(frozen=True)
 class Context:
-    """Per-position inputs besides A: temperature and time offsets (DESIGN §3: T0 = mean, t0 = first)."""
+    """Per-position inputs besides A: temperature and time offsets (docs/design.md §3.4: T0 = mean, t0 = first)."""
 
     dtemp: np.ndarray | None = None
     dt: np.ndarray | None = None
@@ -210,7 +210,7 @@ class Model:
         """Outputs (N_x, N_y, N_z) from parameters ``P`` {name: value} and inputs ``A = (A_x, A_y, A_z)``.
 
         Written once for every backend: values in ``P`` and ``A`` may be broadcastable NumPy arrays
-        (real or complex) or CasADi expressions. This is DESIGN §3's table, term by term.
+        (real or complex) or CasADi expressions. This is the table of docs/design.md §3.1, term by term.
         """
         Ax, Ay, Az = A
         get = P.get
@@ -220,7 +220,7 @@ class Model:
             v = get(name)
             return zero if v is None else v
 
-        # Installation matrix T (DESIGN §3); absent angles are zero (the gauge of `misalignment`).
+        # Installation matrix T (docs/design.md §3.2); absent angles are zero (the gauge of `misalignment`).
         u = [
             Ax + s("S_xz") * Ay + s("S_xy") * Az,
             s("S_yz") * Ax + Ay + s("S_yx") * Az,
@@ -282,7 +282,7 @@ class Model:
                    if f"{prefix}_{AXES[i]}{AXES[j]}" in ix]
             return tuple(np.array(c) for c in zip(*got)) if got else None
 
-        # T's off-diagonal cells (DESIGN §3), as `components` reads them: row i, column j.
+        # T's off-diagonal cells (docs/design.md §3.2), as `components` reads them: row i, column j.
         s_cells = {(0, 1): "S_xz", (0, 2): "S_xy", (1, 0): "S_yz", (1, 2): "S_yx", (2, 0): "S_zy", (2, 1): "S_zx"}
         present = [(i, j, ix[n]) for (i, j), n in s_cells.items() if n in ix]
         return {
@@ -317,7 +317,7 @@ class Model:
 
     @staticmethod
     def _apply(pk: dict, A, ctx: Context | None):
-        """Outputs F(A) (S, n, 3) for packed parameters and A (n, 3) or (S, n, 3): DESIGN §3's table."""
+        """Outputs F(A) (S, n, 3) for packed parameters and A (n, 3) or (S, n, 3): docs/design.md §3.1."""
         lin = A @ pk["T"].transpose(0, 2, 1)
         if pk["b"] is not None:
             lin = lin + pk["b"]
@@ -416,7 +416,7 @@ class Model:
 
 def get_model(spec: str | Model) -> Model:
     """A model from a name (``diag6``, ``linear9``, ``nonlinear12``, ``seed15``) or a sum of terms
-    (``scale+bias+misalignment+cubic``). Terms are put in DESIGN §3's order."""
+    (``scale+bias+misalignment+cubic``). Terms are put in docs/design.md §3.1's order."""
     if isinstance(spec, Model):
         return spec
     spec = str(spec).strip()

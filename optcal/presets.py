@@ -122,7 +122,8 @@ def load_presets(path: str | Path) -> Presets:
     known = {p for t in TERMS.values() for p in t.params}
     bad = sorted(k for k in list(values) + list(halfwidth) if k not in known)
     if bad:
-        raise InputError(f"presets {path}: unknown parameter name(s) {', '.join(bad)} (see DESIGN §3 for names)")
+        raise InputError(f"presets {path}: unknown parameter name(s) {', '.join(bad)} "
+                         "(see docs/design.md §3.1 for names)")
     try:
         return Presets({k: float(v) for k, v in values.items()}, {k: float(v) for k, v in halfwidth.items()})
     except (TypeError, ValueError):

@@ -1,4 +1,4 @@
-"""Raw recordings (DESIGN §5) → static intervals → positions.
+"""Raw recordings (docs/design.md §9.2) → static intervals → positions.
 
 A raw recording is one row per sample: optionally a time column ``t`` (s), the three accelerometer outputs
 ``ax, ay, az`` in the sensor's units, optionally ``temp`` (°C). Files may be CSV or whitespace-separated,

@@ -1,5 +1,5 @@
 """Beetle antennae search, BAS (Jiang & Li, "BAS: beetle antennae search algorithm for optimization
-problems", arXiv:1710.10724, 2017), for minimisation, as in ``docs/ALGORITHMS.md`` §BAS.
+problems", arXiv:1710.10724, 2017), for minimisation, as in ``docs/algorithms.md`` §2.
 
 Also holds the two helpers the swarm searches of this package share: the unit-box view of a problem
 (2020 paper §3.4: parameters of very different magnitudes must be searched at a similar scale) and the

@@ -1,5 +1,5 @@
 """Global-best particle swarm optimisation with Clerc-Kennedy constriction, synchronous and vectorised
-(``docs/ALGORITHMS.md`` §PSO)."""
+(``docs/algorithms.md`` §4)."""
 
 from __future__ import annotations
 

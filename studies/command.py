@@ -1,4 +1,4 @@
-"""``optcal study run SPEC`` and ``optcal study report DIR``: Monte-Carlo comparison studies (DESIGN §7).
+"""``optcal study run SPEC`` and ``optcal study report DIR``: Monte-Carlo comparison studies (docs/design.md §11).
 
 A command plug-in: ``pyproject.toml`` registers this module in the ``optcal.commands`` entry-point group,
 so ``optcal`` (which never imports ``studies``) finds it the way it finds any third-party command.

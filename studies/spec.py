@@ -1,4 +1,4 @@
-"""Study specs (DESIGN §7): a TOML file, validated completely before anything runs.
+"""Study specs (docs/design.md §11.1): a TOML file, validated completely before anything runs.
 
 A spec names the truth (the fixed ``paper`` values, ``draw`` per run, or a table of values), the models,
 the presets given to the solvers (the manufacturer's calibration, 2020 paper §4.1, or none), the schemes,

@@ -1,6 +1,6 @@
 """One trial of a study: simulate run i's data, solve it with one configured solver, score the result.
 
-Seeds (DESIGN §7). Every random stream is a child of the spec's base seed through
+Seeds (docs/design.md §11.2). Every random stream is a child of the spec's base seed through
 ``numpy.random.SeedSequence(seed, spawn_key=(stream, run, ...))``: the truth and presets depend on
 (run, model), the data on (run, model, scheme), the solver's generator on (run, model, scheme, solver
 label). Run i of every solver therefore sees the same data, and no result depends on the executor, the
@@ -127,7 +127,7 @@ def verification_data(t: Trial, truth: dict):
 def projected_crlb(problem: CalibrationProblem, x_true: np.ndarray, sigma_g: float, rtol: float = 1e-3):
     """Cramér-Rao SDs of the parameters' observable part, the projector onto it and the null directions.
 
-    With the norm cost some directions are (nearly) unobservable (DESIGN §3; seed15 has three). The
+    With the norm cost some directions are (nearly) unobservable (docs/design.md §6.1; seed15 has three). The
     estimate's error is split, in natural units, into its component in the observable subspace (scored
     against these bounds) and its coefficients along the unobservable directions (reported, not scored).
     For observable parameters the SD equals :func:`optcal.analysis.crlb`'s.

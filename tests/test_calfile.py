@@ -1,4 +1,4 @@
-"""The calibration file (DESIGN §5): exact round trip, refusal to overwrite, clear errors for other
+"""The calibration file (docs/design.md §9.3): exact round trip, refusal to overwrite, clear errors for other
 versions and missing fields, and `apply` (Python API and `optcal apply`) inverting the model."""
 
 import json

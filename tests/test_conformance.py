@@ -1,4 +1,4 @@
-"""Conformance suite: every registered solver against the Solver contract (DESIGN §6).
+"""Conformance suite: every registered solver against the Solver contract (docs/design.md §10).
 
 Parametrised over ``solvers.names()`` (built-in modules, ``register_variant`` names and entry-point
 plugins alike) plus two wrapper compositions, so a new solver gets every test here by registering.

@@ -1,4 +1,4 @@
-"""Static navigation (optcal.nav, DESIGN §9): closed-form Schuler checks, Eq. 23, Foucault modulation,
+"""Static navigation (optcal.nav, docs/design.md §13): closed-form Schuler checks, Eq. 23, Foucault modulation,
 self-alignment, the calibration error at a fixed attitude, and the `optcal nav` command."""
 
 import json

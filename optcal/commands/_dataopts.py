@@ -25,7 +25,7 @@ def add_data_options(p: argparse.ArgumentParser, *, units_default: str | None = 
     units_help += f" (default {units_default})" if units_default else " (default: the calibration file's)"
     d.add_argument("--units", default=units_default, help=units_help)
     d.add_argument("--raw", action="store_true", help="DATA is a raw recording (t, ax, ay, az per sample)")
-    r = p.add_argument_group("raw recordings (with --raw; DESIGN §5)")
+    r = p.add_argument_group("raw recordings (with --raw; docs/design.md §9.2)")
     r.add_argument("--columns", help="columns by name or 0-based index: t,ax,ay,az or ax,ay,az (with --rate), "
                    "t,ax,ay,az,temp, or role=column items")
     r.add_argument("--rate", type=float, metavar="HZ", help="sample rate when the recording has no time column")

@@ -21,7 +21,7 @@ HELP = "position error of a 5-hour static navigation run with a calibration, aga
 @functools.cache
 def _owners() -> dict[str, str]:
     """{parameter name: the term that owns it}. A name shared by `misalignment` and `misalignment6` goes to
-    the 3-angle gauge unless a six-angle-only name is present (DESIGN §3); every other name has exactly one
+    the 3-angle gauge unless a six-angle-only name is present (docs/design.md §3.1); every other name has exactly one
     owning term."""
     from ..model import TERMS
 
@@ -79,7 +79,7 @@ def _load_truth(path: str) -> tuple[dict[str, float], tuple[str, ...], str | Non
     unknown = sorted(k for k in obj if k not in _owners())
     if unknown:
         raise InputError(f"truth {path} has unknown parameter name(s) {', '.join(unknown)}; "
-                         f"known names are those of DESIGN §3, e.g. K_x, b_x, S_yz, K2_x")
+                         f"known names are those of docs/design.md §3.1, e.g. K_x, b_x, S_yz, K2_x")
     values = {}
     for k, v in obj.items():
         if isinstance(v, bool) or not isinstance(v, int | float) or not math.isfinite(v):

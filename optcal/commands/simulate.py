@@ -1,4 +1,4 @@
-"""optcal simulate: a simulated positions data set (DESIGN §4, §5)."""
+"""optcal simulate: a simulated positions data set (docs/design.md §4, §9.1)."""
 
 from __future__ import annotations
 

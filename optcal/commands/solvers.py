@@ -1,7 +1,7 @@
 """optcal solvers: every registered solver (built-in and plugins) with its options and defaults, whether it
 can run here, and the wrapper prefixes that compose with any of them (``staged:bsas``, ``mcs:nafsa``).
 
-The registry lives in the ``solvers`` package, which ``optcal`` does not import statically (DESIGN §2); it
+The registry lives in the ``solvers`` package, which ``optcal`` does not import statically (docs/design.md §1); it
 is looked up at run time, as :func:`optcal.fit.get_solver` does.
 """
 
