@@ -255,3 +255,115 @@ def traditional(levels: list[tuple[float, float]], infield: list[tuple[str, floa
     ax.grid(True, which="both", alpha=0.3)
     fig.tight_layout()
     return _save(fig, path)
+
+
+def _curve_panels(panels: list[dict], title: str, path: Path, order: list[str] | None = None,
+                  n: int = MAX_LINES) -> Path:
+    """Step curves (fraction against a log axis), one panel per entry of ``panels``: each panel's ``n``
+    best curves (largest ``score``) in colour and in the legend, every other solver as a thin grey line,
+    so that every solver is drawn and the figure stays readable with seventy of them. A solver keeps its
+    colour in every panel (its place in ``order``, else in the first panel's ranking).
+
+    A panel: ``title``, ``xlabel``, ``ylabel``, ``x`` (shared abscissa), ``curves`` [(label, y, score)],
+    optional ``xscale`` ("log" or "log2") and ``xlim``."""
+    plt = _plt()
+    ncol = min(2, len(panels))
+    nrow = int(np.ceil(len(panels) / ncol))
+    fig, axes = plt.subplots(nrow, ncol, figsize=(7.2 * ncol, 5.0 * nrow), squeeze=False)
+    colour: dict[str, int] = {}
+    for name in order or []:
+        colour.setdefault(name, len(colour))
+    for ax, p in zip(axes.flat, panels):
+        curves = [c for c in p["curves"] if np.any(np.isfinite(c[1]))]
+        ranked = sorted(range(len(curves)), key=lambda i: -np.nan_to_num(curves[i][2], nan=-np.inf))
+        for i in ranked:
+            colour.setdefault(curves[i][0], len(colour))
+        top = ranked[:n]
+        x = np.asarray(p["x"], float)
+        grey = ranked[n:]
+        for k, i in enumerate(grey):
+            ax.step(x, curves[i][1], where="post", color="0.65", lw=0.6, alpha=0.7,
+                    label=f"{len(grey)} other solvers" if k == 0 else None, zorder=1)
+        for i in top:
+            name, y, score = curves[i]
+            ax.step(x, y, where="post", lw=1.6, label=f"{name} ({score:.2f})" if np.isfinite(score) else name,
+                    zorder=3, **_style(colour[name]))
+        if p.get("xscale", "log") == "log2":
+            ax.set_xscale("log", base=2)
+        else:
+            ax.set_xscale("log")
+        if p.get("xlim"):
+            ax.set_xlim(*p["xlim"])
+        ax.set_ylim(-0.02, 1.02)
+        ax.set_xlabel(p["xlabel"])
+        ax.set_ylabel(p["ylabel"])
+        ax.set_title(p["title"], fontsize=9)
+        ax.grid(True, which="both", alpha=0.3)
+        ax.legend(fontsize=6.5, loc="best", title=p.get("legend_title"), title_fontsize=6.5)
+    for ax in axes.flat[len(panels):]:
+        ax.set_visible(False)
+    fig.suptitle(title, fontsize=10)
+    fig.tight_layout()
+    return _save(fig, path)
+
+
+def runtime_ecdf(at, title: str, path: Path, order: list[str] | None = None) -> Path:
+    """Runtime ECDFs (COCO / IOHprofiler): per solver the fraction of (trial, target) pairs reached against
+    evaluations, one panel for the cost targets and one for the accuracy targets (:mod:`studies.anytime`)."""
+    from .anytime import grid
+
+    x = grid(at.top)
+    words = {"cost": ("cost targets (f − f_opt) / f_opt ≤ ", "{:g}"), "accuracy": ("accuracy targets ≤ ", "{:g}")}
+    panels = []
+    for kind, targets in at.targets.items():
+        head, fmt = words[kind]
+        panels.append({
+            "title": head + ", ".join(fmt.format(t) for t in targets), "xlabel": "cost evaluations",
+            "ylabel": "fraction of (trial, target) pairs reached", "x": x, "legend_title": "solver (ECDF area)",
+            "curves": [(s, at.ecdf(kind, i, x), at.area(kind, i)) for i, s in enumerate(at.solvers)]})
+    return _curve_panels(panels, title, path, order)
+
+
+def data_profiles(at, title: str, path: Path, order: list[str] | None = None) -> Path:
+    """Data profiles (Moré & Wild 2009) at the profile targets: the fraction of problems solved within κ
+    budget units of n + 1 evaluations."""
+    from .anytime import PROFILE_TARGETS, data_profile
+
+    panels = []
+    for kind, target in PROFILE_TARGETS:
+        T, n = at.profile_matrix(kind, target), at.profile_n(kind, target)
+        if not len(T):
+            continue
+        hi = at.top / (max(n.min(), 1) + 1)
+        k = np.unique(np.logspace(np.log10(1 / (n.max() + 1)), np.log10(hi), 200))
+        what = f"(f − f_opt) / f_opt ≤ {target:g}" if kind == "cost" else f"accuracy ≤ {target:g}"
+        curves = [(s, data_profile(T[:, i], n, k), float(np.mean(np.isfinite(T[:, i]))))
+                  for i, s in enumerate(at.solvers)]
+        panels.append({"title": f"data profile: {what} ({len(T)} problems)",
+                       "xlabel": "κ = evaluations / (n + 1)", "ylabel": "fraction of problems solved",
+                       "x": k, "curves": curves, "legend_title": "solver (solved within budget)"})
+    return _curve_panels(panels, title, path, order)
+
+
+def performance_profiles(at, title: str, path: Path, order: list[str] | None = None) -> Path:
+    """Performance profiles (Dolan & Moré 2002) at the profile targets: the fraction of problems on which a
+    solver's evaluations are within a factor τ of the fastest solver's."""
+    from .anytime import PROFILE_TARGETS, performance_profile, performance_ratios
+
+    panels = []
+    for kind, target in PROFILE_TARGETS:
+        T = at.profile_matrix(kind, target)
+        if not len(T):
+            continue
+        R = performance_ratios(T)
+        fin = R[np.isfinite(R)]
+        hi = max(2.0, float(fin.max()) * 1.5) if fin.size else 2.0
+        tau = np.unique(np.concatenate([[1.0], np.logspace(0, np.log2(hi), 300, base=2.0)]))
+        P = performance_profile(T, tau)
+        what = f"(f − f_opt) / f_opt ≤ {target:g}" if kind == "cost" else f"accuracy ≤ {target:g}"
+        panels.append({"title": f"performance profile: {what} ({len(T)} problems)",
+                       "xlabel": "τ (evaluations / the fastest solver's)", "ylabel": "fraction of problems",
+                       "x": tau, "xscale": "log2", "xlim": (1, hi),
+                       "legend_title": "solver (mean of the profile over log τ)",
+                       "curves": [(s, P[i], float(np.mean(P[i]))) for i, s in enumerate(at.solvers)]})
+    return _curve_panels(panels, title, path, order)

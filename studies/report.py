@@ -9,7 +9,7 @@ from pathlib import Path
 
 import numpy as np
 
-from . import figures
+from . import anytime, figures
 from .metrics import Group, cells, groups
 from .store import Store
 
@@ -18,6 +18,16 @@ def _f(v, fmt: str = ".3g") -> str:
     if v is None or (isinstance(v, float) and not math.isfinite(v)):
         return "–"
     return format(v, fmt)
+
+
+def _ci(v, ci, fmt: str = ".3g", scale: float = 1.0, unit: str = "") -> str:
+    """'value [lo, hi]' (a 95 % bootstrap interval over runs); the value alone when there is none."""
+    if v is None or not math.isfinite(v):
+        return "–"
+    text = format(v * scale, fmt) + unit
+    if ci is None or not all(math.isfinite(c) for c in ci):
+        return text
+    return f"{text} [{format(ci[0] * scale, fmt)}, {format(ci[1] * scale, fmt)}]"
 
 
 def _table(header: list[str], rows: list[list[str]]) -> list[str]:
@@ -41,16 +51,20 @@ def _has_presets_bound(gs: list[Group]) -> bool:
     return any(np.isfinite(g.accuracy_presets) for g in gs)
 
 
-def _summary_rows(gs: list[Group], nav: bool) -> list[list[str]]:
+def _summary_rows(gs: list[Group], nav: bool, cis: dict | None = None) -> list[list[str]]:
+    """The per-cell table's rows; ``cis`` maps id(group) to its bootstrap intervals (anytime.group_ci)."""
     rows = []
     presets = _has_presets_bound(gs)
     for g in _rank(gs):
         s = g.summary()
+        ci = (cis or {}).get(id(g), {})
         r = [
-            f"`{_label(g)}`", f"{100 * s['success_rate']:.0f} %", _f(s["accuracy"], ".2f"),
-            *([_f(s["accuracy_presets"], ".2f")] if presets else []),
+            f"`{_label(g)}`", _ci(s["success_rate"], ci.get("success_rate"), ".0f", 100, " %"),
+            _ci(s["accuracy"], ci.get("accuracy"), ".2f"),
+            *([_ci(s["accuracy_presets"], ci.get("accuracy_presets"), ".2f")] if presets else []),
             f"{_f(s['ver_mean_ug'], '.2f')} ({_f(s['ver_sd_ug'], '.2f')})",
             f"{_f(s['cost_median'], '.3e')} [{_f(s['cost_min'], '.2e')}, {_f(s['cost_max'], '.2e')}]",
+            *([_ci(s["runtime_median_s"], ci.get("runtime_median_s"), ".3g")] if cis is not None else []),
             f"{_f(s['runtime_median_s'], '.3g')} [{_f(s['runtime_p10_s'], '.2g')}, {_f(s['runtime_p90_s'], '.2g')}]",
             _f(s["nfev_median"], ".0f"),
             _f(s["evals_per_s"], ",.0f"),
@@ -63,7 +77,7 @@ def _summary_rows(gs: list[Group], nav: bool) -> list[list[str]]:
 
 
 SUMMARY_HEADER = ["solver", "success", "RMSE/CRLB", "verification µg mean (SD)", "final cost median [min, max]",
-                  "runtime s median [p10, p90]", "evaluations", "evaluations/s"]
+                  "runtime s median [95 % CI]", "runtime s median [p10, p90]", "evaluations", "evaluations/s"]
 
 
 def _crossing(levels: list[tuple[float, float]], value: float) -> str:
@@ -137,6 +151,76 @@ def _navigation_section(cell_key, gs: list[Group], nav_spec: dict, figdir: Path,
     p = figures.navigation(nav, hours, f"{model}, {scheme} positions: static navigation error",
                            figdir / f"navigation_{slug}.png")
     return lines + [f"![navigation](figures/{p.name})", ""]
+
+
+def _anytime_section(rows: list[dict], order: list[str], spec: dict, figdir: Path) -> list[str]:
+    """Runtime ECDFs, data and performance profiles, and their table (studies.anytime)."""
+    L = ["## Anytime performance", ""]
+    at = anytime.collect(rows, order)
+    if at.empty:
+        return L + ["No anytime records: this store's trials were written before studies recorded them "
+                    "(run the study into a new folder to get them).", ""]
+    cost_t = ", ".join(f"{t:g}" for t in anytime.COST_TARGETS)
+    acc_t = ", ".join(f"{t:g}" for t in anytime.ACCURACY_TARGETS)
+    (pk1, pt1), (pk2, pt2) = anytime.PROFILE_TARGETS
+    L += [
+        f"Every in-field trial against {len(anytime.COST_TARGETS)} cost targets and "
+        f"{len(anytime.ACCURACY_TARGETS)} accuracy targets, over {len(at.problems)} problems "
+        f"(model × scheme × run) and {len(at.solvers)} solvers (turntable configurations fit another cost and "
+        "are left out):",
+        "",
+        f"- **cost targets**: relative gap (f − f_opt) / f_opt ≤ {cost_t}, with f the best cost so far and "
+        "f_opt the optimum of the run's data (a reference scipy-lm fit from the presets; a trial that ends "
+        "below it meets every cost target);",
+        f"- **accuracy targets**: the trial's accuracy ≤ {acc_t}, where a trial's accuracy is the RMS over "
+        "the parameters of |error| / CRLB (the error's observable part against its Cramér-Rao bound) of the "
+        "best point so far. The optimum itself scores about 1 (above 1 in about half of the runs).",
+        "",
+        "Evaluations to a target: the first point of the 10-per-decade evaluation grid at which it is met; "
+        "never met, or a failed trial: ∞. **Runtime ECDF** (COCO / IOHprofiler): the fraction of "
+        "(trial, target) pairs met within x evaluations, over runs, models, schemes and targets; the number "
+        "in the legend is the area under it on the log axis (1 = every target at the first evaluation). "
+        "**Data profile** (Moré & Wild 2009): the fraction of problems solved within κ (n + 1) evaluations "
+        "(n parameters). **Performance profile** (Dolan & Moré 2002): the fraction of problems on which the "
+        "solver needs at most τ times the evaluations of the fastest solver on that problem. The profiles "
+        f"use the targets {pk1} {pt1:g} and {pk2} {pt2:g}. Figures: the {figures.MAX_LINES} best solvers of "
+        "each panel in colour, all others grey.",
+        "",
+    ]
+    if at.missing or at.no_optimum:
+        L += [f"{at.missing} trial(s) without an anytime record (written before it existed) and "
+              f"{at.no_optimum} without an optimum are left out of the respective targets.", ""]
+    recs = at.table(spec["seed"])
+    recs.sort(key=lambda r: (-np.nan_to_num(r["cost_area"], nan=-1), -np.nan_to_num(r["accuracy_area"], nan=-1)))
+    order = [r["solver"] for r in recs]  # one colour per solver in every figure
+    name = spec["name"]
+    p1 = figures.runtime_ecdf(at, f"{name}: runtime ECDFs", figdir / "anytime_ecdf.png", order)
+    p2 = figures.data_profiles(at, f"{name}: data profiles", figdir / "data_profiles.png", order)
+    p3 = figures.performance_profiles(at, f"{name}: performance profiles", figdir / "performance_profiles.png", order)
+    L += [f"![runtime ECDFs](figures/{p1.name})", "", f"![data profiles](figures/{p2.name})", "",
+          f"![performance profiles](figures/{p3.name})", ""]
+    k1, k2 = f"{pk1}_{pt1:g}", f"{pk2}_{pt2:g}"
+    L += [f"Per solver, largest cost-ECDF area first; *reached*: share of (trial, target) pairs met within the "
+          f"budget; *solved*: share of problems on which the profile target is met; *fastest*: share of problems "
+          f"on which the solver meets it first (performance profile at τ = 1, ties count for each). "
+          f"[lo, hi]: {100 * anytime.LEVEL:.0f} % bootstrap interval over runs.", ""]
+    header = ["solver", "cost: reached", "cost: ECDF area", "accuracy: reached", "accuracy: ECDF area",
+              f"solved {_target_name(pk1, pt1)}", f"fastest {_target_name(pk1, pt1)}",
+              f"solved {_target_name(pk2, pt2)}", f"fastest {_target_name(pk2, pt2)}"]
+    L += _table(header, [[f"`{r['solver']}`",
+                          _ci(r["cost_reached"], r["cost_reached_ci"], ".0f", 100, " %"),
+                          _ci(r["cost_area"], r["cost_area_ci"], ".2f"),
+                          _ci(r["accuracy_reached"], r["accuracy_reached_ci"], ".0f", 100, " %"),
+                          _ci(r["accuracy_area"], r["accuracy_area_ci"], ".2f"),
+                          _ci(r[f"solved_{k1}"], r[f"solved_{k1}_ci"], ".0f", 100, " %"),
+                          _ci(r[f"fastest_{k1}"], r[f"fastest_{k1}_ci"], ".0f", 100, " %"),
+                          _ci(r[f"solved_{k2}"], r[f"solved_{k2}_ci"], ".0f", 100, " %"),
+                          _ci(r[f"fastest_{k2}"], r[f"fastest_{k2}_ci"], ".0f", 100, " %")] for r in recs])
+    return L
+
+
+def _target_name(kind: str, target: float) -> str:
+    return f"gap ≤ {target:g}" if kind == "cost" else f"accuracy ≤ {target:g}"
 
 
 def _parameters_md(cs) -> str:
@@ -243,6 +327,7 @@ def write_report(folder: str | Path) -> Path:
     order = [s["label"] for s in spec["solvers"]]
     gs = groups(rows, order)
     cs = cells(gs)
+    cis = {id(g): anytime.group_ci(g, spec["seed"]) for g in gs}
     expected = spec["runs"] * len(spec["models"]) * len(spec["schemes"]) * len(spec["solvers"])
     failed = sum(r["status"] != "ok" for r in rows)
     has_nav = any(r.get("nav_max_nmi") is not None for r in rows)
@@ -277,7 +362,9 @@ def write_report(folder: str | Path) -> Path:
         "first column and near 1 here means the accuracy came from the presets, not from the data. "
         "*Verification*: |‖A‖ − g| on an independent "
         "verification set with the estimated calibration (2020 paper, Table 5), mean over positions "
-        "(SD over positions), averaged over runs. Runtime: solver time per calibration.",
+        "(SD over positions), averaged over runs. Runtime: solver time per calibration. "
+        f"*value [lo, hi]* after success, RMSE/CRLB and the median runtime: {100 * anytime.LEVEL:.0f} % percentile "
+        f"bootstrap interval over the Monte-Carlo runs ({anytime.RESAMPLES} resamples, seed {spec['seed']}).",
         "",
     ]
     if len(cs) > 1:
@@ -294,10 +381,10 @@ def write_report(folder: str | Path) -> Path:
         L += [f"Truth calibration on the verification set: {_f(truth_ver, '.2f')} µg (the noise floor).", ""]
         header = (SUMMARY_HEADER[:3] + (["RMSE/CRLB with presets"] if _has_presets_bound(cg) else [])
                   + SUMMARY_HEADER[3:] + (["nav max / mean nmi"] if has_nav else []) + ["failed"])
-        L += _table(header, _summary_rows(cg, has_nav))
+        L += _table(header, _summary_rows(cg, has_nav, cis))
         for g in cg:
-            summary.append({**g.summary(), "reference": g.reference,
-                            "reference_error_arcsec": g.reference_error_arcsec})
+            summary.append({**g.summary(), **{f"{k}_ci": list(v) for k, v in cis[id(g)].items()},
+                            "reference": g.reference, "reference_error_arcsec": g.reference_error_arcsec})
         ttl = f"{spec['name']}: {model}, {scheme} positions"
         # the turntable fit minimises another cost (3-D residuals): not on the cost figures
         norm = [g for g in cg if not g.reference] or cg
@@ -331,6 +418,7 @@ def write_report(folder: str | Path) -> Path:
     if len(cs):
         p = figures.accuracy_runtime(cs, f"{spec['name']}: accuracy against runtime", figdir / "accuracy_runtime.png")
         L += ["## Accuracy against runtime", "", f"![accuracy against runtime](figures/{p.name})", ""]
+    L += _anytime_section(rows, order, spec, figdir)
     L += ["Per-parameter mean error, RMSE, SD and CRLB: [parameters.md](parameters.md). "
           "Every trial: `trials.csv` / `trials.parquet` / `study.sqlite`.", ""]
     (folder / "parameters.md").write_text(_parameters_md(cs))

@@ -68,3 +68,187 @@ def test_a_turntable_trial_has_no_in_field_optimum(tmp_path):
     with Store.open_existing(tmp_path) as st:
         (r,) = st.rows()
     assert r["f_opt"] is None and r["anytime"][-1][2] == pytest.approx(r["accuracy"], rel=1e-9)
+
+
+# -- ECDFs, profiles and bootstrap intervals on hand-made inputs ----------------------------------
+
+from studies import anytime as A  # noqa: E402
+from studies.metrics import groups  # noqa: E402
+from studies.report import write_report  # noqa: E402
+
+INF = np.inf
+
+
+def test_first_hits_is_the_first_grid_point_at_or_below_each_target():
+    evals, values = [1, 2, 5, 10], [5.0, 3.0, 1.0, 0.5]
+    assert A.first_hits(evals, values, [10, 2, 0.7, 0.1]).tolist() == [1, 5, 10, INF]
+    # a point without a value (no accuracy) reaches nothing
+    assert A.first_hits(evals, [np.nan, 3.0, np.nan, 0.5], [4, 1]).tolist() == [2, 10]
+    assert A.first_hits([], [], [1.0]).tolist() == [INF]
+
+
+def test_ecdf_and_its_area():
+    t = [1, 10, INF, 100]
+    assert A.ecdf(t, [1, 5, 10, 100, 1000, INF]).tolist() == [0.25, 0.25, 0.5, 0.75, 0.75, 0.75]
+    assert A.ecdf([1, np.nan], [1]).tolist() == [1.0]  # NaN: no record, left out
+    assert np.isnan(A.ecdf([np.nan], [1])[0])
+    # area over log10(evaluations) from 1 to top, normalised: a target at evaluation 1 scores 1, at top 0
+    assert A.ecdf_area([1, INF], 100) == 0.5
+    assert A.ecdf_area([10], 100) == pytest.approx(0.5)
+    assert A.ecdf_area([1000], 100) == 0.0
+
+
+def test_data_profile_counts_problems_solved_within_kappa_budget_units():
+    # κ = evaluations / (n + 1): 4 / 4 = 1, 30 / 3 = 10, never
+    d = A.data_profile([4, 30, INF], [3, 2, 3], [0.5, 1, 9.9, 10, 100])
+    assert d.tolist() == pytest.approx([0, 1 / 3, 1 / 3, 2 / 3, 2 / 3])
+
+
+def test_performance_profile_against_the_fastest_solver_per_problem():
+    T = np.array([[10, 20], [40, 20], [INF, 5], [INF, INF]], float)
+    R = A.performance_ratios(T)
+    assert R.tolist() == [[1, 2], [2, 1], [INF, 1], [INF, INF]]  # nobody solves the last problem
+    P = A.performance_profile(T, [1, 1.5, 2, 100])
+    assert P[0].tolist() == [0.25, 0.25, 0.5, 0.5]
+    assert P[1].tolist() == [0.5, 0.5, 0.75, 0.75]
+
+
+def test_bootstrap_interval_contains_the_estimate_shrinks_with_more_runs_and_is_reproducible():
+    rng = np.random.default_rng(1)
+    widths = []
+    for n in (10, 40, 160):
+        z = rng.normal(size=n)
+        v = 1.0 + 0.3 * (z - z.mean()) / z.std()  # the same spread at every n
+        lo, hi = A.mean_ci(v, seed=7)
+        assert lo < v.mean() < hi
+        assert (lo, hi) == A.mean_ci(v, seed=7)  # the spec's seed fixes the resamples
+        widths.append(hi - lo)
+    assert widths[0] > 1.5 * widths[1] > 2.25 * widths[2]  # about 1/√n
+    # whole runs are resampled: two values per run with the same mean give the same interval as one
+    v = rng.normal(size=20)
+    assert A.run_mean_ci(np.repeat(v, 2), np.repeat(np.arange(20), 2), 3) == pytest.approx(A.mean_ci(v, 3))
+    assert np.isnan(A.mean_ci([1.0], 3)[0])
+
+
+def _group_rows(n, rng, solver="s"):
+    rows = []
+    for i in range(n):
+        e = rng.normal(0, [1e-6, 2e-6])
+        rows.append({"model": "m", "scheme": "24", "solver": solver, "solver_name": solver, "run": i,
+                     "reference": 0, "reference_error_arcsec": 0.0, "status": "ok", "message": "", "success": 1,
+                     "converged": int(rng.random() < 0.8), "names": ["a", "b"], "err": list(e),
+                     "err_proj": list(e), "crlb": [1e-6, 2e-6], "crlb_presets": [0.5e-6, 1e-6],
+                     "observable": [1, 1], "fun": 1.0, "runtime_s": float(rng.uniform(0.1, 0.2)), "nfev": 10,
+                     "null_dirs": [], "null_err": []})
+    return rows
+
+
+def test_group_intervals_bracket_the_group_summary_and_shrink_with_more_runs():
+    rng = np.random.default_rng(5)
+    width = {}
+    for n in (12, 200):
+        g = groups(_group_rows(n, rng))[0]
+        ci = A.group_ci(g, seed=2020)
+        s = g.summary()
+        for k in ("success_rate", "accuracy", "accuracy_presets", "runtime_median_s"):
+            lo, hi = ci[k]
+            assert lo <= s[k] <= hi, (n, k, lo, s[k], hi)
+        width[n] = {k: hi - lo for k, (lo, hi) in ci.items()}
+    assert all(width[200][k] < 0.5 * width[12][k] for k in width[12])
+    # the resampled statistic is the group's own: identical runs give a zero-width interval at the value
+    rows = _group_rows(1, rng) * 8
+    rows = [{**r, "run": i} for i, r in enumerate(rows)]
+    g = groups(rows)[0]
+    lo, hi = A.group_ci(g, 1)["accuracy"]
+    assert lo == pytest.approx(g.accuracy) and hi == pytest.approx(g.accuracy)
+    # a failed run counts as not converged and is left out of RMSE/CRLB, as in the group
+    rows[0] = {**rows[0], "status": "failed", "converged": 0, "err_proj": None, "crlb": None}
+    g = groups(rows)[0]
+    assert A.group_ci(g, 1)["accuracy"][0] == pytest.approx(g.accuracy)
+
+
+def _at_row(solver, run, anytime, f_opt=1.0, status="ok", model="m"):
+    return {"model": model, "scheme": "24", "solver": solver, "run": run, "reference": 0, "status": status,
+            "names": ["a", "b", "c"], "anytime": anytime, "f_opt": f_opt, "nfev": anytime[-1][0] if anytime else 0}
+
+
+def test_collect_turns_anytime_records_into_hitting_times():
+    rows = [
+        # cost 101 → gap 100 at 1; gap 1 at 10; gap 1e-3 at 100. Accuracy 5, 1.4, 1.1.
+        _at_row("fast", 0, [[1, 101.0, 5.0], [10, 2.0, 1.4], [100, 1.001, 1.1]]),
+        _at_row("fast", 1, [[1, 11.0, 20.0], [3, 1.0, 1.0]]),
+        _at_row("slow", 0, [[1, 101.0, 5.0], [1000, 1.5, 2.5]]),
+        _at_row("slow", 1, None, status="failed"),
+        {**_at_row("turntable", 0, [[1, 1.0, 1.0]]), "reference": 1},  # another cost: left out
+    ]
+    at = A.collect(rows, ["slow", "fast"])
+    assert at.solvers == ["slow", "fast"] and at.problems == [("m", "24", 0), ("m", "24", 1)]
+    assert at.n.tolist() == [3, 3] and at.top == 1000
+    # COST_TARGETS 1e2, 1e1, 1, 1e-1, 1e-2, 1e-3; ACCURACY_TARGETS 10, 3, 2, 1.5, 1.2
+    assert at.times("cost", 1)[0].tolist() == [1, 10, 10, 100, 100, 100]
+    assert at.times("cost", 1)[1].tolist() == [1, 1, 3, 3, 3, 3]  # a gap of 0 meets every target
+    assert at.times("accuracy", 1)[0].tolist() == [1, 10, 10, 10, 100]
+    assert at.times("cost", 0)[0].tolist() == [1, 1000, 1000, INF, INF, INF]
+    assert np.all(at.times("cost", 0)[1] == INF) and np.all(at.times("accuracy", 0)[1] == INF)  # failed
+    assert at.reached("cost", 1) == 1.0 and at.reached("cost", 0) == pytest.approx(3 / 12)
+    assert at.ecdf("accuracy", 0, [1, 999, 1000]).tolist() == pytest.approx([1 / 10, 1 / 10, 2 / 10])
+    rec = {r["solver"]: r for r in at.table(seed=1)}
+    assert rec["fast"]["solved_cost_0.01"] == 1.0 and rec["slow"]["solved_cost_0.01"] == 0.0
+    assert rec["fast"]["fastest_accuracy_1.5"] == 1.0 and rec["slow"]["solved_accuracy_1.5"] == 0.0
+    assert rec["slow"]["cost_reached"] == pytest.approx(3 / 12)
+    # no optimum: no cost targets, accuracy targets still scored; no record at all: nothing known
+    at = A.collect([_at_row("x", 0, [[1, 2.0, 1.0]], f_opt=None), _at_row("x", 1, None)])
+    assert np.isnan(at.times("cost", 0)).all() and at.times("accuracy", 0)[0].tolist() == [1] * 5
+    assert (at.missing, at.no_optimum) == (1, 1) and np.isnan(at.times("accuracy", 0)[1]).all()
+
+
+# -- the report --------------------------------------------------------------------------------
+
+FIGS = ("anytime_ecdf", "data_profiles", "performance_profiles")
+
+
+def test_the_report_has_the_anytime_section_with_its_figures_targets_and_intervals(tmp_path):
+    sp = spec_of(solvers_toml='[[solvers]]\nname = "scipy-lm"\n[[solvers]]\nname = "pso"\n'
+                              'options = {n_particles = 10, iterations = 20}\n'
+                              '[[solvers]]\nname = "scipy-lm"\nlabel = "turntable"\nreference = true\n')
+    run_study(sp, tmp_path, progress=False)
+    text = write_report(tmp_path).read_text()
+    section = text.split("## Anytime performance")[1]
+    assert "(f − f_opt) / f_opt ≤ 100, 10, 1, 0.1, 0.01, 0.001" in section
+    assert "≤ 10, 3, 2, 1.5, 1.2" in section and "Moré & Wild" in section and "Dolan & Moré" in section
+    for f in FIGS:
+        p = tmp_path / "figures" / f"{f}.png"
+        assert p.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" and p.stat().st_size > 20_000
+        assert f"figures/{f}.png" in section
+    table = [r for r in section.splitlines() if r.startswith("| `")]
+    assert [r.split("`")[1] for r in table] == ["scipy-lm", "pso"]  # every in-field solver, turntable left out
+    # scipy-lm from the presets is the reference optimum: it meets every cost target on every problem
+    assert table[0].split("|")[2].strip() == "100 % [100, 100]"
+    # the per-cell summary carries bootstrap intervals for success, RMSE/CRLB and the median runtime
+    row = next(r for r in text.splitlines() if r.startswith("| `scipy-lm` |"))
+    assert row.count("[") >= 5 and "runtime s median [95 % CI]" in text
+    import json
+
+    s = json.loads((tmp_path / "summary.json").read_text())[0]
+    lo, hi = s["accuracy_ci"]
+    assert lo < s["accuracy"] < hi and len(s["runtime_median_s_ci"]) == 2
+
+
+def test_an_old_store_without_anytime_columns_still_reports(tmp_path):
+    import sqlite3
+
+    from studies.store import COLUMNS
+
+    sp = spec_of()
+    run_study(sp, tmp_path, progress=False)
+    con = sqlite3.connect(tmp_path / "study.sqlite")
+    keep = ", ".join(c for c in COLUMNS if c not in ("f_opt", "anytime", "crlb_presets"))
+    con.executescript(f"CREATE TABLE old AS SELECT {keep} FROM trials; DROP TABLE trials; "
+                      "ALTER TABLE old RENAME TO trials;")
+    con.close()
+    text = write_report(tmp_path).read_text()
+    assert "RMSE/CRLB" in text and "No anytime records" in text
+    with Store.open_existing(tmp_path) as st:
+        rows = st.rows()
+    assert all(r["anytime"] is None and r["f_opt"] is None for r in rows)
+    assert not any((tmp_path / "figures" / f"{f}.png").exists() for f in FIGS)
