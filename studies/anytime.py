@@ -336,7 +336,9 @@ def collect(rows: list[dict], order: list[str] | None = None) -> Anytime:
             missing += 1
             continue
         A = np.array([[np.nan if v is None else v for v in x] for x in a], float)
-        top = max(top, float(A[-1, 0]), float(r.get("nfev") or 0))
+        if r.get("nfev"):  # the grid's last point may lie past the last evaluation
+            A[:, 0] = np.minimum(A[:, 0], r["nfev"])
+        top = max(top, float(A[-1, 0]))
         hits["accuracy"][p, s] = first_hits(A[:, 0], A[:, 2], ACCURACY_TARGETS)
         f_opt = r.get("f_opt")
         if f_opt is None or not f_opt > 0:

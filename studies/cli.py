@@ -1,4 +1,5 @@
-"""The ``optcal study`` command's work: ``run`` a spec into a folder (then write its report), ``report``.
+"""The ``optcal study`` command's work: ``run`` a spec into a folder (then write its report), ``report``,
+``export`` (:mod:`studies.export`).
 
 The study machinery (trials, NumPy, SciPy, the solvers, matplotlib for the report) is imported inside the
 functions, so that importing this module costs nothing.
@@ -44,4 +45,13 @@ def report(args) -> int:
 
     out = write_report(args.dir)
     print(f"report: {out}")
+    return 0
+
+
+def export(args) -> int:
+    from .export import export as write
+
+    c = write(args.dir, args.out, args.format)
+    print(f"exported {c['runs']} runs of {c['algorithms']} algorithm(s) on {c['problems']} problem(s) to "
+          f"{c['folder']} ({args.format} format)")
     return 0

@@ -6,11 +6,11 @@ so ``optcal`` (which never imports ``studies``) finds it the way it finds any th
 
 from __future__ import annotations
 
-HELP = "run a comparison study from a TOML spec, or write a study folder's report"
+HELP = "run a comparison study from a TOML spec, write a study folder's report, or export its runs"
 
 
 def add_arguments(parser) -> None:
-    sub = parser.add_subparsers(dest="study_command", required=True, metavar="{run,report}")
+    sub = parser.add_subparsers(dest="study_command", required=True, metavar="{run,report,export}")
     r = sub.add_parser("run", help="run a study spec (a path, or a shipped spec: compare, bsas2020, nafsa2015, "
                                    "traditional, ci); finished trials in --out are skipped",
                        description="Run a study spec into a folder; a killed study resumes where it stopped.")
@@ -27,6 +27,14 @@ def add_arguments(parser) -> None:
     p = sub.add_parser("report", help="write report.md, figures and summary.json for a study folder",
                        description="Write report.md, parameters.md, summary.json and figures/ for a study folder.")
     p.add_argument("dir", metavar="DIR", help="a study folder (holding study.sqlite)")
+    e = sub.add_parser("export", help="write a study folder's runs in the IOHprofiler format (IOHanalyzer, "
+                                      "iohinspector)",
+                       description="Write the study's runs (best cost so far against evaluations) in the "
+                                   "IOHprofiler json + .dat format: one problem per model × scheme, one algorithm "
+                                   "per solver configuration, one instance per Monte-Carlo run (docs/studies.md).")
+    e.add_argument("dir", metavar="STUDY_DIR", help="a study folder (holding study.sqlite)")
+    e.add_argument("--format", default="ioh", choices=("ioh",), help="output format (default ioh)")
+    e.add_argument("-o", "--out", required=True, metavar="DIR", help="output folder: new, or an empty one")
 
 
 def run(args) -> int:
@@ -39,4 +47,6 @@ def run(args) -> int:
         if args.limit is not None and args.limit < 0:
             raise InputError(f"--limit must be non-negative, got {args.limit}")
         return cli.run(args)
+    if args.study_command == "export":
+        return cli.export(args)
     return cli.report(args)
