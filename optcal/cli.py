@@ -3,12 +3,15 @@
 add commands the same way through the ``optcal.commands`` entry-point group (``studies`` adds ``study``).
 
 Errors a user can fix (:class:`~optcal.errors.InputError`) print one line and exit with status 2.
+``optcal --version`` prints the installed version; ``-q/--quiet`` and ``-v/--verbose`` (before or after the
+command's name) set the level of the ``optcal`` logger: WARNING by default, -v INFO, -vv DEBUG, -q ERROR.
 """
 
 from __future__ import annotations
 
 import argparse
 import importlib
+import logging
 import os
 import pkgutil
 import sys
@@ -52,11 +55,52 @@ def _command_modules() -> list[tuple[str, object]]:
     return found
 
 
+def _version() -> str:
+    from importlib.metadata import PackageNotFoundError, version
+
+    try:
+        return version("optcal")
+    except PackageNotFoundError:  # pragma: no cover - a source tree that was never installed
+        from . import __version__
+
+        return __version__
+
+
+def _verbosity_options(p: argparse.ArgumentParser, suffix: str = "") -> None:
+    """-q/-v. The top-level parser and each command's keep separate counts (a sub-parser's defaults would
+    otherwise overwrite what was given before the command's name); :func:`_log_level` adds them."""
+    p.add_argument("-v", "--verbose", action="count", default=0, dest="verbose" + suffix,
+                   help="more messages on stderr: -v informational, -vv debugging")
+    p.add_argument("-q", "--quiet", action="count", default=0, dest="quiet" + suffix,
+                   help="errors only: no warnings on stderr")
+
+
+def _log_level(args) -> int:
+    v = getattr(args, "verbose", 0) + getattr(args, "verbose_cmd", 0)
+    q = getattr(args, "quiet", 0) + getattr(args, "quiet_cmd", 0)
+    return logging.ERROR if q > v else {0: logging.WARNING, 1: logging.INFO}.get(v - q, logging.DEBUG)
+
+
+class _StderrHandler(logging.Handler):
+    """Writes ``optcal: warning: message`` to the sys.stderr of the moment (tests swap it)."""
+
+    def emit(self, record):
+        try:
+            sys.stderr.write(f"optcal: {record.levelname.lower()}: {record.getMessage()}\n")
+        except Exception:  # pragma: no cover - as logging.StreamHandler does
+            self.handleError(record)
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = ArgumentParser(prog="optcal", description="In-field accelerometer calibration and optimiser comparison")
+    parser.add_argument("--version", action="version", version=f"optcal {_version()}",
+                        help="print optcal's version and exit")
+    _verbosity_options(parser)
+    common = argparse.ArgumentParser(add_help=False)
+    _verbosity_options(common, "_cmd")
     sub = parser.add_subparsers(dest="command", required=True, parser_class=ArgumentParser)
     for name, mod in _command_modules():
-        p = sub.add_parser(name, help=mod.HELP, description=mod.HELP)
+        p = sub.add_parser(name, help=mod.HELP, description=mod.HELP, parents=[common])
         mod.add_arguments(p)
         p.set_defaults(_run=mod.run)
     return parser
@@ -65,6 +109,19 @@ def build_parser() -> argparse.ArgumentParser:
 def main(argv: list[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
+    logger = logging.getLogger("optcal")
+    saved = logger.level
+    handler = _StderrHandler()
+    logger.setLevel(_log_level(args))
+    logger.addHandler(handler)
+    try:
+        return _run(args)
+    finally:  # main() may run many times in one process (the tests): leave the logger as it was
+        logger.removeHandler(handler)
+        logger.setLevel(saved)
+
+
+def _run(args) -> int:
     try:
         rc = int(args._run(args) or 0)
         sys.stdout.flush()  # inside the try: a reader that left early is met here, not at interpreter exit

@@ -59,3 +59,48 @@ def parameter_table(names, values, stderr=None, truth: dict | None = None) -> st
             row += f" {truth[n]:16.9g} {z}"
         lines.append(row)
     return "\n".join(lines)
+
+
+def add_noise_from_options(p, dwell_help: str, reading: str) -> None:
+    """``--noise-from`` and ``--dwell-s`` (calibrate, info): the Cramér-Rao bounds from a measured noise."""
+    p.add_argument("--noise-from", metavar="RECORDING_OR_JSON",
+                   help="white-noise density for the Cramér-Rao bounds, from the JSON of optcal noise --json or "
+                   f"from a static recording ({reading}); the SD of a position mean is density/√dwell")
+    p.add_argument("--dwell-s", type=float, metavar="S", help=dwell_help)
+
+
+def noise_from_args(args, n_samples=None, rate: float | None = None) -> tuple[float, dict]:
+    """σ of a position mean in g from ``--noise-from`` (N, g/√Hz) and the dwell T: N/√T (RMS over the
+    positions when their dwells differ). T is ``--dwell-s``, else each position's ``n_samples`` over
+    ``rate`` (the data's rate; the noise recording's when that is unknown). Also a summary for output."""
+    import numpy as np
+
+    from ..noise import load_white_noise
+
+    reading = {"units": getattr(args, "units", None) or "g", "columns": getattr(args, "columns", None),
+               "rate": getattr(args, "rate", None)}
+    white = load_white_noise(args.noise_from, **reading)
+    if args.dwell_s is not None:
+        dwell, how = args.dwell_s, "--dwell-s"
+    elif n_samples is not None:
+        if rate is None or not np.isfinite(rate):
+            rate, how = white.rate_hz, "the positions' n / the noise recording's rate"
+        else:
+            how = "the positions' n / the data's rate"
+        if not np.isfinite(rate):
+            raise InputError("the sample rate of the positions is unknown, so their dwell is; give --dwell-s")
+        dwell = np.asarray(n_samples, float) / rate
+    else:
+        raise InputError("--noise-from needs the dwell of each position: give --dwell-s (the positions have no "
+                         "n column)")
+    sigma = white.sigma_of_mean_g(dwell)
+    dwell_s = float(np.mean(dwell))
+    summary = {"source": white.source, "density_ug_per_sqrt_hz": white.density_g * 1e6, "dwell_s": dwell_s,
+               "dwell_from": how, "sigma_mean_ug": sigma * 1e6}
+    return sigma, summary
+
+
+def describe_noise(summary: dict) -> str:
+    return (f"noise from {summary['source']}: white-noise density {summary['density_ug_per_sqrt_hz']:.4g} µg/√Hz, "
+            f"dwell {summary['dwell_s']:.4g} s ({summary['dwell_from']}) → SD of a position mean "
+            f"{summary['sigma_mean_ug']:.4g} µg")

@@ -6,10 +6,17 @@ import importlib
 import json
 
 from ..errors import InputError
-from ._common import parameter_table, parse_options, refuse_overwrite
+from ._common import (
+    add_noise_from_options,
+    describe_noise,
+    noise_from_args,
+    parameter_table,
+    parse_options,
+    refuse_overwrite,
+)
 from ._dataopts import add_data_options, gravity_from_args, load_positions
 
-HELP = "calibrate an accelerometer from static positions"
+HELP = "calibrate an accelerometer from static positions (default model nonlinear12)"
 
 
 def add_arguments(p):
@@ -25,6 +32,9 @@ def add_arguments(p):
     p.add_argument("-o", "--output", metavar="CALIBRATION.json", help="write the calibration file")
     p.add_argument("--force", action="store_true", help="overwrite an existing calibration file")
     p.add_argument("--plot", metavar="FILE.png", help="with --raw: the recording with intervals and residuals")
+    add_noise_from_options(p, "dwell per position for --noise-from, s (default: each position's n over the "
+                           "sample rate: a raw DATA's, else --rate, else the noise recording's)",
+                           "read with --units, --columns and --rate, as a raw DATA")
     add_data_options(p)
 
 
@@ -36,9 +46,13 @@ def run(args) -> int:
     g_local = gravity_from_args(args)
     data = load_positions(args, args.data)
     presets = load_presets(args.presets) if args.presets else None
-    cal = calibrate(data, args.model, solver=args.solver, options=parse_options(args.option), g_local=g_local,
-                    reference=args.reference, presets=presets, seed=args.seed, budget=args.budget)
     detection = data.extra.get("detection") if isinstance(data.extra, dict) else None
+    noise_g, noise = None, None
+    if args.noise_from:
+        rate = detection.recording.rate if detection is not None else args.rate
+        noise_g, noise = noise_from_args(args, data.n_samples, rate)
+    cal = calibrate(data, args.model, solver=args.solver, options=parse_options(args.option), g_local=g_local,
+                    reference=args.reference, presets=presets, seed=args.seed, budget=args.budget, noise_g=noise_g)
     recording = importlib.import_module("optcal.recording") if detection is not None else None
     if args.output:
         from ..calfile import write_calibration
@@ -50,7 +64,7 @@ def run(args) -> int:
             raise InputError("--plot draws a raw recording; use it with --raw")
         recording.plot_recording(detection.recording, detection, cal.problem.residuals_full(cal.x)[0], args.plot)
     if args.json:
-        print(json.dumps(cal.to_dict(), indent=2))
+        print(json.dumps({**cal.to_dict(), **({"noise_from": noise} if noise else {})}, indent=2))
         return 0
     if detection is not None:
         print(recording.describe_detection(detection))
@@ -58,6 +72,8 @@ def run(args) -> int:
     print(f"residual RMS {cal.fit.rms_g * 1e6:.3f} µg, cost {cal.fit.cost:.6e}, "
           f"{cal.result.nfev} evaluations, {cal.result.runtime_s * 1e3:.1f} ms ({cal.result.message})")
     print("observability: " + cal.observability.describe())
+    if noise:
+        print(describe_noise(noise))
     for note in cal.notes:
         print(f"note: {note}")
     print(parameter_table(cal.model.names, cal.x, cal.stderr))

@@ -8,7 +8,7 @@ from pathlib import Path
 from ..errors import InputError
 from ._dataopts import add_data_options, gravity_from_args, load_positions
 
-HELP = "discover the terms a model is missing (F-test and BIC, forward selection)"
+HELP = "discover the terms a model is missing (F-test and BIC, forward selection; default base model linear9)"
 
 # Copies of optcal.discovery's defaults for the help text: importing optcal.discovery (NumPy, the
 # calibration problem) would slow every `optcal --help`. tests/test_startup.py checks that they agree.

@@ -4,15 +4,20 @@ from __future__ import annotations
 
 import json
 
-HELP = "observability and Cramér-Rao table for a scheme and model"
+from ..errors import InputError
+from ._common import add_noise_from_options, describe_noise, noise_from_args
+
+HELP = "observability and Cramér-Rao table for a scheme and model (default scheme 24, model seed15)"
 
 
 def add_arguments(p):
     p.add_argument("--scheme", default="24", help="6, 24, 36 or random:N")
-    p.add_argument("--model", default="seed15")
-    p.add_argument("--noise-ug", type=float, default=10.0, help="SD of each position's mean per axis, µg")
+    p.add_argument("--model", default="seed15", help="model name or sum of terms (default seed15)")
+    p.add_argument("--noise-ug", type=float, help="SD of each position's mean per axis, µg (default 10)")
+    add_noise_from_options(p, "dwell per position, s (needed with --noise-from)",
+                           "outputs in g; other units: optcal noise --json first")
     p.add_argument("--seed", type=int, default=0, help="seed for random schemes")
-    p.add_argument("--json", action="store_true")
+    p.add_argument("--json", action="store_true", help="print the table as one JSON object")
 
 
 def run(args) -> int:
@@ -24,6 +29,16 @@ def run(args) -> int:
     from ..problem import CalibrationProblem
     from ..simulate import simulate
 
+    noise = None
+    if args.noise_from:
+        if args.noise_ug is not None:
+            raise InputError("give the noise either as --noise-ug or as --noise-from, not both")
+        if args.dwell_s is None:
+            raise InputError("--noise-from needs the dwell per position: give --dwell-s")
+        sigma, noise = noise_from_args(args)
+        args.noise_ug = sigma * 1e6
+    elif args.noise_ug is None:
+        args.noise_ug = 10.0
     model = get_model(args.model)
     # Noise-free data at a representative truth: the 2020-paper-like values where the model has them.
     truth = {n: PAPER_TRUTH.get(n, 1.0 if n.startswith("K_") else 0.0) for n in model.names}
@@ -36,11 +51,15 @@ def run(args) -> int:
     if args.json:
         out = {"scheme": args.scheme, "model": model.name, "noise_ug": args.noise_ug, "n_positions": len(sim.data),
                **obs.to_dict(),
-               "crlb": {n: (float(s) if np.isfinite(s) else None) for n, s in zip(model.names, sd)}}
+               "crlb": {n: (float(s) if np.isfinite(s) else None) for n, s in zip(model.names, sd)},
+               **({"noise_from": noise} if noise else {})}
         print(json.dumps(out, indent=2))
         return 0
-    print(f"scheme {args.scheme} ({len(sim.data)} positions), model {model.name}, noise {args.noise_ug} µg per axis")
+    print(f"scheme {args.scheme} ({len(sim.data)} positions), model {model.name}, "
+          f"noise {args.noise_ug:.4g} µg per axis")
     print("observability: " + obs.describe())
+    if noise:
+        print(describe_noise(noise))
     print(f"{'parameter':<10} {'Cramér-Rao SD':>14}")
     for n, s in zip(model.names, sd):
         print(f"{n:<10} {s:14.3e}" if np.isfinite(s) else f"{n:<10} {'unobservable':>14}")

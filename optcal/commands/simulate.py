@@ -7,7 +7,7 @@ import json
 from ..errors import InputError
 from ._common import read_json_object, refuse_overwrite
 
-HELP = "simulate static positions of an accelerometer and write a positions CSV"
+HELP = "simulate static positions of an accelerometer and write a positions CSV (default model nonlinear12)"
 
 
 def add_arguments(p):
@@ -15,14 +15,16 @@ def add_arguments(p):
     p.add_argument("--model", default="nonlinear12", help="model of the simulated sensor (default nonlinear12)")
     p.add_argument("--truth", help="JSON {name: value}; default: navigation-grade values drawn from --seed")
     p.add_argument("--noise-ug", type=float, default=10.0, help="SD of each position's mean per axis, µg (default 10)")
-    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--seed", type=int, default=0,
+                   help="seed of the random draws: truth, random schemes, tilt, noise (default 0)")
     p.add_argument("--tilt-deg", type=float, default=0.0, help="placement error SD per axis, degrees")
     p.add_argument("--temp", help="temperature ramp C1:C2 over the positions, °C")
     p.add_argument("--dwell-s", type=float, help="dwell per position, s (adds time stamps)")
     p.add_argument("--effect", action="append", default=[], metavar="TERM:name=value,...",
                    help="hidden effect the model lacks, e.g. cubic:K3_x=1e-4 (repeatable)")
     p.add_argument("--reference", action="store_true", help="add turntable reference columns ref_x, ref_y, ref_z")
-    p.add_argument("--reference-error-arcsec", type=float, default=0.0)
+    p.add_argument("--reference-error-arcsec", type=float, default=0.0,
+                   help="with --reference: SD per axis of the true orientation about the commanded one, arcsec")
     p.add_argument("--gravity-g", type=float, default=1.0, help="local gravity in g (default 1)")
     p.add_argument("-o", "--output", required=True, help="positions CSV to write")
     p.add_argument("--truth-out", help="also write the full truth (with effects) as JSON")
