@@ -269,7 +269,7 @@ def _curve_panels(panels: list[dict], title: str, path: Path, order: list[str] |
     plt = _plt()
     ncol = min(2, len(panels))
     nrow = int(np.ceil(len(panels) / ncol))
-    fig, axes = plt.subplots(nrow, ncol, figsize=(7.2 * ncol, 5.0 * nrow), squeeze=False)
+    fig, axes = plt.subplots(nrow, ncol, figsize=(7.2 * ncol, 6.2 * nrow), squeeze=False)
     colour: dict[str, int] = {}
     for name in order or []:
         colour.setdefault(name, len(colour))
@@ -299,7 +299,9 @@ def _curve_panels(panels: list[dict], title: str, path: Path, order: list[str] |
         ax.set_ylabel(p["ylabel"])
         ax.set_title(p["title"], fontsize=9)
         ax.grid(True, which="both", alpha=0.3)
-        ax.legend(fontsize=6.5, loc="best", title=p.get("legend_title"), title_fontsize=6.5)
+        # below the panel: no search for a free spot among seventy curves, and no curve hidden
+        ax.legend(fontsize=6.5, loc="upper center", bbox_to_anchor=(0.5, -0.13), ncol=2, frameon=False,
+                  title=p.get("legend_title"), title_fontsize=6.5)
     for ax in axes.flat[len(panels):]:
         ax.set_visible(False)
     fig.suptitle(title, fontsize=10)

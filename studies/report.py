@@ -174,7 +174,8 @@ def _anytime_section(rows: list[dict], order: list[str], spec: dict, figdir: Pat
         "below it meets every cost target);",
         f"- **accuracy targets**: the trial's accuracy ≤ {acc_t}, where a trial's accuracy is the RMS over "
         "the parameters of |error| / CRLB (the error's observable part against its Cramér-Rao bound) of the "
-        "best point so far. The optimum itself scores about 1 (above 1 in about half of the runs).",
+        "best point so far. An efficient estimate scatters around 1 from run to run, so the optimum itself "
+        "misses the tightest accuracy target in some runs.",
         "",
         "Evaluations to a target: the first point of the 10-per-decade evaluation grid at which it is met; "
         "never met, or a failed trial: ∞. **Runtime ECDF** (COCO / IOHprofiler): the fraction of "
