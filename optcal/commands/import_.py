@@ -1,0 +1,51 @@
+"""optcal import: another tool's calibration file as an optcal calibration file (docs/exchange.md)."""
+
+from __future__ import annotations
+
+from ._dataopts import add_gravity_options
+from .export import FORMATS
+
+NAME = "import"
+HELP = "read an imucal, imu_tk, kalibr or matrix calibration into an optcal calibration file"
+UNITS = ("g", "m/s2", "counts", "volts", "mg")  # optcal.data.UNITS, kept here so --help stays light
+
+
+def add_arguments(p):
+    p.add_argument("file", metavar="FILE", help="the other tool's calibration file")
+    p.add_argument("--format", required=True, choices=FORMATS,
+                   help="imucal (Ferraris JSON), imu_tk (T, K, B text), kalibr (imu yaml, scale-misalignment) or "
+                   "matrix (a = C·raw + d, JSON); docs/exchange.md writes each conversion out")
+    p.add_argument("-o", "--output", required=True, metavar="CALIBRATION.json", help="the optcal calibration file")
+    p.add_argument("--force", action="store_true", help="overwrite an existing output file")
+    p.add_argument("--units", choices=UNITS,
+                   help="raw output units, where the file does not state them (imu_tk; imucal with an unknown "
+                   "from_acc_unit)")
+    p.add_argument("--calibrated-units", choices=("g", "m/s2"),
+                   help="imu_tk only: unit of its calibrated output (default m/s2, as imu_tk's g_mag is 9.81)")
+    p.add_argument("--model", help="optcal model to hold it: diag6, linear9 or scale+bias+misalignment6 "
+                   "(default: the smallest that holds the file exactly)")
+    add_gravity_options(p)
+
+
+def run(args) -> int:
+    import json
+    from pathlib import Path
+
+    from ..calfile import read_calibration
+    from ..errors import InputError
+    from ..exchange import import_calibration
+    from ..exchange.common import write_new
+    from ._dataopts import gravity_from_args
+
+    if Path(args.output).exists() and not args.force:
+        raise InputError(f"{args.output} exists; choose another output path or pass --force to overwrite it")
+    g = gravity_from_args(args) if (args.gravity is not None or args.latitude is not None) else None
+    doc, notes = import_calibration(args.file, args.format, units=args.units, calibrated=args.calibrated_units,
+                                    model=args.model, g_local=g)
+    # read_calibration checks the file before it replaces the output: what optcal writes, optcal can read
+    write_new(args.output, json.dumps(doc, indent=2) + "\n", force=args.force, check=read_calibration)
+    print(f"wrote {args.output}: {args.file} ({args.format}) as model {doc['model']}, raw outputs in "
+          f"{doc['units']['output']}, g_local {doc['g_local']:.9g} g")
+    for note in notes:
+        print(f"note: {note}")
+    return 0
