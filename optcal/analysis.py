@@ -4,7 +4,8 @@ The norm ‖A‖ does not change when the body frame rotates, so with the norm c
 entries of diag(K)·T are observable (docs/design.md §6): ``seed15`` holds three unobservable directions, which
 only the small nonlinear terms tie down. They show up here as near-zero singular values of the Jacobian,
 after each column is put in natural units (relative scale change, g, rad, ...), so that the threshold
-does not depend on the sensor's output units.
+does not depend on the sensor's output units (the linear algebra is in :mod:`optcal.gauge`, which the
+problem also uses for its gauge rows).
 """
 
 from __future__ import annotations
@@ -13,25 +14,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .model import Model
-from .presets import family
+from .gauge import RTOL, n_position_residuals, natural_units, null_space
 from .problem import CalibrationProblem
 
-
-def natural_units(problem: CalibrationProblem, x_full: np.ndarray) -> np.ndarray:
-    """One 'natural' unit per parameter: a change of one unit moves residuals by O(1) g."""
-    model: Model = problem.model
-    K = np.abs(x_full[model.groups()["scale"]])
-    out = np.ones(model.n_params)
-    for k, n in enumerate(model.names):
-        f = family(n)
-        if f in ("K", "K2", "K3"):
-            out[k] = K["xyz".index(n[-1])]
-        elif f in ("beta", "gamma") and problem.ctx.dtemp is not None:
-            out[k] = 1.0 / max(np.std(problem.ctx.dtemp), 1e-12)
-        elif f == "d" and problem.ctx.dt is not None:
-            out[k] = 1.0 / max(np.std(problem.ctx.dt), 1e-12)
-    return out
+__all__ = ["GoodnessOfFit", "Observability", "covariance", "crlb", "fisher", "goodness_of_fit", "natural_units",
+           "observability", "standard_errors"]
 
 
 @dataclass(frozen=True)
@@ -74,54 +61,24 @@ class Observability:
         return "\n".join(lines)
 
 
-def _sparse_basis(V: np.ndarray) -> np.ndarray:
-    """A sparse basis of span(V) (columns): Gauss-Jordan elimination of Vᵀ with full pivoting, so each
-    direction is led by the parameter it moves most; columns of unit norm."""
-    R = V.T.copy()
-    free = np.ones(R.shape[1], bool)
-    for r in range(R.shape[0]):
-        sub = np.abs(R[r:]) * free
-        i, c = np.unravel_index(int(np.argmax(sub)), sub.shape)
-        R[[r, r + i]] = R[[r + i, r]]
-        R[r] /= R[r, c]
-        others = np.arange(R.shape[0]) != r
-        R[others] -= np.outer(R[others, c], R[r])
-        free[c] = False
-    R[np.abs(R) < 1e-9] = 0.0
-    B = R.T
-    return B / np.linalg.norm(B, axis=0, keepdims=True)
-
-
-def _n_pos(problem: CalibrationProblem) -> int:
-    """Number of data residuals (gauge rows excluded)."""
-    return len(problem.data) * (3 if problem.reference else 1)
-
-
-def observability(problem: CalibrationProblem, x_full: np.ndarray | None = None, rtol: float = 1e-3) -> Observability:
+def observability(problem: CalibrationProblem, x_full: np.ndarray | None = None, rtol: float = RTOL) -> Observability:
     """Rank and null space of the residual Jacobian at ``x_full`` (default: the problem's centre).
 
     A direction is unobservable when its singular value, in natural units, is below ``rtol`` times the
     largest (Fisher information below rtol² of the best-determined direction).
     """
     x = problem.centre if x_full is None else np.asarray(x_full, float)
-    u = natural_units(problem, x)
-    J = problem.jacobian_full(x)[: _n_pos(problem)] * u
-    _, s, vt = np.linalg.svd(J, full_matrices=True)
-    s_full = np.zeros(J.shape[1])
-    s_full[: len(s)] = s
-    rel = s_full / s_full[0]
-    rank = int(np.sum(rel > rtol))
-    null = vt[rank:].T
-    return Observability(problem.model.names, rank, rel, _sparse_basis(null) if null.size else null, rtol)
+    rank, rel, null, _ = null_space(problem, x, rtol)
+    return Observability(problem.model.names, rank, rel, null, rtol)
 
 
 def fisher(problem: CalibrationProblem, x_full: np.ndarray, sigma_g: float) -> np.ndarray:
-    J = problem.jacobian_full(x_full)[: _n_pos(problem)]
+    J = problem.jacobian_full(x_full)[: n_position_residuals(problem)]
     return J.T @ J / sigma_g**2
 
 
 def crlb(problem: CalibrationProblem, x_full: np.ndarray | None = None, sigma_g: float | None = None,
-         rtol: float = 1e-3) -> tuple[np.ndarray, np.ndarray]:
+         rtol: float = RTOL) -> tuple[np.ndarray, np.ndarray]:
     """Cramér-Rao standard deviations of every parameter, and a mask of those that are observable.
 
     Noise is white, input-referred, ``sigma_g`` (g) per axis on each position's mean, so each norm
@@ -134,7 +91,7 @@ def crlb(problem: CalibrationProblem, x_full: np.ndarray | None = None, sigma_g:
         raise ValueError("crlb needs the noise level: give sigma_g or data with n and sx, sy, sz")
     obs = observability(problem, x, rtol)
     u = natural_units(problem, x)
-    J = problem.jacobian_full(x)[: _n_pos(problem)] * u
+    J = problem.jacobian_full(x)[: n_position_residuals(problem)] * u
     F = J.T @ J / sigma**2
     if obs.null_space.size:
         P = np.eye(len(u)) - obs.null_space @ np.linalg.pinv(obs.null_space)
@@ -151,7 +108,7 @@ def crlb(problem: CalibrationProblem, x_full: np.ndarray | None = None, sigma_g:
 def covariance(problem: CalibrationProblem, x_full: np.ndarray, sigma_g: float) -> np.ndarray:
     """Parameter covariance σ²(JᵀJ)⁻¹ (pseudo-inverse over observable directions)."""
     u = natural_units(problem, x_full)
-    J = problem.jacobian_full(x_full)[: _n_pos(problem)] * u
+    J = problem.jacobian_full(x_full)[: n_position_residuals(problem)] * u
     cov = np.linalg.pinv(J.T @ J, rcond=1e-12) * sigma_g**2
     return cov * np.outer(u, u)
 

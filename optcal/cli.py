@@ -37,7 +37,8 @@ def _command_modules() -> list[tuple[str, object]]:
     found = []
     for info in sorted(pkgutil.iter_modules(commands.__path__), key=lambda m: m.name):
         if not info.name.startswith("_"):
-            mod = importlib.import_module(f"{commands.__name__}.{info.name}")
+            # relative to optcal.commands: a module of that folder, never one of another package or layer
+            mod = importlib.import_module(f".{info.name}", commands.__name__)
             found.append((getattr(mod, "NAME", info.name), mod))
     taken = {name for name, _ in found}
     for ep in sorted(entry_points(group=ENTRY_POINT_GROUP), key=lambda e: e.name):

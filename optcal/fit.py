@@ -1,12 +1,13 @@
-"""Fitting a positions data set end to end: problem, solver (from the registry, by name, at run time),
-standard errors, observability and goodness of fit.
+"""Fitting a positions data set end to end: problem, solver (from the registry, by name), standard errors,
+observability and goodness of fit.
 
-``optcal`` does not import ``solvers``; :func:`get_solver` looks the registry up when it is called.
+Application layer (CONTRIBUTING.md, "Layers"): this module runs a solver, so it imports ``solvers``; the
+core modules it builds on (problem, analysis, data, model, presets) do not. The import is inside
+:func:`get_solver` only because importing the solver modules loads their back-ends (cvxpy, CasADi, NLopt).
 """
 
 from __future__ import annotations
 
-import importlib
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -23,12 +24,11 @@ MISFIT_P = 1e-3
 
 
 def get_solver(name: str, **options):
-    """A configured solver from the registry in the ``solvers`` package (imported at run time)."""
-    try:
-        registry = importlib.import_module("solvers")
-    except ImportError as exc:  # pragma: no cover - the distribution installs both packages
-        raise InputError(f"the solvers package is not installed ({exc}); reinstall optcal") from None
-    return registry.get(name, **options)
+    """A configured solver from the registry (``solvers.registry.get``: a name, a ``wrapper:inner`` or a
+    ``family:NAME``; docs/design.md §10)."""
+    import solvers
+
+    return solvers.get(name, **options)
 
 
 @dataclass

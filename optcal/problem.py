@@ -9,100 +9,25 @@ A problem can be *viewed* restricted to some parameters (the rest held fixed; th
 and in normalised coordinates x = centre + halfwidth · z with z in [−1, 1] (2020 paper §3.4: search
 methods need parameters of similar magnitude). Views share one evaluation counter, so a budget covers
 everything done on a problem, and the counter keeps the best point ever evaluated so no solver can lose it.
+
+The budget and the counter are in :mod:`optcal.budget` (re-exported here), the linear algebra of the gauge
+rows in :mod:`optcal.gauge`, and the NumPy oracle of the residuals and Jacobian in :mod:`optcal.oracle`.
 """
 
 from __future__ import annotations
 
 import copy
-import sys
-import time
-from dataclasses import dataclass, field
 
 import numpy as np
 
+from . import oracle
+from .budget import Budget, Counter
 from .data import PositionsData
-from .errors import BudgetExhausted, InputError
+from .errors import InputError
+from .gauge import gauge_rows
 from .linfit import linear_start
 from .model import Context, Model, get_model
 from .presets import Presets, default_halfwidth
-
-
-@dataclass(frozen=True)
-class Budget:
-    """Evaluation budget: at most ``max_evals`` candidate evaluations, ``max_time`` seconds, or stop
-    once the best cost reaches ``target``. A Jacobian counts as one evaluation."""
-
-    max_evals: int | None = None
-    max_time: float | None = None
-    target: float | None = None
-
-    def __post_init__(self):
-        if self.max_evals is not None and self.max_evals < 1:
-            raise InputError(f"budget max_evals must be at least 1, got {self.max_evals}")
-        if self.max_time is not None and self.max_time <= 0:
-            raise InputError(f"budget max_time must be positive, got {self.max_time}")
-
-    @classmethod
-    def of(cls, budget) -> Budget:
-        if budget is None:
-            return cls()
-        if isinstance(budget, Budget):
-            return budget
-        if isinstance(budget, int | np.integer):
-            return cls(max_evals=int(budget))
-        if isinstance(budget, dict):
-            return cls(**budget)
-        raise InputError(f"budget must be a Budget, an int (evaluations) or a dict, not {type(budget).__name__}")
-
-
-@dataclass
-class Counter:
-    """Evaluations, elapsed time and the best point so far, shared by every view of a problem."""
-
-    budget: Budget = field(default_factory=Budget)
-    nfev: int = 0
-    njev: int = 0
-    t0: float = field(default_factory=time.perf_counter)
-    best_f: float = np.inf
-    best_x: np.ndarray | None = None
-    trace: list = field(default_factory=list)  # (evaluations, best cost, seconds) at each improvement
-    trace_x: list = field(default_factory=list)  # the best full parameter vector at each improvement
-    stopped: str = ""
-
-    def __post_init__(self):
-        b = self.budget
-        # The single-candidate path only compares nfev with `limit`; time and target budgets send every
-        # call through `allow` (limit 0).
-        self.limit = 0 if (b.max_time is not None or b.target is not None) else (
-            sys.maxsize if b.max_evals is None else b.max_evals)
-
-    def elapsed(self) -> float:
-        return time.perf_counter() - self.t0
-
-    def allow(self, S: int) -> int:
-        """How many of S candidates may be evaluated now; raises when nothing may be."""
-        b = self.budget
-        if not self.stopped:
-            if b.max_evals is not None and self.nfev >= b.max_evals:
-                self.stopped = "evaluation budget used up"
-            elif b.max_time is not None and self.elapsed() >= b.max_time:
-                self.stopped = "time budget used up"
-            elif b.target is not None and self.best_f <= b.target:
-                self.stopped = "target cost reached"
-        if self.stopped:
-            raise BudgetExhausted(self.stopped)
-        return S if b.max_evals is None else min(S, b.max_evals - self.nfev)
-
-    def record(self, f: np.ndarray, X_full: np.ndarray) -> None:
-        self.nfev += len(f)
-        finite = np.isfinite(f)
-        if finite.any():
-            i = int(np.argmin(np.where(finite, f, np.inf)))
-            if f[i] < self.best_f:
-                self.best_f, self.best_x = float(f[i]), X_full[i].copy()
-                self.trace.append((self.nfev, self.best_f, self.elapsed()))
-                self.trace_x.append(self.best_x)
-
 
 _NO_RESIDUALS = np.empty((0, 0))
 _FLOAT64 = np.dtype(np.float64)
@@ -220,12 +145,9 @@ class CalibrationProblem:
         self._gauge = None
         self._full_buffers = self._view_buffers = None
         if fix_gauge and not reference:
-            from .analysis import natural_units, observability
-
-            obs = observability(self, centre)
-            if obs.rank < self.model.n_params:
-                self._gauge = obs.null_space.T / natural_units(self, centre)
-                self._full_buffers = None
+            self._gauge = gauge_rows(self, centre)
+            if self._gauge is not None:
+                self._full_buffers = None  # packed without the gauge rows while they were being found
 
     # -- views -----------------------------------------------------------------------------
     def restrict(self, groups_or_indices, at: np.ndarray | None = None) -> CalibrationProblem:
@@ -346,24 +268,8 @@ class CalibrationProblem:
         return R
 
     def residuals_full_numpy(self, X_full) -> np.ndarray:
-        """:meth:`residuals_full` through the NumPy model (the oracle the compiled kernel is tested
-        against)."""
-        X_full = np.atleast_2d(X_full)
-        # Blocks of about 16k position-candidates keep the element-wise chain in cache (measured
-        # 1.6x faster than one block at S = 10,000 on 24 positions).
-        step = max(1, 16384 // len(self.data))
-        if len(X_full) > step:
-            return np.concatenate([self.residuals_full_numpy(X_full[i:i + step])
-                                   for i in range(0, len(X_full), step)])
-        with np.errstate(all="ignore"):
-            if self.reference:
-                N = self.model.forward(X_full, self.data.ref, self.ctx)
-                return ((self.data.N - N) / self._K0).reshape(len(X_full), -1)
-            A = self.model.inverse(X_full, self.data.N, self.ctx)
-            r = np.linalg.norm(A, axis=-1) - self.g_local
-        if self._gauge is not None:
-            r = np.concatenate([r, (X_full - self.centre) @ self._gauge.T], axis=1)
-        return r
+        """:meth:`residuals_full` through the NumPy model (:func:`optcal.oracle.residuals`)."""
+        return oracle.residuals(self, X_full)
 
     def position_residuals(self, x_full) -> np.ndarray:
         """Residuals of the positions alone (n or 3n), in g, without gauge rows."""
@@ -404,9 +310,7 @@ class CalibrationProblem:
             i = -1 if np.all(np.isnan(fk)) else int(np.nanargmin(fk))
         counter.nfev += k
         if i >= 0 and f[i] < counter.best_f:
-            counter.best_f, counter.best_x = float(f[i]), self.to_full(Xk[i])[0]
-            counter.trace.append((counter.nfev, counter.best_f, counter.elapsed()))
-            counter.trace_x.append(counter.best_x)
+            counter.improve(f[i], self.to_full(Xk[i])[0])
         return R, f
 
     @property
@@ -438,9 +342,7 @@ class CalibrationProblem:
         f = _kernel().cost_one(x, fb, ib, work)
         counter.nfev += 1
         if f < counter.best_f:
-            counter.best_f, counter.best_x = f, self.to_full(x)[0]
-            counter.trace.append((counter.nfev, f, counter.elapsed()))
-            counter.trace_x.append(counter.best_x)
+            counter.improve(f, self.to_full(x)[0])
         return f
 
     # -- derivatives ----------------------------------------------------------------------
@@ -457,18 +359,8 @@ class CalibrationProblem:
         return J
 
     def jacobian_full_numpy(self, x_full) -> np.ndarray:
-        """:meth:`jacobian_full` by complex step through the NumPy model (the oracle)."""
-        x_full = np.asarray(x_full, float)
-        if self.reference:
-            Fp = self.model.dforward_dp(x_full, self.data.ref, self.ctx)  # (n, 3, p)
-            return (-Fp / self._K0[None, :, None]).reshape(-1, x_full.size)
-        A = self.model.inverse(x_full[None], self.data.N, self.ctx)[0]
-        Fa = self.model.dforward_dA(x_full[None], A[None], self.ctx)[0]  # (n, 3, 3)
-        Fp = self.model.dforward_dp(x_full, A, self.ctx)  # (n, 3, p)
-        dA = -np.linalg.solve(Fa, Fp)  # (n, 3, p)
-        u = A / np.linalg.norm(A, axis=1, keepdims=True)
-        J = np.einsum("ni,nip->np", u, dA)
-        return J if getattr(self, "_gauge", None) is None else np.vstack([J, self._gauge])
+        """:meth:`jacobian_full` through the NumPy model (:func:`optcal.oracle.jacobian`)."""
+        return oracle.jacobian(self, x_full)
 
     def jacobian(self, x) -> np.ndarray:
         """Jacobian (m, n) in this view's coordinates; counts one evaluation."""

@@ -1,7 +1,10 @@
 """Calibration solvers: one module per backend, the Solver contract and the registry.
 
-Every module in this package (other than ``base`` and ``registry``) is imported here, so a new solver
-is added by dropping one file that calls :func:`solvers.registry.register` (see CONTRIBUTING.md).
+Every module in this package (other than ``base``, ``registry`` and names starting with ``_``) is imported
+here, so a new solver is added by dropping one file that calls :func:`solvers.registry.register` (see
+CONTRIBUTING.md). This plugin discovery stays inside the package: the names come from the package's own
+folder and are imported relative to it, so it cannot reach another layer; third-party solvers come in
+through the ``optcal.solvers`` entry points (:func:`solvers.registry.load_entry_points`).
 """
 
 import importlib
@@ -12,7 +15,7 @@ from .registry import describe_all, get, names, register, register_variant, regi
 
 for _m in sorted(m.name for m in pkgutil.iter_modules(__path__)):
     if _m not in ("base", "registry") and not _m.startswith("_"):
-        importlib.import_module(f"{__name__}.{_m}")
+        importlib.import_module(f".{_m}", __name__)
 
 __all__ = ["Option", "Solver", "SolverResult", "describe_all", "get", "names", "register", "register_variant",
            "register_wrapper"]

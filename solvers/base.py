@@ -223,7 +223,7 @@ class Solver:
         if x0 is None:
             # The convex ellipsoid fit initialises every local method when neither x0 nor presets are given.
             if problem.presets is None and self.family == "local":
-                from .ellipsoid import ellipsoid_start
+                from ._ellipsoid_fit import ellipsoid_start
 
                 return ellipsoid_start(problem)
             return problem.x0

@@ -1,13 +1,13 @@
 """optcal solvers: every registered solver (built-in and plugins) with its options and defaults, whether it
 can run here, and the wrapper prefixes that compose with any of them (``staged:bsas``, ``mcs:nafsa``).
 
-The registry lives in the ``solvers`` package, which ``optcal`` does not import statically (docs/design.md §1); it
-is looked up at run time, as :func:`optcal.fit.get_solver` does.
+A command, so application layer (CONTRIBUTING.md, "Layers"): it imports the registry from ``solvers``
+directly, inside :func:`listing` so that building the parser (``optcal --help``) does not load the solver
+back-ends.
 """
 
 from __future__ import annotations
 
-import importlib
 import json
 
 from ..errors import InputError
@@ -18,13 +18,6 @@ HELP = "list the registered solvers with their options, defaults and availabilit
 def add_arguments(p):
     p.add_argument("names", nargs="*", metavar="NAME", help="only these solvers (default: all)")
     p.add_argument("--json", action="store_true", help="print one JSON object")
-
-
-def _registry():
-    try:
-        return importlib.import_module("solvers")
-    except ImportError as exc:  # pragma: no cover - the distribution installs both packages
-        raise InputError(f"the solvers package is not installed ({exc}); reinstall optcal") from None
 
 
 def _plain(v):
@@ -40,8 +33,8 @@ def _plain(v):
 
 def listing(names: list[str] | None = None) -> dict:
     """{"solvers": [...], "wrappers": [...]} as printed by ``optcal solvers --json``."""
-    solvers = _registry()
-    reg = solvers.registry
+    from solvers import registry as reg
+
     known = reg.names()
     unknown = [n for n in names or [] if n not in known]
     if unknown:
