@@ -18,8 +18,8 @@ def add_arguments(p):
     p.add_argument("-o", "--output", required=True, metavar="CALIBRATION.json", help="the optcal calibration file")
     p.add_argument("--force", action="store_true", help="overwrite an existing output file")
     p.add_argument("--units", choices=UNITS,
-                   help="raw output units, where the file does not state them (imu_tk; imucal with an unknown "
-                   "from_acc_unit)")
+                   help="raw output units where the file does not state them: imu_tk (required), imucal with an "
+                   "unknown from_acc_unit, kalibr (default m/s2; g or mg if its m/s² were converted from those)")
     p.add_argument("--calibrated-units", choices=("g", "m/s2"),
                    help="imu_tk only: unit of its calibrated output (default m/s2, as imu_tk's g_mag is 9.81)")
     p.add_argument("--model", help="optcal model to hold it: diag6, linear9 or scale+bias+misalignment6 "

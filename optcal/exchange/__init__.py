@@ -78,7 +78,8 @@ def export_text(cal, fmt: str, *, calibrated: str | None = None, bias_online: bo
 def import_calibration(path, fmt: str, *, units: str | None = None, calibrated: str | None = None,
                        model: str | None = None, g_local: float | None = None) -> tuple[dict, list[str]]:
     """The optcal calibration-file dictionary of a tool's file, and notes for the user. ``units``: the raw
-    units where the file does not state them (imu_tk) or states a label optcal does not know (imucal);
+    units where the file does not state them (imu_tk), states a label optcal does not know (imucal), or
+    are Kalibr's m/s² converted from g or mg;
     ``calibrated``: imu_tk's calibrated unit (its file does not say); ``model``: the optcal model to hold the
     result (default: the smallest exact one); ``g_local`` in g (default: the file's, else 1)."""
     from ..data import UNITS
@@ -107,9 +108,8 @@ def import_calibration(path, fmt: str, *, units: str | None = None, calibrated: 
         from . import kalibr
 
         _calibrated(fmt, calibrated)
-        if units not in (None, "m/s2"):
-            raise InputError("Kalibr's measurements are in m/s²; drop --units")
-        lin = kalibr.from_kalibr(kalibr.loads(common.read_text(path, "Kalibr imu yaml"), path))
+        M = kalibr.loads(common.read_text(path, "Kalibr imu yaml"), path)
+        lin = kalibr.from_kalibr(M, units or "m/s2")
         notes.append("Kalibr's file holds no accelerometer bias (Kalibr estimates it online): the biases are 0")
     else:
         from . import matrix

@@ -46,9 +46,14 @@ def to_kalibr(lin: LinearPart, *, bias_online: bool = False) -> tuple[np.ndarray
     return M, bias
 
 
-def from_kalibr(M) -> LinearPart:
-    """optcal's linear part of Kalibr's M (raw outputs in m/s², no bias in the file): M_o = g0·M, o = 0."""
-    return LinearPart(_G0 * np.asarray(M, float), np.zeros(3), "m/s2")
+def from_kalibr(M, units: str = "m/s2") -> LinearPart:
+    """optcal's linear part of Kalibr's M, no bias in the file: M_o = (g0/s)·M, o = 0, for raw outputs in
+    ``units`` worth s m/s² each (Kalibr's own measurements are in m/s²; g or mg when the raw data were
+    converted from those)."""
+    if units not in SI_PER_UNIT:
+        raise InputError(f"Kalibr's measurements are in m/s²; raw units {units!r} have no fixed value in m/s² "
+                         f"(use {', '.join(SI_PER_UNIT)})")
+    return LinearPart((_G0 / SI_PER_UNIT[units]) * np.asarray(M, float), np.zeros(3), units)
 
 
 def dumps(M, comment_lines=()) -> str:
