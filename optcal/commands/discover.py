@@ -35,7 +35,7 @@ def add_arguments(p):
 
 
 def run(args) -> int:
-    from ..discovery import discover
+    from ..discovery.workflow import discover
 
     if args.plot:
         out = Path(args.plot)

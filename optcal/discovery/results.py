@@ -1,0 +1,185 @@
+"""What model discovery found (docs/design.md §12): each added term with the test that chose it
+(:class:`Step`) and the whole search (:class:`DiscoveryReport`: the final model, its χ² against the noise
+floor, the verdict, the JSON form). Core: built by :func:`optcal.discovery.workflow.discover`, read by
+anything; the plain text is :mod:`optcal.discovery.text`'s and the figure :mod:`optcal.plots.discovery`'s.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..analysis import crlb
+from ..model import TERMS, Model
+from .statistics import (
+    EXPLAINED,
+    NO_DOF,
+    REMAINS,
+    UNKNOWN,
+    Fit,
+    Score,
+    corr,
+    num,
+    projected,
+    regressors,
+    residual_sigma,
+)
+
+
+@dataclass
+class Step:
+    """One added term: its fitted parameters with standard errors, the gap before and after, the test."""
+
+    term: str
+    before: Fit
+    after: Fit
+    chosen: Score
+    scores: list[Score]
+    p_threshold: float
+    stderr: dict[str, float]
+    alternatives: list[str]
+
+    @property
+    def parameters(self) -> dict[str, float]:
+        names = TERMS[self.term].params
+        return {n: float(self.after.x[self.after.model.index(n)]) for n in names}
+
+    def added_variable(self) -> np.ndarray:
+        """The added term as a single regressor of the residual (an added-variable plot's abscissa, g).
+
+        The term's fitted effect on each norm residual, c_j = Σ_i â_i·ΔN_i/K_i at the specific force of
+        the fit before the step, with its projection on the base model's Jacobian columns removed (that
+        part the base absorbs by moving its own parameters). Before the step the residuals scatter along
+        slope one against it; after the step they should scatter about zero."""
+        b, f = self.before, self.after
+        x0 = f.x.copy()
+        x0[f.model.term_slices()[self.term]] = 0.0
+        A = b.specific_force
+        dN = f.model.forward(f.x, A, f.problem.ctx)[0] - f.model.forward(x0, A, f.problem.ctx)[0]
+        c = np.sum(A / np.linalg.norm(A, axis=1, keepdims=True) * dN / f.x[f.model.groups()["scale"]], axis=1)
+        J = b.problem.jacobian_full(b.x)
+        return c - J @ np.linalg.lstsq(J, c, rcond=None)[0]
+
+    def correlations(self) -> dict[str, dict]:
+        """Correlation of the residuals with each of the term's regressors (as the norm residual sees them,
+        at the specific force before the step), before and after the step."""
+        A = self.before.specific_force
+        out = {}
+        for name, label, axis, values in regressors(self.term, A, self.before.problem):
+            r = projected(A, axis, values)
+            out[name] = {"regressor": label, "before": corr(r, self.before.residuals),
+                         "after": corr(r, self.after.residuals)}
+        return out
+
+    def to_dict(self) -> dict:
+        c = self.chosen
+        return {
+            "added": self.term,
+            "parameters": self.parameters,
+            "stderr": {n: num(s) for n, s in self.stderr.items()},
+            "rms_before_g": self.before.rms, "rms_after_g": self.after.rms,
+            "statistic": num(c.f_statistic), "test": "F", "df": [c.q, c.dof],
+            "p_value": num(c.p_value), "p_threshold": self.p_threshold,
+            "delta_bic": num(c.delta_bic), "lr_statistic": num(c.lr_statistic),
+            "alternatives": self.alternatives,
+            "correlations": self.correlations(),
+            "candidates": [s.to_dict() for s in self.scores],
+        }
+
+
+@dataclass
+class DiscoveryReport:
+    base: str
+    initial: Fit
+    final: Fit
+    steps: list[Step]
+    last_round: list[Score]  # the round in which nothing was added (why the search stopped)
+    alpha: float
+    bic_threshold: float
+    noise_g: float | None  # RMS over positions of σ_j
+    sigma_j: np.ndarray | None  # noise of each norm residual, g (from noise_g or the data's n and sx, sy, sz)
+    notes: list[str] = field(default_factory=list)
+
+    @property
+    def final_model(self) -> Model:
+        return self.final.model
+
+    @property
+    def added(self) -> list[str]:
+        return [s.term for s in self.steps]
+
+    @property
+    def m(self) -> int:
+        return self.final.problem.n_residuals
+
+    @property
+    def dof(self) -> int:
+        return self.m - self.final.rank
+
+    @property
+    def expected_rms(self) -> float | None:
+        """The RMS a correct model leaves: σ·√((m − p)/m)."""
+        return None if self.noise_g is None else self.noise_g * np.sqrt(self.dof / self.m)
+
+    @property
+    def chi2(self) -> tuple[float, int, float] | None:
+        """χ² goodness of fit of the final model against the known noise, Σ (e_j/σ_j)²: (χ², dof, p-value)."""
+        from scipy import stats
+
+        if self.sigma_j is None or self.dof < 1:
+            return None
+        c = float(np.sum((self.final.residuals / self.sigma_j) ** 2))
+        return c, self.dof, float(stats.chi2.sf(c, self.dof))
+
+    @property
+    def verdict(self) -> str:
+        """χ² test of the final residual against the noise floor at level α (needs the noise)."""
+        if self.dof < 1:
+            return NO_DOF
+        chi = self.chi2
+        if chi is None:
+            return UNKNOWN
+        return EXPLAINED if chi[2] >= self.alpha else REMAINS
+
+    def final_stderr(self) -> np.ndarray:
+        f = self.final
+        sd, _ = crlb(f.problem, f.x, residual_sigma(f, self.noise_g))
+        return sd
+
+    def to_dict(self) -> dict:
+        chi = self.chi2
+        f = self.final
+        return {
+            "base": self.base,
+            "steps": [s.to_dict() for s in self.steps],
+            "final_terms": list(f.model.terms),
+            "final_model": f.model.name,
+            "final_parameters": f.model.to_dict(f.x),
+            "final_stderr": {n: num(s) for n, s in zip(f.model.names, self.final_stderr())},
+            "rms_initial_g": self.initial.rms,
+            "rms_final_g": f.rms,
+            "noise_floor_g": self.noise_g,
+            "noise_per_position_g": None if self.sigma_j is None else [float(v) for v in self.sigma_j],
+            "expected_rms_g": self.expected_rms,
+            "chi2": None if chi is None else {"value": chi[0], "dof": chi[1], "p_value": chi[2]},
+            "verdict": self.verdict,
+            "n_positions": len(f.problem.data), "n_residuals": self.m, "rank": f.rank,
+            "alpha": self.alpha, "bic_threshold": self.bic_threshold,
+            "last_round": [s.to_dict() for s in self.last_round],
+            "residuals_initial_g": [float(v) for v in self.initial.residuals],
+            "residuals_final_g": [float(v) for v in f.residuals],
+            "notes": self.notes,
+        }
+
+    def summary(self) -> str:
+        """A plain-text report (what the CLI prints; :func:`optcal.discovery.text.summary`)."""
+        from .text import summary
+
+        return summary(self)
+
+    def plot(self, path):
+        """Write the residual figure to ``path`` and return it (:func:`optcal.plots.discovery.figure`)."""
+        from ..plots.discovery import figure
+
+        return figure(self, path)
