@@ -2,7 +2,7 @@
 
 ``ng:NGOpt``, ``ng:TwoPointsDE``, ``ng:OnePlusOne``, ``ng:CMA``, ...: the suffix is the optimiser's name in
 nevergrad's registry (Rapin & Teytaud 2018, "Nevergrad - A gradient-free optimization platform",
-https://github.com/facebookresearch/nevergrad). The family is registered with
+https://github.com/facebookresearch/nevergrad); docs/algorithms.md §16. The family is registered with
 :func:`solvers.registry.register_family`; nevergrad is imported only when an ``ng:`` solver is built.
 """
 
@@ -57,9 +57,7 @@ class Nevergrad(Solver):
     Budget: the problem enforces it; the optimiser is asked exactly the evaluations left, so a binding
     budget is used exactly (a time or target budget ends the solve through the problem). The default
     budget, 5000 evaluations, is smaller than the other metaheuristics' because nevergrad's own work per
-    candidate is far larger than an evaluation here: NGOpt runs at about 40 to 550 evaluations per second
-    on 6 to 15 parameters (it chooses a different algorithm, or a portfolio of them, by dimension, budget and
-    batch), TwoPointsDE and OnePlusOne at about 1,500, against 10,000 for ``cmaes``.
+    candidate is far larger than an evaluation here (docs/performance.md gives the figures).
     """
 
     name = "ng"
