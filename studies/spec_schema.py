@@ -1,0 +1,318 @@
+"""The study spec's schema (docs/design.md §11.1) as pydantic models, and the translation of pydantic's
+errors into one line naming the key in the spec file's own terms (``solvers[2].name``, ``verification.scheme``).
+
+Types and bounds are the models' fields (strict: a string is never read as a number, nor a number as a
+boolean); unknown keys are refused (``extra="forbid"``). Validators do only what a field type cannot: turn
+the short forms into the long ones (``budget = 300``, ``models = "seed15"``, ``schemes = 24``), check names
+against the model and scheme tables, and the rules that tie keys together (the truth against the models,
+``name = "all"`` against the keys it excludes, ``scheduler`` against ``kind``). Solver names and options
+are checked against the registry by :func:`studies.spec.parse`, which also expands the entries.
+"""
+
+from __future__ import annotations
+
+from typing import Annotated, Any, Literal, get_args
+
+from pydantic import (
+    AfterValidator,
+    BaseModel,
+    BeforeValidator,
+    ConfigDict,
+    Discriminator,
+    Field,
+    Tag,
+    ValidationError,
+    field_validator,
+    model_validator,
+)
+from pydantic_core import PydanticCustomError
+
+from optcal.errors import InputError
+from optcal.model import get_model
+from optcal.presets import PAPER_TRUTH
+from optcal.schemes import scheme as scheme_directions
+
+EXECUTORS = ("serial", "processes", "dask")
+SCHEME_HINT = 'a scheme name ("24", "36", "6", "random:N")'
+
+
+def _problem(text: str, at: str = "") -> PydanticCustomError:
+    """An error whose text follows the key; ``at`` extends the key (``[1]``, ``.options``) where a validator
+    of a whole list or table finds the fault in one of its items."""
+    return PydanticCustomError("spec", "{text}", {"text": text, "at": at})
+
+
+def _name_of_number(v):
+    """Schemes may be written as numbers (``schemes = [24, 36]``); booleans stay booleans (refused)."""
+    return str(v) if isinstance(v, int) and not isinstance(v, bool) else v
+
+
+def _check_scheme(s: str) -> str:
+    scheme_directions(s)  # raises InputError naming the problem
+    return s
+
+
+def _as_list(v):
+    return v if isinstance(v, list) else [v]
+
+
+def _budget_table(v):
+    return {"max_evals": v} if isinstance(v, int) and not isinstance(v, bool) else v
+
+
+def _repeats(values: list) -> None:
+    """Each model and scheme once: a repeat would give two trials one id (the store keys rows by it)."""
+    seen = set()
+    for i, v in enumerate(values):
+        if v in seen:
+            raise _problem(f"lists {v!r} a second time; give each once", f"[{i}]")
+        seen.add(v)
+
+
+SchemeName = Annotated[str, BeforeValidator(_name_of_number), AfterValidator(_check_scheme)]
+
+
+class _Table(BaseModel):
+    model_config = ConfigDict(extra="forbid", strict=True)
+
+
+class Budget(_Table):
+    max_evals: int | None = Field(None, gt=0, description="an integer number of evaluations")
+    max_time: float | None = Field(None, gt=0, description="a number of seconds")
+    target: float | None = Field(None, ge=0, description="a number: the cost at which to stop")
+
+
+BudgetField = Annotated[
+    Budget | None,
+    BeforeValidator(_budget_table),
+    Field(description="an integer (evaluations) or a table {max_evals, max_time, target}"),
+]
+
+
+class Verification(_Table):
+    scheme: SchemeName = Field("36", description=SCHEME_HINT)
+    noise_ug: float | None = Field(None, ge=0, description="a number of µg (default: the study's noise_ug)")
+    tilt_deg: float = Field(0.0, ge=0, description="a number of degrees")
+
+
+class Navigation(_Table):
+    enabled: bool = True
+    hours: float = Field(5.0, gt=0, le=720.0, description="a number of hours")
+    # the navigation frame is singular at the poles
+    latitude_deg: float = Field(45.0, ge=-89.0, le=89.0, description="a number of degrees")
+    attitude_deg: list[float] = Field([0.0, 0.0, 0.0], min_length=3, max_length=3,
+                                      description="three numbers [roll, pitch, yaw] in degrees")
+
+
+class Executor(_Table):
+    kind: Literal[EXECUTORS] = "serial"
+    workers: int = Field(2, gt=0, description="an integer number of worker processes")
+    scheduler: str = Field("", description='a string: the Dask scheduler address, for kind = "dask"')
+
+    @model_validator(mode="after")
+    def _scheduler_is_for_dask(self):
+        if self.scheduler and self.kind != "dask":
+            raise _problem('is for kind = "dask" (a Dask scheduler address)', ".scheduler")
+        return self
+
+
+ONLY_WITHOUT_ALL = ("options", "grid", "label", "reference", "reference_error_arcsec")
+
+
+class SolverEntry(_Table):
+    name: str = Field(min_length=1, description='a registered solver, e.g. bsas, or "all"')
+    label: str | None = Field(None, description="a string: the label in the report (default: the name)")
+    options: dict[str, Any] = {}
+    grid: dict[str, Annotated[list[Any], Field(min_length=1)]] = Field(
+        {}, description="a table of option = non-empty array of values")
+    budget: BudgetField = None
+    reference: bool = False
+    reference_error_arcsec: Annotated[list[Annotated[float, Field(ge=0)]], BeforeValidator(_as_list)] = Field(
+        [0.0], description="a non-negative number of arcseconds or an array of them")
+    staged: bool = True
+    exclude: list[str] = []
+
+    @model_validator(mode="after")
+    def _keys_that_go_together(self):
+        given = self.model_fields_set
+        if self.name == "all":
+            for k in ONLY_WITHOUT_ALL:
+                if k in given:
+                    raise _problem('cannot be used with name = "all" (solvers have different options); list the '
+                                   "solver separately", f".{k}")
+        else:
+            for k in ("staged", "exclude"):
+                if k in given:
+                    raise _problem('is only for name = "all"', f".{k}")
+            if "reference_error_arcsec" in given and not self.reference:
+                raise _problem("needs reference = true", ".reference_error_arcsec")
+        return self
+
+
+def _truth_kind(v):
+    return "|table" if isinstance(v, dict) else "|name" if isinstance(v, str) else None
+
+
+# A union told apart by the value's type; its tags start with "|" so that error_line can drop them from
+# the key path.
+TruthField = Annotated[
+    Annotated[Literal["paper", "draw"], Tag("|name")] | Annotated[dict[str, float], Tag("|table")],
+    Discriminator(_truth_kind, custom_error_type="spec", custom_error_message="{text}",
+                  custom_error_context={"text": 'must be "paper", "draw" or a table of parameter values'}),
+    Field(description='"paper", "draw" or a table of parameter values'),
+]
+
+
+class SpecFile(_Table):
+    """The spec as written: every key, its type and bounds, and the defaults that need no other key."""
+
+    name: str | None = None
+    description: str = ""
+    runs: int = Field(10, gt=0, description="an integer number of Monte-Carlo runs")
+    quick_runs: int | None = Field(None, gt=0, description="an integer number of runs (default min(runs, 5))")
+    seed: int = Field(0, ge=0, description="a non-negative integer")
+    models: Annotated[list[str], BeforeValidator(_as_list)] = Field(
+        ["nonlinear12"], min_length=1, description="a model name or a non-empty array of them")
+    schemes: Annotated[list[SchemeName], BeforeValidator(_as_list)] = Field(
+        ["24"], min_length=1, description=f"{SCHEME_HINT} or an array of them")
+    truth: TruthField = "paper"
+    presets: Literal["manufacturer", "none"] = "manufacturer"
+    presets_error_scale: float = Field(1.0, ge=0, description="a number: the factor on the manufacturer's error SDs")
+    noise_ug: float = Field(10.0, gt=0, description="a number of µg")
+    tilt_deg: float = Field(0.0, ge=0, description="a number of degrees")
+    g_local: float = Field(1.0, gt=0, description="a number: the local gravity in g")
+    budget: BudgetField = None
+    verification: Verification = Verification()
+    navigation: Navigation = Navigation()
+    executor: Executor = Executor()
+    solvers: list[SolverEntry] = Field(min_length=1, description='an array of tables ([[solvers]] name = "bsas" ...)')
+
+    @field_validator("models")
+    @classmethod
+    def _known_models(cls, models: list[str]) -> list[str]:
+        canonical = [get_model(m).name for m in models]  # an unknown model raises InputError
+        _repeats(canonical)
+        return models
+
+    @field_validator("schemes")
+    @classmethod
+    def _each_scheme_once(cls, schemes: list[str]) -> list[str]:
+        _repeats(schemes)
+        return schemes
+
+    @model_validator(mode="after")
+    def _truth_fits_the_models(self):
+        names = {m: get_model(m).names for m in self.models}
+        if self.truth == "paper":
+            for m, ns in names.items():
+                missing = [n for n in ns if n not in PAPER_TRUTH]
+                if missing:
+                    raise _problem(f"cannot be \"paper\": the paper's truth has no value for {missing[0]} of model "
+                                   f'{m}; use truth = "draw" or a table of values', ".truth")
+        elif isinstance(self.truth, dict):
+            known = {n for ns in names.values() for n in ns}
+            unknown = sorted(set(self.truth) - known)
+            if unknown:
+                raise _problem(f"is not a parameter of the study's models ({', '.join(self.models)}); their "
+                               f"parameters are {', '.join(sorted(known))}", f".truth.{unknown[0]}")
+            for m, ns in names.items():
+                missing = [n for n in ns if n not in self.truth]
+                if missing:
+                    raise _problem(f"lacks {missing[0]} of model {m}", ".truth")
+        return self
+
+
+# -- pydantic's errors as one line ---------------------------------------------------------------------
+
+_KINDS = {"int_type": "an integer", "float_type": "a number", "string_type": "a string",
+          "bool_type": "a boolean (true or false)", "list_type": "an array", "dict_type": "a table",
+          "model_type": "a table", "model_attributes_type": "a table"}
+
+
+def _toml_type(v) -> str:
+    return {bool: "boolean", int: "integer", float: "number", str: "string", list: "array",
+            dict: "table"}.get(type(v), type(v).__name__)
+
+
+def _toml_value(v) -> str:
+    return ("true" if v else "false") if isinstance(v, bool) else repr(v)
+
+
+def _model_in(annotation) -> type[BaseModel] | None:
+    """The pydantic model inside an annotation (``Budget | None``, ``list[SolverEntry]``), if any."""
+    if isinstance(annotation, type) and issubclass(annotation, BaseModel):
+        return annotation
+    for arg in get_args(annotation):
+        found = _model_in(arg)
+        if found is not None:
+            return found
+    return None
+
+
+def _walk(root: type[BaseModel], loc: tuple) -> tuple[str, Any, bool, type[BaseModel] | None]:
+    """The key path of ``loc`` as the spec writes it (``solvers[0].grid.ftol``); the last field on it (for
+    its description) and whether the path ends at that field or an item of its array (not inside a table
+    of free keys such as ``truth.K_x``); and the table that holds the last key (for the keys it knows)."""
+    path, field, exact, model, parent = "", None, True, root, root
+    for el in loc:
+        if isinstance(el, int):
+            path += f"[{el}]"
+            continue
+        if el.startswith("|"):
+            continue  # the tag of a union member, not a key
+        path += ("." if path else "") + el
+        parent = model
+        if model is not None and el in model.model_fields:
+            field, exact = model.model_fields[el], True
+            model = _model_in(field.annotation)
+        else:
+            model, exact = None, False
+    return path, field, exact, parent
+
+
+def _bounds(field) -> list[tuple[str, float]]:
+    """The field's bounds as [(kind, value)], lower first: kind "gt", "ge", "lt" or "le"."""
+    meta = getattr(field, "metadata", [])
+    return [(k, getattr(m, k)) for k in ("gt", "ge", "lt", "le") for m in meta if getattr(m, k, None) is not None]
+
+
+def error_line(exc: ValidationError, root: type[BaseModel] = SpecFile) -> str:
+    """The first of pydantic's errors as one line: ``key 'PATH' <what is wrong and what it must be>``, in the
+    spec's terms (TOML types, key paths as written) and with the field's description of what it takes."""
+    e = exc.errors(include_url=False)[0]
+    path, field, exact, parent = _walk(root, e["loc"])
+    typ, ctx, value = e["type"], e.get("ctx", {}), e.get("input")
+    want = getattr(field, "description", None) if exact else None
+    if typ in ("model_type", "dict_type") and isinstance(e["loc"][-1], int):
+        want = None  # an item of an array of tables: "must be a table" says it
+    got = f"got {_toml_type(value)} {_toml_value(value)}"
+    if typ == "spec":  # our validators' own errors
+        at = ctx.get("at", "")
+        path += at if path else at.lstrip(".")
+        return f"key '{path}' {ctx['text']}" + (f", {got}" if ctx["text"].startswith("must be") else "")
+    if not path:
+        return "must be a TOML table of keys" if typ in _KINDS else e["msg"]
+    if typ == "extra_forbidden":
+        known = ", ".join(sorted(parent.model_fields)) if parent is not None else ""
+        return f"unknown key '{path}'" + (f"; known keys here: {known}" if known else "")
+    if typ == "missing":
+        return f"key '{path}' is required" + (f": {want}" if want else "")
+    if typ == "value_error" and isinstance(ctx.get("error"), InputError):
+        return f"key '{path}': {ctx['error']}"
+    if typ in _KINDS or typ == "literal_error":
+        return f"key '{path}' must be {want or _KINDS.get(typ) or ctx['expected']}, {got}"
+    if typ in ("greater_than", "greater_than_equal", "less_than", "less_than_equal"):
+        words = {"gt": "above", "ge": "at least", "lt": "below", "le": "at most"}
+        bounds = _bounds(field)
+        if len(bounds) == 2 and {k for k, _ in bounds} == {"ge", "le"}:
+            phrase = f"within [{bounds[0][1]:g}, {bounds[1][1]:g}]"
+        elif len(bounds) == 1 and bounds[0][1] == 0 and bounds[0][0] in ("gt", "ge"):
+            phrase = "positive" if bounds[0][0] == "gt" else "non-negative"
+        else:
+            phrase = " and ".join(f"{words[k]} {v:g}" for k, v in bounds)
+        return f"key '{path}' must be {phrase}, got {_toml_value(value)}"
+    if typ in ("too_short", "string_too_short") and ctx.get("min_length") == 1:
+        return f"key '{path}' must not be empty: give " + (want or "an array of values")
+    if typ in ("too_short", "too_long"):
+        return f"key '{path}' must be {want or 'an array of another length'}, got {_toml_value(value)}"
+    return f"key '{path}': {e['msg']}" + (f" ({want})" if want else "")
