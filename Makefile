@@ -25,8 +25,10 @@ run-quick: $(STAMP)
 	$(VENV)/bin/optcal study run compare --quick --executor processes --workers $$(nproc 2>/dev/null || echo 2) \
 		--out out/compare-quick
 
+# ruff, then the layer contracts of pyproject.toml (CONTRIBUTING.md, "Layers"), then the tests.
 test: $(STAMP)
 	$(PY) -m ruff check optcal solvers studies tests
+	$(VENV)/bin/lint-imports --no-cache
 	$(PY) -m pytest
 
 bench: $(STAMP)

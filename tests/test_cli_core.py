@@ -159,23 +159,6 @@ def test_output_cut_short_by_the_reader_is_not_a_traceback():
     assert "Traceback" not in err and "BrokenPipe" not in err
 
 
-def test_optcal_never_imports_solvers_or_studies():
-    """The core library stands alone: solvers are looked up by name at run time (optcal.fit.get_solver)
-    and `optcal study` is a plug-in command found through the optcal.commands entry point."""
-    import ast
-    from pathlib import Path
-
-    import optcal
-
-    offenders = []
-    for path in Path(optcal.__file__).parent.rglob("*.py"):
-        for node in ast.walk(ast.parse(path.read_text())):
-            mods = ([a.name for a in node.names] if isinstance(node, ast.Import)
-                    else [node.module or ""] if isinstance(node, ast.ImportFrom) and node.level == 0 else [])
-            offenders += [f"{path.name}: {m}" for m in mods if m.split(".")[0] in ("solvers", "studies")]
-    assert offenders == []
-
-
 def test_study_is_a_plug_in_command(capsys):
     from optcal.cli import _command_modules
 
