@@ -5,7 +5,10 @@ The problem library: models, schemes, simulation, data I/O, the calibration prob
 imports ``solvers`` or ``studies``; where it needs a fit it asks the registry by name at run time.
 
 The public names are loaded at first use (PEP 562), so that ``import optcal`` and ``optcal --help`` do not
-import NumPy, SciPy or anything heavier; ``from optcal import simulate`` works as before.
+import NumPy, SciPy or anything heavier; ``from optcal import simulate`` works as before. The front door for
+Python users is ``optcal.calibrate``, ``optcal.apply``, ``optcal.read_recording`` and ``optcal.noise``
+(``optcal.api``, docs/api.md). As ``optcal.simulate`` is the function and not its submodule, ``optcal.noise``
+is the analysis function; the module's names are imported from it (``from optcal.noise import analyse``).
 """
 
 from __future__ import annotations
@@ -21,10 +24,13 @@ __version__ = "0.1.0"
 __all__ = [
     "NAMED_MODELS", "TERMS", "Budget", "BudgetExhausted", "CalibrationProblem", "Context", "InputError", "Model",
     "DiscoveryReport", "PositionsData", "Simulation", "discover", "get_model", "read_positions", "simulate",
+    "apply", "calibrate", "noise", "read_recording",
 ]
 
 # name -> the submodule that defines it, imported when the name is first looked up.
 _LAZY = {
+    # the front door (docs/api.md): optcal.calibrate, optcal.apply, optcal.read_recording, optcal.noise
+    "apply": "api", "calibrate": "api", "noise": "api", "read_recording": "api",
     "PositionsData": "data", "read_positions": "data",
     "DiscoveryReport": "discovery", "discover": "discovery",
     "NAMED_MODELS": "model", "TERMS": "model", "Context": "model", "Model": "model", "get_model": "model",
@@ -52,7 +58,8 @@ def __dir__() -> list[str]:
 
 class _Package(types.ModuleType):
     """``optcal.simulate`` is the function, as it was when the package imported it eagerly: importing the
-    submodule ``optcal.simulate`` (which Python records as an attribute of the package) must not replace it."""
+    submodule ``optcal.simulate`` (which Python records as an attribute of the package) must not replace it.
+    The same holds for ``optcal.noise``, the front-door function, and the submodule ``optcal.noise``."""
 
     def __setattr__(self, name, value):
         if isinstance(value, types.ModuleType) and name in _LAZY and value.__name__ == f"{__name__}.{name}":

@@ -1,0 +1,181 @@
+"""The front door for Python users: ``optcal.calibrate``, ``optcal.apply``, ``optcal.read_recording`` and
+``optcal.noise`` (docs/api.md has an example of each, and tests/test_api.py runs them).
+
+This is the application layer over the library: :func:`calibrate` fits through :mod:`optcal.fit`, which
+asks the solver registry by name; no core module imports this one. Heavy modules are imported inside the
+functions, so that ``import optcal`` stays light (the package exposes these names lazily).
+"""
+
+from __future__ import annotations
+
+import os
+from typing import TYPE_CHECKING
+
+from .errors import InputError
+
+if TYPE_CHECKING:
+    import numpy as np
+
+    from .calfile import CalibrationFile
+    from .data import PositionsData
+    from .fit import Calibration
+    from .noise import NoiseReport
+    from .presets import Presets
+    from .recording import Recording
+
+
+def _is_path(obj) -> bool:
+    return isinstance(obj, str | os.PathLike)
+
+
+def _positions(data, units: str | None, raw: bool, g_local: float, model, reading: dict) -> PositionsData:
+    """``data`` as positions: a PositionsData as it is, an (n, 3) array of position means, or a file read as a
+    positions CSV (docs/design.md §9.1) or, with ``raw``, a raw recording whose static intervals become the
+    positions (§9.2)."""
+    import numpy as np
+
+    from .data import PositionsData, check_units, read_positions
+
+    if isinstance(data, PositionsData):
+        if units is not None and units != data.units:
+            raise InputError(f"the positions are in {data.units!r} but units={units!r}; drop units or convert them")
+        if raw or reading:
+            raise InputError("raw=True and the recording options apply to a file, not to a PositionsData")
+        return data
+    if _is_path(data):
+        path = os.fspath(data)
+        if not os.path.isfile(path):
+            raise InputError(f"{path} does not exist or is not a file; give a positions CSV, or a raw recording "
+                             "with raw=True")
+        if raw:
+            from .recording import positions_from_raw
+
+            return positions_from_raw(path, units=units or "g", model=model, g_local=g_local, **reading)
+        if reading:
+            raise InputError(f"{', '.join(sorted(reading))} read a raw recording; pass raw=True with them")
+        try:
+            positions = read_positions(path, units=units or "g")
+        except InputError as exc:
+            raise InputError(f"{exc} (a raw recording? pass raw=True)") from None
+        check_units(positions, units or "g")
+        return positions
+    if raw or reading:
+        raise InputError("raw=True and the recording options apply to a file path")
+    try:
+        N = np.asarray(data, dtype=float)
+    except (TypeError, ValueError):
+        raise InputError(f"data must be a PositionsData, an (n, 3) array of position means or a file path; "
+                         f"got {type(data).__name__}") from None
+    positions = PositionsData(N=N, units=units or "g")
+    check_units(positions, positions.units)
+    return positions
+
+
+# the keyword arguments of optcal.recording.positions_from_raw that describe a raw recording
+_READING = ("columns", "rate", "saturation", "labels", "label_values", "intervals", "threshold_k", "window_s",
+            "min_static_s", "init_s")
+
+
+def calibrate(data, model="nonlinear12", *, solver: str = "scipy-lm", units: str | None = None, raw: bool = False,
+              g_local: float = 1.0, options: dict | None = None, reference: bool = False,
+              presets: Presets | None = None, seed: int | None = 0, budget=None, noise_g: float | None = None,
+              **reading) -> Calibration:
+    """Fit ``model`` (a named model, a sum of terms, docs/design.md §3.3, or a Model) to ``data`` and return
+    an :class:`optcal.fit.Calibration` (parameters, standard errors, observability, goodness of fit).
+
+    ``data``: a :class:`~optcal.data.PositionsData`; an (n, 3) array of position means in ``units``; or a
+    path (str or pathlib.Path) to a positions CSV (§9.1), or, with ``raw=True``, to a raw recording whose
+    static intervals are found as ``optcal calibrate --raw`` finds them (§9.2). ``units``: the outputs'
+    units (g, m/s2, counts, volts, mg; default g). Keyword arguments for a raw recording, as
+    :func:`optcal.recording.positions_from_raw` takes them: ``columns``, ``rate`` (Hz), ``saturation``,
+    ``labels`` (a label column) and ``label_values``, ``intervals`` (a file), ``threshold_k`` ("2:10"),
+    ``window_s``, ``min_static_s`` and ``init_s`` (s). ``g_local``: local gravity in g
+    (``optcal.gravity.local_gravity_g`` converts m/s² or a latitude). The rest is :func:`optcal.fit.calibrate`'s:
+    the registered solver and its options, turntable ``reference``, ``presets``, the solver's ``seed``, the
+    evaluation ``budget`` and the noise SD of a position mean ``noise_g`` (g).
+    """
+    from .fit import calibrate as fit
+
+    unknown = sorted(set(reading) - set(_READING))
+    if unknown:
+        raise InputError(f"calibrate() got unknown keyword(s) {', '.join(unknown)}; the recording options are "
+                         f"{', '.join(_READING)}")
+    positions = _positions(data, units, raw, g_local, model, reading)
+    return fit(positions, model, solver=solver, options=options, g_local=g_local, reference=reference,
+               presets=presets, seed=seed, budget=budget, noise_g=noise_g)
+
+
+def _calibration_file(calibration) -> CalibrationFile:
+    from .calfile import CalibrationFile, calibration_to_dict, read_calibration
+    from .fit import Calibration
+
+    if isinstance(calibration, CalibrationFile):
+        return calibration
+    if isinstance(calibration, Calibration):
+        # the file's record of the fit carries the context (T0, t0) that applying it needs (design.md §3.4)
+        meta = calibration_to_dict(calibration)
+        return CalibrationFile(calibration.model, calibration.x, calibration.stderr, calibration.problem.g_local,
+                               "g", calibration.problem.data.units, meta)
+    if _is_path(calibration):
+        return read_calibration(calibration)
+    raise InputError(f"calibration must be an optcal calibration (from optcal.calibrate), a CalibrationFile or "
+                     f"a calibration-file path; got {type(calibration).__name__}")
+
+
+def apply(calibration, samples, *, temp=None, t=None) -> np.ndarray:
+    """Calibrated specific force in g (units of g0 = 9.80665 m/s²) of raw ``samples``: an (n, 3) array (or
+    one sample of 3) in the calibration's output units. ``calibration``: what :func:`calibrate` returns, a
+    :class:`~optcal.calfile.CalibrationFile` or the path of a calibration file (docs/design.md §9.3). The
+    model is inverted exactly as ``optcal apply`` does (§3.5); models with temperature or drift terms need
+    the samples' ``temp`` (°C) or ``t`` (s)."""
+    import numpy as np
+
+    cal = _calibration_file(calibration)
+    N = np.asarray(samples, dtype=float)
+    one = N.shape == (3,)
+    A = cal.apply(N.reshape(1, 3) if one else N, temp=temp, t=t)
+    return A[0] if one else A
+
+
+def read_recording(path, columns=None, rate: float | None = None, units: str = "g", *,
+                   saturation: float | None = None, labels: str | None = None, need_time: bool = True) -> Recording:
+    """A raw recording (docs/design.md §9.2) as a :class:`~optcal.recording.Recording`: samples ``N``
+    (n, 3) in ``units``, time ``t`` (s), ``rate`` (Hz), optional ``temp`` (°C) and the ``saturated`` flags.
+    ``columns``: "t,ax,ay,az", "ax,ay,az" (with ``rate``) or role=column items, names or 0-based indices
+    (default: from the header); ``labels``: a column of section labels; ``need_time=False`` accepts a
+    file with neither a time column nor a rate."""
+    from .recording import read_recording as read
+
+    return read(path, columns, rate, units, saturation=saturation, labels=labels, need_time=need_time)
+
+
+def noise(source, rate: float | None = None, *, units: str | None = None, columns=None, interval=None,
+          scale: float | None = None, ci: float | None = None, tau_max_s: float | None = None) -> NoiseReport:
+    """The Allan-deviation noise analysis of a static stretch (docs/noise.md): white-noise density
+    (g/√Hz), bias instability (g) and bias random walk (g/√s) per axis, with intervals, as a
+    :class:`~optcal.noise.NoiseReport` (``table()``, ``to_dict()``, ``kalibr_yaml()``, ``figure()``).
+
+    ``source``: a recording file (read as :func:`read_recording` reads it, with ``columns``, ``rate`` and
+    ``units``; ``interval`` = (start, end) in seconds from its first sample), a
+    :class:`~optcal.recording.Recording`, or an (n, 3) array of samples in ``units`` at ``rate`` Hz.
+    ``scale``: output units per g for counts or volts (default: the mean output's magnitude); ``ci``: the
+    confidence level (default 0.683); ``tau_max_s``: the longest averaging time (default a quarter of the
+    stretch)."""
+    from .noise import analyse, noise_from_recording
+    from .recording import Recording
+
+    kw = {"scale": scale, "tau_max_s": tau_max_s, **({} if ci is None else {"ci": ci})}
+    if _is_path(source):
+        return noise_from_recording(os.fspath(source), columns=columns, rate=rate, units=units or "g",
+                                    interval=interval, **kw)
+    if interval is not None or columns is not None:
+        raise InputError("interval and columns apply to a recording file; slice the samples instead")
+    if isinstance(source, Recording):
+        if units is not None and units != source.units:
+            raise InputError(f"the recording is in {source.units!r} but units={units!r}; drop units")
+        if rate is not None and source.rate == source.rate and abs(rate / source.rate - 1) > 1e-9:
+            raise InputError(f"the recording's rate is {source.rate:g} Hz but rate={rate:g}; drop rate")
+        return analyse(source.N, source.rate if rate is None else rate, units=source.units, source=source.path, **kw)
+    if rate is None:
+        raise InputError("the samples' rate is needed: noise(samples, rate=HZ)")
+    return analyse(source, rate, units=units or "g", **kw)

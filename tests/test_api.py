@@ -1,0 +1,143 @@
+"""The front door (optcal/api.py, docs/api.md): every python block of docs/api.md runs, in order, in one
+session from the repository's root, and the values it computes are checked; then the functions' one-line
+errors for what a user can get wrong."""
+
+from __future__ import annotations
+
+import contextlib
+import io
+import re
+import subprocess
+import sys
+import tempfile
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import optcal
+from optcal.errors import InputError
+
+ROOT = Path(__file__).resolve().parents[1]
+DOC = ROOT / "docs" / "api.md"
+MPU = ROOT / "tests" / "data" / "mpu6050" / "example_data_calibration.csv"
+
+
+@pytest.fixture(scope="module")
+def session(tmp_path_factory):
+    """The namespace after running every python block of docs/api.md, and what they printed."""
+    blocks = re.findall(r"^```python\n(.*?)^```", DOC.read_text(), re.S | re.M)
+    assert len(blocks) >= 7
+    ns: dict = {}
+    out = io.StringIO()
+    mp = pytest.MonkeyPatch()
+    mp.chdir(ROOT)
+    mp.setattr(tempfile, "tempdir", str(tmp_path_factory.mktemp("api_doc")))  # the doc's mkdtemp goes here
+    try:
+        with contextlib.redirect_stdout(out):
+            for i, code in enumerate(blocks):
+                exec(compile(code, f"docs/api.md block {i + 1}", "exec"), ns)
+    finally:
+        mp.undo()
+    print(out.getvalue())
+    return ns, out.getvalue()
+
+
+def test_every_front_door_function_has_a_section():
+    text = DOC.read_text()
+    for name in ("calibrate", "apply", "read_recording", "noise"):
+        assert f"## `optcal.{name}`" in text, name
+        assert getattr(optcal, name) is getattr(__import__("optcal.api", fromlist=[name]), name)
+
+
+def test_calibrate_recovers_the_simulated_truth(session):
+    ns, _ = session
+    cal, truth = ns["cal"], ns["truth"]
+    assert cal.model.name == "linear9"
+    z = (cal.x - cal.model.from_dict(truth)) / cal.stderr
+    print("errors in standard errors:", np.round(z, 2))
+    assert np.all(np.abs(z) < 4)
+    assert np.all(cal.stderr[:3] < 2e-5)  # 20 µg per position, 24 positions
+    # the same positions from an array and from a positions CSV (written at full precision)
+    np.testing.assert_allclose(ns["from_array"].x, cal.x, rtol=1e-12)
+    np.testing.assert_allclose(ns["from_csv"].x, cal.x, rtol=1e-12)
+
+
+def test_calibrate_a_raw_recording(session):
+    ns, _ = session
+    mpu = ns["mpu"]
+    K = np.array([mpu.parameters[f"K_{a}"] for a in "xyz"])
+    print("MPU-6050 scale factors, counts per g:", K)
+    assert len(mpu.problem.data) == 10
+    assert np.all(np.abs(K / 16384 - 1) < 0.022)
+    assert mpu.fit.rms_g < 1e-4
+
+
+def test_apply_returns_the_known_specific_force(session):
+    ns, _ = session
+    A_known = ns["A_known"]
+    np.testing.assert_allclose(optcal.apply(ns["cal"], ns["N_known"]), A_known, atol=1e-12)
+    np.testing.assert_allclose(optcal.apply(str(ns["folder"] / "cal.json"), ns["N_known"]), A_known, atol=1e-12)
+    np.testing.assert_allclose(optcal.apply(ns["cal"], ns["N_known"][0]), A_known[0], atol=1e-12)  # one sample
+    assert np.all(np.abs(np.linalg.norm(ns["A"], axis=1) - 1) < 1e-4)
+
+
+def test_read_recording_and_noise(session):
+    ns, _ = session
+    rec = ns["rec"]
+    assert len(rec) == 10245 and rec.rate == pytest.approx(100.0) and rec.N.shape == (10245, 3)
+    density = np.array([a.white.value for a in ns["white"].axes])
+    print("white-noise density of the simulated noise, µg/√Hz:", density * 1e6)
+    assert np.all(np.abs(density / 10e-6 - 1) < 0.03)
+    rest = np.array([a.white.value for a in ns["rest"].axes]) * 1e6
+    np.testing.assert_allclose(rest, [333.9, 305.7, 470.5], atol=0.06)  # docs/noise.md's MPU-6050 table
+    # a Recording gives the same analysis as its file
+    again = optcal.noise(optcal.read_recording(MPU, units="counts"), scale=16384)
+    whole = optcal.noise(MPU, units="counts", scale=16384)
+    assert [a.white.value for a in again.axes] == [a.white.value for a in whole.axes]
+
+
+def test_calibrate_reads_a_path_given_as_text(session, tmp_path):
+    ns, _ = session
+    path = tmp_path / "p.csv"
+    ns["sim"].data.to_csv(path)
+    np.testing.assert_allclose(optcal.calibrate(str(path), model="linear9", noise_g=20e-6).x, ns["cal"].x,
+                               rtol=1e-12)
+
+
+@pytest.mark.parametrize("call, message", [
+    (lambda: optcal.calibrate("no/such/file.csv"), "does not exist or is not a file"),
+    (lambda: optcal.calibrate(MPU, units="counts"), "pass raw=True"),
+    (lambda: optcal.calibrate(MPU, units="counts", rate=100), "pass raw=True with them"),
+    (lambda: optcal.calibrate(MPU, raw=True, units="counts", colums="ax,ay,az"), "unknown keyword(s) colums"),
+    (lambda: optcal.calibrate(np.ones((24, 2))), "three output columns"),
+    (lambda: optcal.calibrate({"a": 1}), "data must be a PositionsData"),
+    (lambda: optcal.calibrate(np.ones((24, 3)), raw=True), "apply to a file path"),
+    (lambda: optcal.apply(42, np.ones((2, 3))), "calibration must be an optcal calibration"),
+    (lambda: optcal.apply("no/such/cal.json", np.ones((2, 3))), "cannot read"),
+    (lambda: optcal.noise(np.ones((100, 3))), "noise(samples, rate=HZ)"),
+    (lambda: optcal.noise(np.ones((100, 3)), rate=10, interval=(0, 1)), "slice the samples"),
+])
+def test_one_line_errors(call, message):
+    with pytest.raises(InputError) as info:
+        call()
+    assert message in str(info.value) and "\n" not in str(info.value)
+
+
+def test_calibrate_refuses_units_that_contradict_the_data():
+    from optcal.data import PositionsData
+
+    with pytest.raises(InputError, match="the positions are in 'g' but units='counts'"):
+        optcal.calibrate(PositionsData(N=np.eye(3)), units="counts")
+
+
+def test_the_front_door_names_import_nothing_heavy():
+    """Looking the four names up loads optcal.api, which imports NumPy and the rest only when called."""
+    code = ("import importlib, sys, optcal\n"
+            "fns = optcal.calibrate, optcal.apply, optcal.read_recording, optcal.noise\n"
+            "print(sorted({m.split('.')[0] for m in sys.modules} & {'numpy', 'scipy', 'solvers'}))\n"
+            "importlib.import_module('optcal.noise')\n"  # the submodule, recorded as an attribute by Python ...
+            "assert optcal.noise is fns[3], optcal.noise\n")  # ... does not replace the function
+    proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120, cwd=ROOT)
+    assert proc.returncode == 0, proc.stderr
+    assert proc.stdout.strip() == "[]"
