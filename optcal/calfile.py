@@ -18,8 +18,11 @@ import math
 from dataclasses import dataclass, field
 from datetime import datetime, timezone
 from pathlib import Path
+from typing import Annotated, Literal
 
 import numpy as np
+from pydantic import BaseModel, ConfigDict, Field, PrivateAttr, ValidationError, model_validator
+from pydantic_core import PydanticCustomError
 
 from .errors import InputError
 from .model import Context, Model, get_model
@@ -28,8 +31,6 @@ FORMAT = "optcal-calibration"
 FORMAT_VERSION = 1
 G0 = 9.80665
 CHUNK = 65_536  # samples per inverse call in apply(): temporaries stay in cache-friendly sizes (measured fastest)
-
-REQUIRED_FIELDS = ("model", "terms", "parameters", "stderr", "units", "g_local", "data", "solver", "created")
 
 
 def _finite_or_none(v) -> float | None:
@@ -138,13 +139,103 @@ class CalibrationFile:
         return out
 
 
-def _need(d: dict, key: str, path, kind=None):
-    if key not in d:
-        raise InputError(f"{path}: lacks the field {key!r}; re-create it with optcal calibrate -o")
-    v = d[key]
-    if kind is not None and not isinstance(v, kind):
-        raise InputError(f"{path}: field {key!r} has the wrong type ({type(v).__name__}); file damaged")
-    return v
+# -- reading: the file's schema (pydantic models) -------------------------------------------------------------
+
+def _problem(text: str) -> PydanticCustomError:
+    return PydanticCustomError("calfile", "{text}", {"text": text})
+
+
+class _Record(BaseModel):
+    model_config = ConfigDict(extra="forbid", strict=True)
+
+
+class _Units(_Record):
+    input: str
+    output: str
+
+
+class _DataInfo(_Record):
+    n_positions: int = Field(ge=0)
+    rms_residual_g: float = Field(ge=0)
+    source: str | None = None
+
+
+class _Context(_Record):
+    T0: float | None = Field(None, allow_inf_nan=False)
+    t0: float | None = Field(None, allow_inf_nan=False)
+
+
+class _CalibrationRecord(_Record):
+    """Format version 1 (docs/design.md §9.3), in the order the reader checks it."""
+
+    format: Literal["optcal-calibration"]
+    format_version: Literal[1]
+    model: str
+    terms: list[str]
+    parameters: dict[str, Annotated[float, Field(allow_inf_nan=False)]]
+    stderr: dict[str, float | None]
+    units: _Units
+    g_local: float = Field(gt=0.5, lt=2.0, description="a local gravity in g")
+    data: _DataInfo
+    solver: str
+    created: str
+    observability: dict | None = None
+    context: _Context | None = None
+    _model: Model = PrivateAttr()
+
+    @model_validator(mode="after")
+    def _fits_its_model(self):
+        """The rules that tie fields together: the model is its terms, every parameter of it has a value, the
+        scale factors are non-zero, and a model with temperature or drift terms has its reference T0/t0."""
+        model = get_model("+".join(self.terms)) if self.terms else get_model(self.model)
+        if self.model != model.name:
+            raise _problem(f"model {self.model!r} does not match its terms {'+'.join(self.terms)}")
+        missing = [n for n in model.names if n not in self.parameters]
+        if missing:
+            raise _problem(f"parameter(s) {', '.join(missing)} of model {model.name} are missing")
+        model.from_dict(self.parameters)  # a name the model lacks: InputError naming it
+        if any(self.parameters[model.names[i]] == 0 for i in model.groups()["scale"]):
+            raise _problem("a scale factor is zero; the calibration cannot be applied")
+        ctx = self.context or _Context()
+        for col, key in (("temp", "T0"), ("t", "t0")):
+            if col in model.needs and getattr(ctx, key) is None:
+                raise _problem(f"model {model.name} needs context.{key}, missing here")
+        self._model = model
+        return self
+
+
+# the fields every file must have besides format and format_version (docs/design.md §9.3 lists them)
+REQUIRED_FIELDS = tuple(n for n, f in _CalibrationRecord.model_fields.items()
+                        if f.is_required() and n not in ("format", "format_version"))
+_KINDS = {"int_type": "an integer", "float_type": "a number", "string_type": "a string",
+          "list_type": "an array", "dict_type": "an object", "model_type": "an object", "none_required": "null"}
+_JSON_TYPES = {bool: "boolean", int: "integer", float: "number", str: "string", list: "array", dict: "object",
+               type(None): "null"}
+RECREATE = "re-create it with optcal calibrate -o"
+
+
+def _error_line(exc: ValidationError) -> str:
+    """The first of pydantic's errors as one line naming the field (``units.output``, ``parameters.K_x``)."""
+    e = exc.errors(include_url=False)[0]
+    loc = [str(x) for x in e["loc"]]
+    field, typ, value = ".".join(loc), e["type"], e.get("input")
+    if typ == "calfile" or (typ == "value_error" and isinstance(e.get("ctx", {}).get("error"), InputError)):
+        return e["msg"].removeprefix("Value error, ")
+    if typ == "missing":
+        where = f"field '{'.'.join(loc[:-1])}' lacks {loc[-1]!r}" if len(loc) > 1 else f"lacks the field {loc[0]!r}"
+        return f"{where}; {RECREATE}"
+    if typ == "extra_forbidden":
+        return f"field {field!r} is not part of format version {FORMAT_VERSION}; remove it or {RECREATE}"
+    if typ in ("greater_than", "less_than") and loc == ["g_local"]:
+        return f"g_local {value!r} is not a local gravity in g (between 0.5 and 2); {RECREATE}"
+    if typ == "finite_number":
+        return f"field {field!r} is {value!r}, not a finite number; {RECREATE}"
+    if typ in _KINDS or typ.endswith("_type"):
+        kind = _KINDS.get(typ, typ.removesuffix("_type"))
+        got = "null" if value is None else \
+            f"{_JSON_TYPES.get(type(value), type(value).__name__)} {json.dumps(value, default=repr)}"
+        return f"field {field!r} is not {kind} (it is {got}): the file is damaged; {RECREATE}"
+    return f"field {field!r}: {e['msg']}; {RECREATE}"
 
 
 def read_calibration(path) -> CalibrationFile:
@@ -165,40 +256,11 @@ def read_calibration(path) -> CalibrationFile:
             f"{path} has format_version {version!r}; this optcal reads version {FORMAT_VERSION} only "
             "(re-create the file with this version's optcal calibrate -o)"
         )
-    for key in REQUIRED_FIELDS:
-        _need(d, key, path)
-    terms = _need(d, "terms", path, list)
-    model = get_model("+".join(terms)) if terms else get_model(_need(d, "model", path, str))
-    if _need(d, "model", path, str) != model.name:
-        raise InputError(f"{path}: model {d['model']!r} does not match its terms {'+'.join(terms)}")
-    params = _need(d, "parameters", path, dict)
-    missing = [n for n in model.names if n not in params]
-    if missing:
-        raise InputError(f"{path}: parameter(s) {', '.join(missing)} of model {model.name} are missing")
     try:
-        x = model.from_dict({k: float(v) for k, v in params.items()})
-    except (TypeError, ValueError):
-        raise InputError(f"{path}: a parameter value is not a number") from None
-    if not np.all(np.isfinite(x)):
-        raise InputError(f"{path}: a parameter value is not finite")
-    if np.any(x[model.groups()["scale"]] == 0):
-        raise InputError(f"{path}: a scale factor is zero; the calibration cannot be applied")
-    se = _need(d, "stderr", path, dict)
-    stderr = np.array([np.nan if se.get(n) is None else float(se[n]) for n in model.names])
-    units = _need(d, "units", path, dict)
-    for k in ("input", "output"):
-        if k not in units:
-            raise InputError(f"{path}: field 'units' lacks {k!r}")
-    for k in ("n_positions", "rms_residual_g"):
-        if k not in _need(d, "data", path, dict):
-            raise InputError(f"{path}: field 'data' lacks {k!r}")
-    ctx = d.get("context", {})
-    need_ctx = {"temp": "T0", "t": "t0"}
-    for col in model.needs:
-        if need_ctx[col] not in ctx:
-            raise InputError(f"{path}: model {model.name} needs context.{need_ctx[col]}, missing here")
-    g_local = _need(d, "g_local", path)
-    if not isinstance(g_local, int | float) or not 0.5 < g_local < 2.0:
-        raise InputError(f"{path}: g_local {g_local!r} is not a local gravity in g")
-    return CalibrationFile(model, x, stderr, float(g_local), str(units["input"]), str(units["output"]), d)
-
+        rec = _CalibrationRecord.model_validate(d)
+    except ValidationError as exc:
+        raise InputError(f"{path}: {_error_line(exc)}") from None
+    model = rec._model
+    x = model.from_dict(rec.parameters)
+    stderr = np.array([np.nan if rec.stderr.get(n) is None else float(rec.stderr[n]) for n in model.names])
+    return CalibrationFile(model, x, stderr, float(rec.g_local), rec.units.input, rec.units.output, d)
