@@ -46,7 +46,7 @@ APPLICATION = tuple(sorted({m for c in ("core", "studies") for m in CONTRACTS[c]
 # Package __init__ files that re-export names of two layers, the application layer's at first use (PEP 562).
 # Importing them imports no solver (checked below for optcal; tests/test_startup.py checks `import optcal`).
 FACADES = {
-    "optcal": "the package's public names; `optcal.discover` is loaded from optcal.discovery when first used",
+    "optcal": "the package's public names; the application layer's (discover, and optcal.api's) at first use",
     "optcal.discovery": "re-exports discovery's core names, and discover/fit_model/score from its workflow",
 }
 
