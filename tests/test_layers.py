@@ -76,7 +76,7 @@ def _path(module: str) -> Path:
 
 
 def test_every_module_is_in_exactly_one_layer():
-    mods = [m for p in PACKAGES for m in _modules(p) if m not in PACKAGES[1:]]
+    mods = [m for p in PACKAGES for m in _modules(p) if m != "studies"]  # studies/__init__.py is empty
     assert len(mods) > 60, mods  # the walk found the tree
     misplaced = {m: _layer_of(m) for m in mods if len(_layer_of(m)) != 1}
     assert misplaced == {}, ("name each module in one layer of pyproject.toml's [tool.importlinter] contracts "
@@ -122,7 +122,7 @@ def test_the_run_time_check_sees_an_import_of_solvers():
 
 
 def test_importing_solvers_imports_no_study():
-    found = _import_each([m for m in _modules("solvers")])
+    found = _import_each(_modules("solvers"))
     assert {m: got for m, got in found.items() if got != ["solvers"]} == {}
 
 
