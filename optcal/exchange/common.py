@@ -138,8 +138,9 @@ def parameters_of(lin: LinearPart, model: str | None = None) -> tuple[Model, np.
 
 def calibration_dict(lin: LinearPart, *, fmt: str, source, g_local: float = 1.0, model: str | None = None) -> dict:
     """An optcal calibration file (docs/design.md §9.3) for an imported linear part: every parameter from
-    :func:`parameters_of`, no standard errors (optcal did not fit it), ``data.n_positions`` 0 and
-    ``rms_residual_g`` null, ``solver`` "import:FORMAT" and ``data.source`` the imported file."""
+    :func:`parameters_of`, no standard errors (optcal did not fit it), ``data.n_positions`` 0 (no positions
+    were fitted; ``rms_residual_g`` is then 0, as the file's schema requires a number), ``solver``
+    "import:FORMAT" and ``data.source`` the imported file."""
     from ..calfile import FORMAT, FORMAT_VERSION
 
     m, x = parameters_of(lin, model)
@@ -152,7 +153,7 @@ def calibration_dict(lin: LinearPart, *, fmt: str, source, g_local: float = 1.0,
         "stderr": {n: None for n in m.names},
         "units": {"input": "g", "output": lin.units},
         "g_local": float(g_local),
-        "data": {"n_positions": 0, "rms_residual_g": None, "source": str(source)},
+        "data": {"n_positions": 0, "rms_residual_g": 0.0, "source": str(source)},
         "solver": f"import:{fmt}",
         "created": datetime.now(timezone.utc).isoformat(timespec="seconds").replace("+00:00", "Z"),
     }
@@ -176,7 +177,10 @@ def write_new(path, text: str, *, force: bool, check=None) -> None:
         with os.fdopen(fd, "w") as fh:
             fh.write(text)
         if check is not None:
-            check(tmp)
+            try:
+                check(tmp)
+            except InputError as exc:  # name the file the user asked for, not the temporary one
+                raise InputError(str(exc).replace(tmp, str(path))) from None
         os.replace(tmp, path)
     except OSError as exc:
         raise InputError(f"cannot write {path}: {exc.strerror or exc}") from None
