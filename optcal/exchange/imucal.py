@@ -1,4 +1,4 @@
-"""imucal's Ferraris calibration file (Ferraris et al., Sensors and Actuators A 46-47, 1995, as the
+"""imucal's Ferraris calibration file (Ferraris, Grimaldi & Parvis, Sensors and Materials 7(5), 1995, as the
 ``imucal`` package implements it; docs/exchange.md §3).
 
 imucal's ``FerrarisCalibrationInfo`` corrects accelerometer samples as a = R_a⁻¹·K_a⁻¹·(u − b_a), a in
