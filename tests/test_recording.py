@@ -8,7 +8,7 @@ import pytest
 
 from optcal import gravity
 from optcal.cli import main
-from optcal.commands._dataopts import load_positions
+from optcal.commands._dataopts import load_positions, parse_ks
 from optcal.errors import InputError
 from optcal.fit import calibrate
 from optcal.model import get_model
@@ -18,7 +18,6 @@ from optcal.recording import (
     detect_static,
     given_intervals,
     label_intervals,
-    parse_ks,
     positions_from_recording,
     read_intervals,
     read_recording,
@@ -146,7 +145,7 @@ def test_formats_columns_and_rate(tmp_path, rec24):
 
 
 def test_fast_reader_and_numpy_reader_agree(tmp_path, rec24, monkeypatch):
-    import optcal.recording as recording
+    from optcal.recording import reading
 
     _, t, N, _, _ = rec24
     n = 2000
@@ -161,7 +160,7 @@ def test_fast_reader_and_numpy_reader_agree(tmp_path, rec24, monkeypatch):
         (tmp_path / name).write_text(text)
         fast = read_recording(tmp_path / name, units="counts")
         with monkeypatch.context() as m:
-            m.setattr(recording, "_arrow_csv", None)
+            m.setattr(reading, "_arrow_csv", None)
             slow = read_recording(tmp_path / name, units="counts")
         np.testing.assert_array_equal(fast.N, N[:n], err_msg=name)
         np.testing.assert_array_equal(slow.N, N[:n], err_msg=name)
@@ -447,3 +446,146 @@ def test_load_positions_uses_the_raw_path(rec24):
     data = load_positions(args, rec24[0])
     assert len(data) == 24 and data.units == "counts" and data.extra["detection"].k == 4
     assert "24 static interval(s)" in describe_detection(data)
+
+
+# -- the library and the command line: parameters, options and imports ---------------------------------------
+def test_library_errors_name_parameters_and_the_cli_names_options(tmp_path, rec24, capsys):
+    import argparse
+    import inspect
+
+    from optcal.commands._dataopts import FLAGS, add_data_options, with_flags
+    from optcal.recording import positions_from_raw
+
+    _, t, N, _, _ = rec24
+    p = write(tmp_path / "norate.csv", None, N[:3000], header="ax,ay,az")
+    with pytest.raises(InputError) as exc:
+        read_recording(p, units="counts")
+    assert "give the sample rate in Hz with `rate`" in str(exc.value) and "--" not in str(exc.value)
+    code, err = _cli(["calibrate", p, "--raw", "--units", "counts"], capsys)
+    assert code == 2 and "give the sample rate in Hz with --rate" in err and "`" not in err
+    with pytest.raises(InputError, match="`window_s` must be a positive number of seconds, got 0"):
+        positions_from_raw(rec24[0], units="counts", threshold_k=4, window_s=0.0)
+    code, err = _cli(["calibrate", rec24[0], "--raw", "--units", "counts", "--threshold-k", "4", "--window", "0"],
+                     capsys)
+    assert code == 2 and "--window must be a positive number of seconds, got 0" in err
+    with pytest.raises(InputError, match="`threshold_k` -1: multipliers must be positive"):
+        positions_from_raw(rec24[0], units="counts", threshold_k=-1)
+    from optcal.recording import parse_ks as library_parse_ks
+
+    assert library_parse_ks((3, 5.5)) == (3.0, 5.5) and library_parse_ks(4) == (4.0,)
+    assert library_parse_ks("2:4") == parse_ks("2:4") == (2.0, 3.0, 4.0)
+    with pytest.raises(InputError, match="^`threshold_k` 'two': give a number"):
+        library_parse_ks("two")
+    with pytest.raises(InputError, match="^--threshold-k 'two': give a number"):
+        parse_ks("two")
+    # every parameter the CLI maps is one of the library's, and every option it maps to exists
+    params = inspect.signature(positions_from_raw).parameters
+    parser = argparse.ArgumentParser()
+    add_data_options(parser)
+    options = {s for a in parser._actions for s in a.option_strings}
+    assert set(FLAGS) <= set(params) and set(FLAGS.values()) <= options
+    text = "lower `min_static_s`, set `init_s`, keep `other`"
+    assert with_flags(text) == "lower --min-static, set --init-s, keep `other`"
+
+
+def test_the_library_path_gives_the_cli_path_positions(tmp_path, rec24):
+    from optcal.recording import positions_from_raw
+
+    path, _, _, spans, _ = rec24
+    data = positions_from_raw(path, units="counts", threshold_k=4, model="linear9")
+    det = data.extra["detection"]
+    assert len(data) == 24 and det.k == 4 and det.method == "variance"
+    searched = positions_from_raw(path, units="counts", threshold_k=(4.0, 8.0), model="linear9")
+    assert [r["k"] for r in searched.extra["detection"].search] == [4.0, 8.0]
+    np.testing.assert_allclose(data.N, positions_from_recording(det.recording, det).N, rtol=0)
+    (tmp_path / "six.json").write_text(json.dumps(spans[:6].tolist()))
+    given = positions_from_raw(path, units="counts", intervals=tmp_path / "six.json", model="diag6")
+    assert given.extra["detection"].method == "given" and np.all(given.n_samples == spans[:6, 1] - spans[:6, 0])
+    with pytest.raises(InputError, match="found 6 static interval.*needs at least 9.*lower `min_static_s`"):
+        positions_from_raw(path, units="counts", intervals=tmp_path / "six.json", model="linear9")
+
+
+def _imports(path, package):
+    """The optcal modules a module of ``package`` imports anywhere in it (functions included), absolute."""
+    import ast
+
+    found = set()
+    for node in ast.walk(ast.parse(path.read_text())):
+        if isinstance(node, ast.Import):
+            found |= {a.name for a in node.names}
+        elif isinstance(node, ast.ImportFrom):
+            parts = package.split(".")
+            mod = ".".join([*parts[:len(parts) - node.level + 1], *([node.module] if node.module else [])]) \
+                if node.level else node.module
+            found |= {f"{mod}.{a.name}" for a in node.names} if node.module is None else {mod}
+    return {m for m in found if m.split(".")[0] == "optcal"}
+
+
+def test_recording_package_imports_no_cli_no_plots_and_has_no_cycle():
+    from pathlib import Path
+
+    import optcal.recording
+
+    root = Path(optcal.recording.__file__).parent
+    graph = {}
+    for f in sorted(root.glob("*.py")):
+        name = "optcal.recording" + ("" if f.name == "__init__.py" else "." + f.stem)
+        graph[name] = _imports(f, "optcal.recording")
+        assert not any(m.startswith(("optcal.commands", "optcal.cli", "optcal.plots")) for m in graph[name]), name
+    assert graph["optcal.recording.workflow"] >= {"optcal.recording.detection", "optcal.recording.positions",
+                                                  "optcal.fit", "optcal.model"}
+    assert {"optcal.recording.reading", "optcal.recording.workflow"} <= graph["optcal.recording"]
+    # only the workflow fits (and so may reach the solvers); the core modules import neither it nor optcal.fit
+    for name in set(graph) - {"optcal.recording", "optcal.recording.workflow"}:
+        assert not graph[name] & {"optcal.fit", "optcal.recording.workflow"}, name
+    # no cycle among the package's modules (its __init__ only re-exports, and no module imports it)
+    inner = {k: {m for m in v if m in graph and m != "optcal.recording"} for k, v in graph.items()}
+    assert not any("optcal.recording" in v for k, v in graph.items() if k != "optcal.recording")
+    done, stack = set(), []
+
+    def visit(n):
+        assert n not in stack, " -> ".join([*stack, n])
+        if n not in done:
+            stack.append(n)
+            for m in inner[n]:
+                visit(m)
+            stack.pop()
+            done.add(n)
+
+    for n in inner:
+        visit(n)
+    assert len(done) == 8  # __init__, sniff, reading, detection, intervals, positions, report, workflow
+
+
+def test_recording_figure_uses_no_pyplot_and_calibrate_writes_nothing_on_a_bad_plot(tmp_path, rec24, capsys):
+    import subprocess
+    import sys
+
+    code = ("import sys, numpy as np\n"
+            "from optcal.recording import read_recording, detect_static\n"
+            "from optcal.plots.recording import recording_figure\n"
+            f"rec = read_recording({rec24[0]!r}, units='counts')\n"
+            "det = detect_static(rec, 4)\n"
+            "fig = recording_figure(rec, det, np.zeros(det.n_intervals))\n"
+            "print(type(fig).__module__, len(fig.axes), 'matplotlib.pyplot' in sys.modules)\n")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout.split()
+    assert out == ["matplotlib.figure", "3", "False"]
+    cal = tmp_path / "cal.json"
+    base = ["calibrate", rec24[0], "--raw", "--units", "counts", "--model", "linear9", "--threshold-k", "4",
+            "-o", str(cal)]
+    cases = {
+        "not raw": (["calibrate", rec24[0], "--plot", str(tmp_path / "p.png"), "-o", str(cal)], "use it with --raw"),
+        "no such folder": ([*base, "--plot", str(tmp_path / "nowhere" / "p.png")], "does not exist"),
+        "unknown format": ([*base, "--plot", str(tmp_path / "p.xyz")], "suffix naming its format"),
+    }
+    for name, (argv, message) in cases.items():
+        code, err = _cli(argv, capsys)
+        assert code == 2 and message in err, name
+        assert not cal.exists() and not (tmp_path / "p.png").exists(), name
+    png = tmp_path / "kept.png"
+    png.write_bytes(b"mine")
+    code, err = _cli([*base, "--plot", str(png)], capsys)
+    assert code == 2 and "--force" in err and png.read_bytes() == b"mine" and not cal.exists()
+    assert main([*base, "--plot", str(png), "--force"]) == 0
+    assert png.read_bytes()[:4] == b"\x89PNG" and cal.exists()
+    assert f"wrote {png}" in capsys.readouterr().out

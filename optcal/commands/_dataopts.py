@@ -1,15 +1,33 @@
 """Options shared by every command that reads data (calibrate, discover, apply): the positions CSV or a
-raw recording, its units and local gravity."""
+raw recording, its units and local gravity. The raw-recording options are turned into the keyword arguments
+of :func:`optcal.recording.workflow.positions_from_raw` here, and the library's errors, which name those parameters
+in backquotes, are given the options' names (:data:`FLAGS`, :func:`flag_names`)."""
 
 from __future__ import annotations
 
 import argparse
+import re
+from contextlib import contextmanager
 from typing import TYPE_CHECKING
 
+from ..errors import InputError
 from ..gravity import local_gravity_g
 
 if TYPE_CHECKING:
     from ..data import PositionsData
+
+# parameter of optcal.recording (as its errors name it) -> the option that sets it
+FLAGS = {
+    "columns": "--columns",
+    "rate": "--rate",
+    "saturation": "--saturation",
+    "labels": "--labels",
+    "intervals": "--intervals",
+    "window_s": "--window",
+    "min_static_s": "--min-static",
+    "init_s": "--init-s",
+    "threshold_k": "--threshold-k",
+}
 
 
 def add_gravity_options(p: argparse.ArgumentParser) -> None:
@@ -49,12 +67,57 @@ def gravity_from_args(args) -> float:
     return local_gravity_g(getattr(args, "gravity", None), lat, getattr(args, "height", 0.0) or 0.0)
 
 
+def with_flags(message: str) -> str:
+    """``message`` with each backquoted parameter of :data:`FLAGS` replaced by its option."""
+    return re.sub(r"`(\w+)`", lambda m: FLAGS.get(m[1], m[0]), message)
+
+
+@contextmanager
+def flag_names():
+    """Re-raise an InputError from the library with the options' names in place of its parameters'."""
+    try:
+        yield
+    except InputError as exc:
+        message = with_flags(str(exc))
+        if message == str(exc):
+            raise
+        raise InputError(message) from exc
+
+
+def parse_ks(spec) -> tuple[float, ...]:
+    """``--threshold-k``: one multiplier ``4``, a range ``2:10`` (integer steps) or a list ``2,3,5``
+    (:func:`optcal.recording.detection.parse_ks`, its errors naming the option)."""
+    from ..recording.detection import parse_ks as multipliers
+
+    with flag_names():
+        return multipliers(spec)
+
+
+def raw_options(args) -> dict:
+    """The keyword arguments of :func:`optcal.recording.workflow.positions_from_raw` from the parsed options: the
+    model the positions are for is calibrate's ``--model`` or discover's ``--base`` (default diag6)."""
+    labels = getattr(args, "labels", None)
+    column, values = (labels.split("=", 1) if labels is not None and "=" in labels else (labels, None))
+    return {
+        "columns": getattr(args, "columns", None), "rate": getattr(args, "rate", None),
+        "units": getattr(args, "units", "g") or "g", "saturation": getattr(args, "saturation", None),
+        "labels": column, "label_values": None if values is None else values.split(","),
+        "intervals": getattr(args, "intervals", None) or None,
+        "threshold_k": parse_ks(getattr(args, "threshold_k", None)),
+        "window_s": getattr(args, "window", 1.0), "min_static_s": getattr(args, "min_static", 1.0),
+        "init_s": getattr(args, "init_s", 2.0),
+        "model": getattr(args, "model", None) or getattr(args, "base", None) or "diag6",
+        "g_local": gravity_from_args(args),
+    }
+
+
 def load_positions(args, path) -> PositionsData:
     """Positions from a positions CSV, or (``--raw``) from a raw recording via static-interval detection."""
     if getattr(args, "raw", False):
-        from .. import recording  # the raw-recording path (static detection)
+        from ..recording.workflow import positions_from_raw
 
-        return recording.positions_from_args(args, path)
+        with flag_names():
+            return positions_from_raw(path, **raw_options(args))
     from ..data import check_units, read_positions
 
     data = read_positions(path, units=args.units)

@@ -8,7 +8,7 @@ from typing import TYPE_CHECKING
 from ..errors import InputError
 from ..gravity import G0
 from ._common import refuse_overwrite
-from ._dataopts import add_data_options, gravity_from_args
+from ._dataopts import add_data_options, flag_names, gravity_from_args
 
 if TYPE_CHECKING:
     import numpy as np
@@ -46,7 +46,7 @@ def run(args) -> int:
     import numpy as np
 
     from ..calfile import read_calibration
-    from ..recording import read_recording
+    from ..recording.reading import read_recording
 
     refuse_overwrite(args.output, args.force)
     cal = read_calibration(args.calibration)
@@ -56,8 +56,9 @@ def run(args) -> int:
             f"{cal.units_out!r}; convert the data or drop --units"
         )
     g = gravity_from_args(args) if (args.gravity is not None or args.latitude is not None) else None
-    rec = read_recording(args.data, args.columns, args.rate, cal.units_out, saturation=args.saturation,
-                         need_time="t" in cal.model.needs)
+    with flag_names():
+        rec = read_recording(args.data, args.columns, args.rate, cal.units_out, saturation=args.saturation,
+                             need_time="t" in cal.model.needs)
     has_t = "t" in rec.columns
     A = cal.apply(rec.N, temp=rec.temp, t=rec.t if has_t else None)
     scale = OUTPUT_UNITS[args.output_units]

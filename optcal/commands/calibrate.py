@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import importlib
 import json
 
 from ..errors import InputError
@@ -14,7 +13,7 @@ from ._common import (
     parse_options,
     refuse_overwrite,
 )
-from ._dataopts import add_data_options, gravity_from_args, load_positions
+from ._dataopts import add_data_options, flag_names, gravity_from_args, load_positions
 
 HELP = "calibrate an accelerometer from static positions (default model nonlinear12)"
 
@@ -30,8 +29,9 @@ def add_arguments(p):
     p.add_argument("--reference", action="store_true", help="turntable data: fit N to the known ref_x, ref_y, ref_z")
     p.add_argument("--json", action="store_true", help="print the result as one JSON object")
     p.add_argument("-o", "--output", metavar="CALIBRATION.json", help="write the calibration file")
-    p.add_argument("--force", action="store_true", help="overwrite an existing calibration file")
-    p.add_argument("--plot", metavar="FILE.png", help="with --raw: the recording with intervals and residuals")
+    p.add_argument("--force", action="store_true", help="overwrite an existing calibration file or figure")
+    p.add_argument("--plot", metavar="FILE.png", help="with --raw: the recording with intervals and residuals "
+                   "(the suffix names the format: .png, .pdf, .svg, ...)")
     add_noise_from_options(p, "dwell per position for --noise-from, s (default: each position's n over the "
                            "sample rate: a raw DATA's, else --rate, else the noise recording's)",
                            "read with --units, --columns and --rate, as a raw DATA")
@@ -43,6 +43,13 @@ def run(args) -> int:
     from ..presets import load_presets
 
     refuse_overwrite(args.output, args.force)
+    if args.plot:  # checked before anything is fitted or written
+        from ..plots import check_figure_path
+
+        if not args.raw:
+            raise InputError("--plot draws a raw recording; use it with --raw")
+        refuse_overwrite(args.plot, args.force)
+        check_figure_path(args.plot)
     g_local = gravity_from_args(args)
     data = load_positions(args, args.data)
     presets = load_presets(args.presets) if args.presets else None
@@ -50,24 +57,31 @@ def run(args) -> int:
     noise_g, noise = None, None
     if args.noise_from:
         rate = detection.recording.rate if detection is not None else args.rate
-        noise_g, noise = noise_from_args(args, data.n_samples, rate)
+        with flag_names():  # a noise recording is read with --columns and --rate
+            noise_g, noise = noise_from_args(args, data.n_samples, rate)
     cal = calibrate(data, args.model, solver=args.solver, options=parse_options(args.option), g_local=g_local,
                     reference=args.reference, presets=presets, seed=args.seed, budget=args.budget, noise_g=noise_g)
-    recording = importlib.import_module("optcal.recording") if detection is not None else None
+    figure = None
+    if args.plot:
+        from ..plots.recording import recording_figure
+
+        figure = recording_figure(detection.recording, detection, cal.problem.residuals_full(cal.x)[0])
     if args.output:
         from ..calfile import write_calibration
 
         write_calibration(cal, args.output, units_in="g", units_out=args.units, source=str(args.data),
                           overwrite=args.force)
-    if args.plot:
-        if detection is None:
-            raise InputError("--plot draws a raw recording; use it with --raw")
-        recording.plot_recording(detection.recording, detection, cal.problem.residuals_full(cal.x)[0], args.plot)
+    if figure is not None:
+        from ..plots import save_figure
+
+        save_figure(figure, args.plot)
     if args.json:
         print(json.dumps({**cal.to_dict(), **({"noise_from": noise} if noise else {})}, indent=2))
         return 0
     if detection is not None:
-        print(recording.describe_detection(detection))
+        from ..recording.report import describe_detection
+
+        print(describe_detection(detection))
     print(f"model {cal.model.name}, {len(data)} positions, g_local = {cal.problem.g_local:.9f} g, solver {cal.solver}")
     print(f"residual RMS {cal.fit.rms_g * 1e6:.3f} µg, cost {cal.fit.cost:.6e}, "
           f"{cal.result.nfev} evaluations, {cal.result.runtime_s * 1e3:.1f} ms ({cal.result.message})")
@@ -77,6 +91,7 @@ def run(args) -> int:
     for note in cal.notes:
         print(f"note: {note}")
     print(parameter_table(cal.model.names, cal.x, cal.stderr))
-    if args.output:
-        print(f"wrote {args.output}")
+    for written in (args.output, args.plot):
+        if written:
+            print(f"wrote {written}")
     return 0

@@ -1,3 +1,35 @@
 """Figures, one module per kind, all drawn with matplotlib's object API: each function builds a
 ``matplotlib.figure.Figure`` itself (no pyplot state, no backend switch) and saves it to the path given.
-matplotlib is imported inside the functions, so importing optcal stays light."""
+matplotlib is imported inside the functions, so importing optcal stays light.
+
+Here: the checks every figure file shares, so that a command can refuse a figure path before it writes
+anything (:func:`check_figure_path`), and writing a figure with one-line errors (:func:`save_figure`)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from ..errors import InputError
+
+
+def check_figure_path(path) -> Path:
+    """``path`` as a Path, after checking that its folder exists and that matplotlib writes its suffix."""
+    from matplotlib.backend_bases import FigureCanvasBase
+
+    path = Path(path)
+    if not path.parent.is_dir():
+        raise InputError(f"figure {path}: folder {path.parent} does not exist; create it or choose another path")
+    formats = FigureCanvasBase.get_supported_filetypes()
+    if path.suffix.lower().lstrip(".") not in formats:
+        raise InputError(f"figure {path}: give the file a suffix naming its format, one of "
+                         f"{', '.join('.' + f for f in sorted(formats))}")
+    return path
+
+
+def save_figure(fig, path, dpi: int = 110) -> None:
+    """Write the matplotlib Figure ``fig`` to ``path`` (the suffix names the format) at ``dpi`` dots per
+    inch; a path that cannot be written is one line naming it."""
+    try:
+        fig.savefig(path, dpi=dpi)
+    except (OSError, ValueError) as exc:
+        raise InputError(f"cannot write the figure {path}: {getattr(exc, 'strerror', None) or exc}") from None

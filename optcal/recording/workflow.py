@@ -1,0 +1,126 @@
+"""The parts of the raw-recording path that fit a model, and so run a solver (application layer,
+CONTRIBUTING.md "Layers"; docs/design.md §9.2): the search over the detector's threshold multiplier k, and
+a recording file to positions in one call.
+
+The search follows Tedaldi, Pretto & Menegatti (ICRA 2014, §IV-A; imu_tk tries k = 2…10): each k gives a
+set of static intervals, each set is calibrated, and the k whose calibration fits best is kept.
+Differences from imu_tk, and why: imu_tk compares the raw final cost of fits made with different numbers
+of intervals, which favours thresholds that find fewer intervals; here candidates are compared by an
+upper confidence bound of the residual SD per degree of freedom divided by √n (:func:`fit_score`), and a
+candidate must leave at least one degree of freedom. imu_tk averages a fixed 100 samples from the middle
+of each interval; here all samples of the interval are averaged (the variance window already keeps them
+half a window away from motion; :func:`optcal.recording.positions.positions_from_recording`).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from pathlib import Path
+
+import numpy as np
+
+from ..data import PositionsData, check_units
+from ..errors import InputError
+from ..model import get_model
+from .detection import DEFAULT_KS, DetectionResult, Detector, detect_static, parse_ks, too_few
+from .intervals import given_intervals, label_intervals, read_intervals
+from .positions import positions_from_recording
+from .reading import Recording, read_recording
+
+
+def fit_score(data: PositionsData, model, g_local: float = 1.0, solver: str = "scipy-lm",
+              alpha: float = 0.10) -> float:
+    """Score of a candidate set of intervals (smaller is better): σ_up/√n, where σ_up = sqrt(cost /
+    χ²_α(n − rank)) is the (1 − α) upper confidence bound of the residual SD and n the number of positions.
+
+    The residual SD from few degrees of freedom is uncertain, and a fit that leaves one degree of freedom
+    can show a small residual by chance; comparing upper bounds stops such a candidate from winning on
+    luck. Dividing by √n weighs what a lost interval costs: the parameters' standard errors scale as
+    σ/√n. The fit goes through :func:`optcal.fit.calibrate` (the registry, at run time)."""
+    from scipy.stats import chi2
+
+    from ..fit import calibrate
+
+    cal = calibrate(data, model, solver=solver, g_local=g_local)
+    return float(np.sqrt(cal.fit.cost / chi2.ppf(alpha, cal.fit.dof) / len(data)))
+
+
+def choose_threshold(recording: Recording, model, fit_cost_fn=None, *, ks=DEFAULT_KS, g_local: float = 1.0,
+                     solver: str = "scipy-lm", window_s: float = 1.0, min_static_s: float = 1.0,
+                     init_s: float = 2.0) -> DetectionResult:
+    """Search the threshold multiplier k over ``ks`` and keep the one whose calibration fits best
+    (Tedaldi et al. 2014, §IV-A; imu_tk tries k = 2…10). ``fit_cost_fn(positions) -> float`` scores a
+    candidate (default :func:`fit_score` of ``model`` fitted with ``solver``). Interval sets met before
+    are not refitted. A candidate needs more positions than the model has parameters; if none has, the
+    error says how many were found."""
+    model = get_model(model)
+    det = Detector.of(recording, window_s, min_static_s, init_s)
+    cost_fn = fit_cost_fn or (lambda d: fit_score(d, model, g_local, solver))
+    seen: dict[bytes, tuple[float | None, str]] = {}
+    search, best = [], None
+    for k in ks:
+        res = det.result(k)
+        key = res.intervals.tobytes()
+        m = res.n_intervals
+        if key not in seen:
+            if m <= model.n_params:
+                seen[key] = (None, f"{m} intervals, need more than {model.n_params}")
+            else:
+                try:
+                    seen[key] = (float(cost_fn(positions_from_recording(recording, res))), "")
+                except InputError as exc:
+                    seen[key] = (None, str(exc))
+        score, note = seen[key]
+        search.append({"k": float(k), "n_intervals": m, "score": score, "note": note})
+        if score is not None and (best is None or score < best[0]):
+            best = (score, res)
+    if best is None:
+        most = max(search, key=lambda r: r["n_intervals"])
+        if most["n_intervals"] < model.n_params:
+            raise too_few(most["n_intervals"], model, f"at best (k = {most['k']:g})")
+        fits = [r for r in search if r["n_intervals"] >= model.n_params]
+        if all(r["n_intervals"] == model.n_params for r in fits):  # no spare degree of freedom: take it
+            res = det.result(most["k"])
+            res.notes.append(f"no threshold gave more intervals than the {model.n_params} parameters")
+            res.search = search
+            return res
+        raise InputError(f"no threshold gave intervals that {model.name} can be fitted to: {fits[-1]['note']}")
+    res = best[1]
+    res.search = search
+    return res
+
+
+def positions_from_raw(path: str | Path, *, columns=None, rate: float | None = None, units: str = "g",
+                       saturation: float | None = None, labels: str | None = None,
+                       label_values: Sequence[str] | None = None, intervals: str | Path | None = None,
+                       threshold_k: float | str | Sequence[float] | None = None, window_s: float = 1.0,
+                       min_static_s: float = 1.0, init_s: float = 2.0, model="diag6",
+                       g_local: float = 1.0) -> PositionsData:
+    """Positions from a raw recording. ``columns``, ``rate`` (Hz), ``units``, ``saturation`` and
+    ``labels`` (a label column) are :func:`~optcal.recording.read_recording`'s. The static intervals come
+    from the file ``intervals`` (:func:`~optcal.recording.read_intervals`), else from the runs of
+    ``label_values`` (all labels if None) in the column ``labels``, else from the variance detector with
+    window ``window_s``, shortest interval ``min_static_s`` and initial rest ``init_s`` (all in s): one
+    threshold multiplier ``threshold_k`` (:func:`~optcal.recording.parse_ks`: a number, ``"2:10"``, ...)
+    is used as it is (:func:`~optcal.recording.detect_static`), several (default 2…10) are searched for
+    the best fit of ``model`` at local gravity ``g_local`` (g; :func:`~optcal.recording.choose_threshold`).
+    Fewer intervals than ``model`` has parameters, or outputs whose magnitude does not fit ``units``, are an
+    InputError."""
+    rec = read_recording(path, columns, rate, units, saturation=saturation, labels=labels)
+    model = get_model(model)
+    if intervals is not None:
+        det = given_intervals(rec, *read_intervals(intervals))
+    elif labels is not None:
+        det = label_intervals(rec, label_values)
+    else:
+        ks = parse_ks(threshold_k)
+        if len(ks) == 1:
+            det = detect_static(rec, ks[0], window_s=window_s, min_static_s=min_static_s, init_s=init_s)
+        else:
+            det = choose_threshold(rec, model, ks=ks, g_local=g_local, window_s=window_s,
+                                   min_static_s=min_static_s, init_s=init_s)
+    if det.n_intervals < model.n_params:
+        raise too_few(det.n_intervals, model)
+    data = positions_from_recording(rec, det)
+    check_units(data, rec.units)
+    return data
