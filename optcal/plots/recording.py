@@ -8,8 +8,6 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from . import save_figure
-
 if TYPE_CHECKING:
     from matplotlib.figure import Figure
 
@@ -64,8 +62,3 @@ def recording_figure(recording: Recording, detection: DetectionResult, residuals
     a.set_ylabel("residual [µg]")
     a.set_xlabel("time [s]")
     return fig
-
-
-def plot_recording(recording: Recording, detection: DetectionResult, residuals_g, path) -> None:
-    """Write :func:`recording_figure` to ``path`` (its suffix names the format: png, pdf, svg, ...)."""
-    save_figure(recording_figure(recording, detection, residuals_g), path)
