@@ -29,9 +29,9 @@ def run(args) -> int:
     from ..errors import InputError
     from ..exchange import export_text
     from ..exchange.common import write_new
+    from ._common import refuse_overwrite
 
-    if Path(args.output).exists() and not args.force:
-        raise InputError(f"{args.output} exists; choose another output path or pass --force to overwrite it")
+    refuse_overwrite(args.output, args.force)
     if args.bias_online and args.format != "kalibr":
         raise InputError("--bias-online applies to --format kalibr only")
     if not Path(args.calibration).exists():

@@ -29,16 +29,14 @@ def add_arguments(p):
 
 def run(args) -> int:
     import json
-    from pathlib import Path
 
     from ..calfile import read_calibration
-    from ..errors import InputError
     from ..exchange import import_calibration
     from ..exchange.common import write_new
+    from ._common import refuse_overwrite
     from ._dataopts import gravity_from_args
 
-    if Path(args.output).exists() and not args.force:
-        raise InputError(f"{args.output} exists; choose another output path or pass --force to overwrite it")
+    refuse_overwrite(args.output, args.force)
     g = gravity_from_args(args) if (args.gravity is not None or args.latitude is not None) else None
     doc, notes = import_calibration(args.file, args.format, units=args.units, calibrated=args.calibrated_units,
                                     model=args.model, g_local=g)
