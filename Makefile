@@ -11,7 +11,7 @@ $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
 	$(PY) -m pip install --quiet --upgrade pip
 	$(PY) -m pip install --quiet -e ".[test]"
-	$(PY) -m optcal.kernels.warm
+	$(PY) -m optcal.warmup
 	touch $(STAMP)
 
 # The headline comparison study (studies/specs/compare.toml: 50 runs, 7,200 trials) and its report,

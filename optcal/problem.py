@@ -36,7 +36,7 @@ _FLOAT64 = np.dtype(np.float64)
 def _kernel():
     """The compiled kernels, imported at first use: importing optcal does not import numba."""
     global _kernel
-    from .kernels.warm import load
+    from .kernels.cache import load
 
     evaluate = load()
 

@@ -73,7 +73,7 @@ def chunks(tasks: list[Trial], workers: int) -> list[list[Trial]]:
 def worker_start() -> None:
     """Run once in each worker process: import the solvers and load the compiled kernel."""
     import solvers  # noqa: F401 - the registry, loaded once per worker
-    from optcal.kernels.warm import warm
+    from optcal.warmup import warm
 
     warm()
 
@@ -236,7 +236,7 @@ def run_study(spec: Spec, folder: str | Path, *, executor: str | None = None, wo
         try:
             if pending and ex != "serial":
                 # Compile (or load) the kernel here once, so that the workers load it from the cache.
-                from optcal.kernels.warm import warm
+                from optcal.warmup import warm
 
                 warm()
             if pending:

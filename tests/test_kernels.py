@@ -159,20 +159,21 @@ def test_a_cold_cache_is_announced_and_a_warm_one_is_not(tmp_path, monkeypatch, 
     """The first evaluation after an install compiles the kernel (tens of seconds): it says so."""
     import logging
 
-    from optcal.kernels import warm
+    from optcal import warmup
+    from optcal.kernels import cache
 
-    warm.warm()
-    assert warm.is_cold() is False
+    warmup.warm()
+    assert cache.is_cold() is False
     with caplog.at_level(logging.WARNING, logger="optcal"):
-        warm.load()
+        cache.load()
     assert caplog.text == ""
     # a tree with no cache beside it, and no cache anywhere else
-    monkeypatch.setattr(warm, "__file__", str(tmp_path / "warm.py"))
+    monkeypatch.setattr(cache, "__file__", str(tmp_path / "cache.py"))
     monkeypatch.setenv("NUMBA_CACHE_DIR", str(tmp_path))
-    monkeypatch.setattr(warm.Path, "home", lambda: tmp_path)
-    assert warm.is_cold() is True
+    monkeypatch.setattr(cache.Path, "home", lambda: tmp_path)
+    assert cache.is_cold() is True
     with caplog.at_level(logging.WARNING, logger="optcal"):
-        warm.load()
+        cache.load()
     assert "compiling the evaluation kernels" in caplog.text
 
 
