@@ -1,6 +1,6 @@
-"""optcal noise (optcal/noise.py, optcal/commands/noise.py): the Allan-deviation reading of white noise,
-bias instability and bias random walk on synthetic noise of known strength, the JSON and Kalibr outputs,
-bad input, and calibrate/info --noise-from."""
+"""optcal noise (optcal/noise/, optcal/plots/noise.py, optcal/commands/noise.py): the Allan-deviation reading
+of white noise, bias instability and bias random walk on synthetic noise of known strength, the JSON and Kalibr
+outputs, bad input, and calibrate/info --noise-from."""
 
 from __future__ import annotations
 

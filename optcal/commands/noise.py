@@ -1,5 +1,6 @@
 """optcal noise: white-noise density, bias instability and bias random walk of a static recording, from
-its overlapping Allan deviation (the method and its references: optcal/noise.py; docs/noise.md)."""
+its overlapping Allan deviation (the method and its references: optcal/noise/; docs/noise.md). The figure is
+optcal.plots.noise's."""
 
 from __future__ import annotations
 
@@ -40,6 +41,23 @@ def add_arguments(p):
     o.add_argument("--force", action="store_true", help="overwrite existing --plot and --kalibr-yaml files")
 
 
+def parse_interval(text: str | None) -> tuple[float | None, float | None]:
+    """``--interval START:END`` seconds (either may be empty) → (start, end)."""
+    if text is None:
+        return None, None
+    a, sep, b = str(text).partition(":")
+    try:
+        if not sep:
+            raise ValueError
+        start = float(a) if a.strip() else None
+        end = float(b) if b.strip() else None
+    except ValueError:
+        raise InputError(f"--interval {text!r} must be START:END in seconds, e.g. 0:36 (either may be empty)") from None
+    if start is not None and end is not None and end <= start:
+        raise InputError(f"--interval {text!r}: END must be after START")
+    return start, end
+
+
 def _check_output(path: str | None, force: bool) -> None:
     if not path:
         return
@@ -50,7 +68,7 @@ def _check_output(path: str | None, force: bool) -> None:
 
 
 def run(args) -> int:
-    from ..noise import noise_from_recording, parse_interval
+    from ..noise import noise_from_recording
 
     _check_output(args.plot, args.force)
     _check_output(args.kalibr_yaml, args.force)
