@@ -1,0 +1,191 @@
+"""Parts of a study's ``report.md`` (:func:`studies.report.write_report`): the markdown helpers the report
+shares (numbers with their bootstrap interval, tables, a group's label) and the sections a report has only
+when the study calls for them: traditional against in-field calibration (docs/design.md §11.7), static
+navigation (2020 paper, Eq. 23 and Table 6) and anytime performance (runtime ECDFs, data and performance
+profiles; :mod:`studies.anytime`).
+"""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+
+from . import anytime, figures
+from .metrics import Group
+
+
+def fmt(v, spec: str = ".3g") -> str:
+    """``v`` in the format ``spec``; "–" for a missing or non-finite value."""
+    if v is None or (isinstance(v, float) and not math.isfinite(v)):
+        return "–"
+    return format(v, spec)
+
+
+def with_ci(v, ci, spec: str = ".3g", scale: float = 1.0, unit: str = "") -> str:
+    """'value [lo, hi]' (a 95 % bootstrap interval over runs); the value alone when there is none."""
+    if v is None or not math.isfinite(v):
+        return "–"
+    text = format(v * scale, spec) + unit
+    if ci is None or not all(math.isfinite(c) for c in ci):
+        return text
+    return f"{text} [{format(ci[0] * scale, spec)}, {format(ci[1] * scale, spec)}]"
+
+
+def md_table(header: list[str], rows: list[list[str]]) -> list[str]:
+    """A markdown table's lines, then an empty line."""
+    out = ["| " + " | ".join(header) + " |", "|" + "|".join("---" for _ in header) + "|"]
+    out += ["| " + " | ".join(r) + " |" for r in rows]
+    return out + [""]
+
+
+def label_of(g: Group) -> str:
+    """A group's name in the report: the solver's label, or the turntable calibration with its error."""
+    if g.reference:
+        return f"traditional ({g.solver_name}, {g.reference_error_arcsec:g}″)"
+    return g.solver
+
+
+def _crossing(levels: list[tuple[float, float]], value: float) -> str:
+    """The orientation error above which the turntable metric exceeds ``value``."""
+    a = [x for x, _ in levels]
+    m = [y for _, y in levels]
+    if m[0] > value:
+        return f"at every orientation error tested (even {a[0]:g}″)"
+    for (a1, m1), (a2, m2) in zip(levels, levels[1:]):
+        if m1 <= value < m2:
+            # linear in arcsec, logarithmic in the metric
+            t = (math.log(value) - math.log(m1)) / (math.log(m2) - math.log(m1))
+            return f"once the orientation error exceeds about {a1 + t * (a2 - a1):.0f}″ (between {a1:g}″ and {a2:g}″)"
+    return f"at none of the orientation errors tested (up to {a[-1]:g}″)"
+
+
+def traditional_section(cell_key, gs: list[Group], figdir: Path, slug: str) -> list[str]:
+    ref = sorted([g for g in gs if g.reference], key=lambda g: g.reference_error_arcsec)
+    inf = [g for g in gs if not g.reference and g.ok]
+    if not ref or not inf:
+        return []
+    model, scheme = cell_key
+    lines = [f"### Traditional against in-field: {model}, {scheme} positions", ""]
+    best_in = min(inf, key=lambda g: np.nan_to_num(g.accuracy, nan=np.inf))
+    metrics = [("accuracy", "RMSE/CRLB", lambda s: s["accuracy"])]
+    metrics.append(("verification", "verification |‖A‖−g| (µg)", lambda s: s["ver_mean_ug"]))
+    if any(r.get("nav_max_nmi") is not None for g in gs for r in g.ok):
+        metrics.append(("navigation", "5-h max position error (nmi)", lambda s: s["nav_max_nmi"]))
+    header = ["calibration"] + [m[1] for m in metrics]
+    rows = [[label_of(g)] + [fmt(fn(g.summary())) for _, _, fn in metrics] for g in ref]
+    rows += [[f"in-field `{g.solver}`"] + [fmt(fn(g.summary())) for _, _, fn in metrics] for g in inf]
+    lines += md_table(header, rows)
+    for key, name, fn in metrics:
+        levels = [(g.reference_error_arcsec, fn(g.summary())) for g in ref]
+        if not all(np.isfinite(y) for _, y in levels):
+            continue
+        said = [f"`{g.solver}` ({fmt(fn(g.summary()))}) {_crossing(levels, fn(g.summary()))}"
+                for g in inf if np.isfinite(fn(g.summary()))]
+        if not said:
+            continue
+        lines.append(f"- **{name}**: in-field calibration beats the turntable calibration: " + "; ".join(said) + ".")
+        v = fn(best_in.summary())
+        if len(levels) > 1 and np.isfinite(v):
+            p = figures.traditional(levels, [(g.solver, fn(g.summary())) for g in inf], name,
+                                    f"{model}, {scheme} positions: {name}", figdir / f"traditional_{key}_{slug}.png")
+            lines.append(f"  ![{name}](figures/{p.name})")
+    return lines + [""]
+
+
+def navigation_section(cell_key, gs: list[Group], nav_spec: dict, figdir: Path, slug: str) -> list[str]:
+    nav = [g for g in gs if any(r.get("nav_max_nmi") is not None for r in g.ok)]
+    if not nav:
+        return []
+    model, scheme = cell_key
+    hours = nav_spec["hours"]
+    att = ", ".join(f"{a:g}" for a in nav_spec.get("attitude_deg", (0, 0, 0)))
+    lines = [f"### Static navigation ({hours:g} h): {model}, {scheme} positions", "",
+             "Median over runs of each run's maximum and mean radial position error "
+             f"(2020 paper, Eq. 23 and Table 6); attitude (roll, pitch, yaw) = ({att})°, known initial attitude.", ""]
+    if any(g.unobservable() for g in nav if not g.reference):
+        # With a known initial attitude a rotation of the body frame reads as a horizontal specific-force
+        # error, so the navigation error sees exactly the directions the norm cost cannot.
+        lines += ["With a known initial attitude, an error along the unobservable directions (a rotation of the "
+                  "body frame) acts as a tilt: the in-field rows partly measure the presets there, not the data "
+                  "(docs/navigation.md).", ""]
+    rows = [["truth calibration", "0", "0"]]
+    for g in sorted(nav, key=lambda g: (not g.reference, g.summary()["nav_max_nmi"])):
+        s = g.summary()
+        rows.append([label_of(g), fmt(s["nav_max_nmi"], ".4f"), fmt(s["nav_mean_nmi"], ".4f")])
+    lines += md_table(["calibration", "max error (nmi)", "mean error (nmi)"], rows)
+    p = figures.navigation(nav, hours, f"{model}, {scheme} positions: static navigation error",
+                           figdir / f"navigation_{slug}.png")
+    return lines + [f"![navigation](figures/{p.name})", ""]
+
+
+def anytime_section(rows: list[dict], order: list[str], spec: dict, figdir: Path) -> list[str]:
+    """Runtime ECDFs, data and performance profiles, and their table (studies.anytime)."""
+    L = ["## Anytime performance", ""]
+    at = anytime.collect(rows, order)
+    if at.empty:
+        return L + ["No anytime records: this store's trials were written before studies recorded them "
+                    "(run the study into a new folder to get them).", ""]
+    cost_t = ", ".join(f"{t:g}" for t in anytime.COST_TARGETS)
+    acc_t = ", ".join(f"{t:g}" for t in anytime.ACCURACY_TARGETS)
+    (pk1, pt1), (pk2, pt2) = anytime.PROFILE_TARGETS
+    L += [
+        f"Every in-field trial against {len(anytime.COST_TARGETS)} cost targets and "
+        f"{len(anytime.ACCURACY_TARGETS)} accuracy targets, over {len(at.problems)} problems "
+        f"(model × scheme × run) and {len(at.solvers)} solvers (turntable configurations fit another cost and "
+        "are left out):",
+        "",
+        f"- **cost targets**: relative gap (f − f_opt) / f_opt ≤ {cost_t}, with f the best cost so far and "
+        "f_opt the optimum of the run's data (a reference scipy-lm fit from the presets; a trial that ends "
+        "below it meets every cost target);",
+        f"- **accuracy targets**: the trial's accuracy ≤ {acc_t}, where a trial's accuracy is the RMS over "
+        "the parameters of |error| / CRLB (the error's observable part against its Cramér-Rao bound) of the "
+        "best point so far. An efficient estimate scatters around 1 from run to run, so the optimum itself "
+        "misses the tightest accuracy target in some runs.",
+        "",
+        "Evaluations to a target: the first point of the 10-per-decade evaluation grid at which it is met; "
+        "never met, or a failed trial: ∞. **Runtime ECDF** (COCO / IOHprofiler): the fraction of "
+        "(trial, target) pairs met within x evaluations, over runs, models, schemes and targets; the number "
+        "in the legend is the area under it on the log axis (1 = every target at the first evaluation). "
+        "**Data profile** (Moré & Wild 2009): the fraction of problems solved within κ (n + 1) evaluations "
+        "(n parameters). **Performance profile** (Dolan & Moré 2002): the fraction of problems on which the "
+        "solver needs at most τ times the evaluations of the fastest solver on that problem. The profiles "
+        f"use the targets {pk1} {pt1:g} and {pk2} {pt2:g}. Figures: the {figures.MAX_LINES} best solvers of "
+        "each panel in colour, all others grey.",
+        "",
+    ]
+    if at.missing or at.no_optimum:
+        L += [f"{at.missing} trial(s) without an anytime record (written before it existed) and "
+              f"{at.no_optimum} without an optimum are left out of the respective targets.", ""]
+    recs = at.table(spec["seed"])
+    recs.sort(key=lambda r: (-np.nan_to_num(r["cost_area"], nan=-1), -np.nan_to_num(r["accuracy_area"], nan=-1)))
+    order = [r["solver"] for r in recs]  # one colour per solver in every figure
+    name = spec["name"]
+    p1 = figures.runtime_ecdf(at, f"{name}: runtime ECDFs", figdir / "anytime_ecdf.png", order)
+    p2 = figures.data_profiles(at, f"{name}: data profiles", figdir / "data_profiles.png", order)
+    p3 = figures.performance_profiles(at, f"{name}: performance profiles", figdir / "performance_profiles.png", order)
+    L += [f"![runtime ECDFs](figures/{p1.name})", "", f"![data profiles](figures/{p2.name})", "",
+          f"![performance profiles](figures/{p3.name})", ""]
+    k1, k2 = f"{pk1}_{pt1:g}", f"{pk2}_{pt2:g}"
+    L += [f"Per solver, largest cost-ECDF area first; *reached*: share of (trial, target) pairs met within the "
+          f"budget; *solved*: share of problems on which the profile target is met; *fastest*: share of problems "
+          f"on which the solver meets it first (performance profile at τ = 1, ties count for each). "
+          f"[lo, hi]: {100 * anytime.LEVEL:.0f} % bootstrap interval over runs.", ""]
+    header = ["solver", "cost: reached", "cost: ECDF area", "accuracy: reached", "accuracy: ECDF area",
+              f"solved {_target_name(pk1, pt1)}", f"fastest {_target_name(pk1, pt1)}",
+              f"solved {_target_name(pk2, pt2)}", f"fastest {_target_name(pk2, pt2)}"]
+    L += md_table(header, [[f"`{r['solver']}`",
+                          with_ci(r["cost_reached"], r["cost_reached_ci"], ".0f", 100, " %"),
+                          with_ci(r["cost_area"], r["cost_area_ci"], ".2f"),
+                          with_ci(r["accuracy_reached"], r["accuracy_reached_ci"], ".0f", 100, " %"),
+                          with_ci(r["accuracy_area"], r["accuracy_area_ci"], ".2f"),
+                          with_ci(r[f"solved_{k1}"], r[f"solved_{k1}_ci"], ".0f", 100, " %"),
+                          with_ci(r[f"fastest_{k1}"], r[f"fastest_{k1}_ci"], ".0f", 100, " %"),
+                          with_ci(r[f"solved_{k2}"], r[f"solved_{k2}_ci"], ".0f", 100, " %"),
+                          with_ci(r[f"fastest_{k2}"], r[f"fastest_{k2}_ci"], ".0f", 100, " %")] for r in recs])
+    return L
+
+
+def _target_name(kind: str, target: float) -> str:
+    return f"gap ≤ {target:g}" if kind == "cost" else f"accuracy ≤ {target:g}"
