@@ -353,9 +353,9 @@ def test_phone_through_the_cli_against_their_sections_and_bias(phone_csv, tmp_pa
 
 
 def test_phone_residual_against_the_noise_floor(phone_csv):
-    """Noise of the position means 0.58 mg (3.9 mg steps, ~60 mg sample SD, 100-350 samples a pose);
-    linear9 leaves 2.6 mg, 4.5 times that: the phone was held in the hand, and no model term explains it
-    (nonlinear12 gives about the same)."""
+    """Noise of the position means 0.58 mg (3.9 mg steps, a sample SD of about 6.5 mg per axis, 56 to 314
+    samples a position); linear9 leaves 2.6 mg, 4.5 times that, and nonlinear12 2.55 mg: the phone was
+    held in the hand, and no polynomial term explains the excess."""
     rec = read_recording(phone_csv, rate=float(HB_PHONE_RATE), units="m/s2")
     det = choose_threshold(rec, "linear9")
     data = positions_from_recording(rec, det)
