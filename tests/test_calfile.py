@@ -2,6 +2,7 @@
 versions and missing fields, and `apply` (Python API and `optcal apply`) inverting the model."""
 
 import json
+import math
 from dataclasses import replace
 from datetime import datetime
 
@@ -91,6 +92,32 @@ def test_other_versions_and_missing_fields_are_clear_errors(tmp_path, fitted):
         read_calibration(tmp_path / "absent.json")
 
 
+def test_the_schema_names_the_field_in_one_line(tmp_path, fitted):
+    """Wrong JSON types, unknown fields and values out of range: one line naming the field as the file
+    writes it (dotted), never a traceback."""
+    good = calibration_to_dict(fitted, units_out="g")
+    p = tmp_path / "bad.json"
+    cases = [
+        ({**good, "stderr": {**good["stderr"], "K_x": "x"}},
+         "field 'stderr.K_x' is not a number (it is string \"x\"): the file is damaged"),
+        ({**good, "parameters": {**good["parameters"], "K_x": None}}, "field 'parameters.K_x' is not a number (it is "
+                                                                      "null)"),
+        ({**good, "parameters": {**good["parameters"], "K_x": math.inf}},
+         "field 'parameters.K_x' is inf, not a finite number"),
+        ({**good, "parameters": {**good["parameters"], "K_q": 1.0}}, "parameter(s) K_q are not in model seed15"),
+        ({**good, "note": "mine"}, "field 'note' is not part of format version 1"),
+        ({**good, "data": {**good["data"], "n_positions": 24.5}}, "field 'data.n_positions' is not an integer"),
+        ({**good, "units": "g"}, "field 'units' is not an object (it is string \"g\")"),
+        ({**good, "solver": 3}, "field 'solver' is not a string (it is integer 3)"),
+    ]
+    for d, message in cases:
+        p.write_text(json.dumps(d))
+        with pytest.raises(InputError) as exc:
+            read_calibration(p)
+        msg = str(exc.value)
+        assert msg.startswith(f"{p}: ") and message in msg and "\n" not in msg, msg
+
+
 def test_apply_inverts_the_model(counts_cal, tmp_path):
     write_calibration(counts_cal, tmp_path / "c.json", units_in="g", units_out="counts")
     cf = read_calibration(tmp_path / "c.json")
@@ -121,6 +148,10 @@ def test_apply_reuses_the_calibrations_reference_temperature(tmp_path):
     np.testing.assert_allclose(cf.apply(N, temp=temp), A, atol=1e-12)
     with pytest.raises(InputError, match="temp"):
         cf.apply(N)
+    # a file without its reference temperature cannot be applied: refused when read, naming context.T0
+    (tmp_path / "t0.json").write_text(json.dumps({**cf.meta, "context": {"T0": None}}))
+    with pytest.raises(InputError, match=r"needs context\.T0"):
+        read_calibration(tmp_path / "t0.json")
 
 
 def _raw(path, t, N):

@@ -97,6 +97,10 @@ def test_random_walk_is_recovered():
         np.testing.assert_allclose(a.adev_g[late], rw.value * np.sqrt(a.tau_s[late] / 3.0), rtol=0.3)
         firm = a.edf >= 10
         np.testing.assert_allclose(np.sqrt(a.fit.variance(a.tau_s[firm])), a.adev_g[firm], rtol=0.2)
+        # the figure's lines (term_adev_g) pass through N at τ = 1 s and K at τ = 3 s
+        assert (a.white_tau_s, a.rw_tau_s) == (1.0, 3.0)
+        assert a.term_adev_g("white", a.white_tau_s) == pytest.approx(a.white.value, rel=1e-12)
+        assert a.term_adev_g("random_walk", a.rw_tau_s) == pytest.approx(rw.value, rel=1e-12)
 
 
 def test_the_fit_recovers_exact_coefficients_from_a_noise_free_curve():
@@ -128,6 +132,7 @@ def test_flicker_noise_gives_a_plateau_read_as_bias_instability():
         plateau = (a.tau_s >= 20) & (a.tau_s <= 160)
         assert np.all(np.abs(a.slope[plateau]) < 0.25), a.slope  # flat, not a −1/2 or +1/2 line
         np.testing.assert_allclose(a.adev_g[plateau], FLICKER_FACTOR * b, rtol=0.25)
+        np.testing.assert_allclose(a.term_adev_g("floor", [1.0, 100.0]), FLICKER_FACTOR * bi.value, rtol=1e-12)
         assert a.white.value == pytest.approx(density, rel=0.03)
 
 

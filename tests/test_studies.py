@@ -102,6 +102,34 @@ def test_bad_top_level_values(line, key):
         S.parse(tomllib.loads("\n".join([line] + lines) + '\n[[solvers]]\nname = "scipy-lm"\n'), "bad.toml")
 
 
+@pytest.mark.parametrize("line,message", [
+    # the whole line for a few cases: the key as the file writes it, what it takes, and what it got (TOML terms)
+    ('runs = "many"', "spec bad.toml: key 'runs' must be an integer number of Monte-Carlo runs, got string 'many'"),
+    ("seed = true", "spec bad.toml: key 'seed' must be a non-negative integer, got boolean true"),
+    ("noise_ug = nan", "spec bad.toml: key 'noise_ug' must be positive, got nan"),
+    ("truth = {K_x = 'a'}", "spec bad.toml: key 'truth.K_x' must be a number, got string 'a'"),
+    ("budget = {max_time = 'x'}", "spec bad.toml: key 'budget.max_time' must be a number of seconds, got string 'x'"),
+    ("budget = {max_evals = 10, tries = 3}",
+     "spec bad.toml: unknown key 'budget.tries'; known keys here: max_evals, max_time, target"),
+    ("solvers = [1]", "spec bad.toml: key 'solvers[0]' must be a table, got integer 1"),
+    ("navigation = {hours = 0}", "spec bad.toml: key 'navigation.hours' must be above 0 and at most 720, got 0"),
+    ("navigation = {latitude_deg = -90}", "spec bad.toml: key 'navigation.latitude_deg' must be within [-89, 89], "
+     "got -90"),
+    ("executor = {kind = 'mpi'}", "spec bad.toml: key 'executor.kind' must be 'serial', 'processes' or 'dask', got "
+     "string 'mpi'"),
+    ("models = ['nonlinear12', 'nonlinear12']", "spec bad.toml: key 'models[1]' lists 'nonlinear12' a second time; "
+     "give each once"),
+])
+def test_bad_spec_message_in_full(line, message):
+    key = line.split(" ")[0]
+    nav = ("[navigation]", "enabled = false")  # the line's inline table takes its place
+    lines = [x for x in BASE.splitlines() if not x.startswith(key + " ") and x not in nav]
+    text = "\n".join([line] + lines) + ("" if key == "solvers" else '\n[[solvers]]\nname = "scipy-lm"\n')
+    with pytest.raises(InputError) as exc:
+        S.parse(tomllib.loads(text), "bad.toml")
+    assert str(exc.value) == message
+
+
 def test_bad_spec_from_the_command_line_is_one_line_exit_2(tmp_path, capsys):
     p = tmp_path / "bad.toml"
     p.write_text(BASE + '[[solvers]]\nname = "bsas"\noptions = {m = -3}\n')
