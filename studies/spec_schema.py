@@ -303,7 +303,10 @@ def error_line(exc: ValidationError, root: type[BaseModel] = SpecFile) -> str:
         return f"key '{path}' must be {want or _KINDS.get(typ) or ctx['expected']}, {got}"
     if typ in ("greater_than", "greater_than_equal", "less_than", "less_than_equal"):
         words = {"gt": "above", "ge": "at least", "lt": "below", "le": "at most"}
+        kind = {"greater_than": "gt", "greater_than_equal": "ge", "less_than": "lt", "less_than_equal": "le"}[typ]
         bounds = _bounds(field)
+        if kind not in dict(bounds):  # the bound of an array's item, not of the field
+            bounds = [(kind, ctx[kind])]
         if len(bounds) == 2 and {k for k, _ in bounds} == {"ge", "le"}:
             phrase = f"within [{bounds[0][1]:g}, {bounds[1][1]:g}]"
         elif len(bounds) == 1 and bounds[0][1] == 0 and bounds[0][0] in ("gt", "ge"):

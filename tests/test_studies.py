@@ -112,6 +112,8 @@ def test_bad_top_level_values(line, key):
     ("budget = {max_evals = 10, tries = 3}",
      "spec bad.toml: unknown key 'budget.tries'; known keys here: max_evals, max_time, target"),
     ("solvers = [1]", "spec bad.toml: key 'solvers[0]' must be a table, got integer 1"),
+    ("solvers = [{name = 'scipy-trf', reference = true, reference_error_arcsec = [10, -1]}]",
+     "spec bad.toml: key 'solvers[0].reference_error_arcsec[1]' must be non-negative, got -1"),
     ("navigation = {hours = 0}", "spec bad.toml: key 'navigation.hours' must be above 0 and at most 720, got 0"),
     ("navigation = {latitude_deg = -90}", "spec bad.toml: key 'navigation.latitude_deg' must be within [-89, 89], "
      "got -90"),
