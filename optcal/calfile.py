@@ -175,7 +175,7 @@ class _CalibrationRecord(_Record):
     parameters: dict[str, Annotated[float, Field(allow_inf_nan=False)]]
     stderr: dict[str, float | None]
     units: _Units
-    g_local: float = Field(gt=0.5, lt=2.0, description="a local gravity in g")
+    g_local: float = Field(gt=0.5, lt=2.0)  # in g
     data: _DataInfo
     solver: str
     created: str
@@ -211,7 +211,7 @@ _KINDS = {"int_type": "an integer", "float_type": "a number", "string_type": "a 
           "list_type": "an array", "dict_type": "an object", "model_type": "an object", "none_required": "null"}
 _JSON_TYPES = {bool: "boolean", int: "integer", float: "number", str: "string", list: "array", dict: "object",
                type(None): "null"}
-RECREATE = "re-create it with optcal calibrate -o"
+_RECREATE = "re-create it with optcal calibrate -o"
 
 
 def _error_line(exc: ValidationError) -> str:
@@ -223,24 +223,25 @@ def _error_line(exc: ValidationError) -> str:
         return e["msg"].removeprefix("Value error, ")
     if typ == "missing":
         where = f"field '{'.'.join(loc[:-1])}' lacks {loc[-1]!r}" if len(loc) > 1 else f"lacks the field {loc[0]!r}"
-        return f"{where}; {RECREATE}"
+        return f"{where}; {_RECREATE}"
     if typ == "extra_forbidden":
-        return f"field {field!r} is not part of format version {FORMAT_VERSION}; remove it or {RECREATE}"
+        return f"field {field!r} is not part of format version {FORMAT_VERSION}; remove it or {_RECREATE}"
     if typ in ("greater_than", "less_than") and loc == ["g_local"]:
-        return f"g_local {value!r} is not a local gravity in g (between 0.5 and 2); {RECREATE}"
+        return f"g_local {value!r} is not a local gravity in g (it must lie between 0.5 and 2 g); {_RECREATE}"
     if typ == "finite_number":
-        return f"field {field!r} is {value!r}, not a finite number; {RECREATE}"
+        return f"field {field!r} is {value!r}, not a finite number; {_RECREATE}"
     if typ in _KINDS or typ.endswith("_type"):
         kind = _KINDS.get(typ, typ.removesuffix("_type"))
         got = "null" if value is None else \
             f"{_JSON_TYPES.get(type(value), type(value).__name__)} {json.dumps(value, default=repr)}"
-        return f"field {field!r} is not {kind} (it is {got}): the file is damaged; {RECREATE}"
-    return f"field {field!r}: {e['msg']}; {RECREATE}"
+        return f"field {field!r} is not {kind} (it is {got}): the file is damaged; {_RECREATE}"
+    return f"field {field!r}: {e['msg']}; {_RECREATE}"
 
 
 def read_calibration(path) -> CalibrationFile:
-    """Read and validate a calibration file. Another format or version, or a missing field, is an
-    :class:`InputError`."""
+    """Read and validate a calibration file. Another format or version, a missing or unknown field, a value
+    of the wrong type or out of range (the schema ``_CalibrationRecord``) is an :class:`InputError` of one
+    line naming the field."""
     path = Path(path)
     try:
         d = json.loads(path.read_text())
