@@ -33,7 +33,6 @@ def octave_m(n: int, max_m: int | None = None) -> np.ndarray:
     return 2 ** np.arange(int(math.floor(math.log2(top))) + 1) if top >= 1 else np.array([], int)
 
 
-
 def analyse_axis(y_g: np.ndarray, rate: float, m: np.ndarray, ci: float = DEFAULT_CI, axis: str = "x") -> AxisNoise:
     """Allan deviation of one axis (samples in g at ``rate`` Hz) at averaging factors ``m``, and N, B, K."""
     import allantools
@@ -148,7 +147,6 @@ def analyse(N, rate: float, *, units: str = "g", scale: float | None = None, ci:
                          + "; B is an upper bound")
     return NoiseReport(axes, float(rate), n, float(start_s), float(start_s + n / rate), units, float(scale), how,
                        float(ci), source, notes)
-
 
 
 def noise_from_recording(path, *, columns=None, rate: float | None = None, units: str = "g",
