@@ -48,6 +48,8 @@ APPLICATION = tuple(sorted({m for c in ("core", "studies") for m in CONTRACTS[c]
 FACADES = {
     "optcal": "the package's public names; the application layer's (discover, and optcal.api's) at first use",
     "optcal.discovery": "re-exports discovery's core names, and discover/fit_model/score from its workflow",
+    "optcal.recording": "re-exports the recording path's core names, and choose_threshold/fit_score/"
+                        "positions_from_raw from its workflow",
 }
 
 
