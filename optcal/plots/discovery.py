@@ -8,12 +8,14 @@ from __future__ import annotations
 
 import numpy as np
 
+from . import save_figure
+
 U = 1e6  # g → µg
 
 
 def figure(report, path):
     """Draw ``report`` (a :class:`optcal.discovery.results.DiscoveryReport`), save it to ``path`` (the format
-    from its suffix) and return the ``matplotlib.figure.Figure``."""
+    from its suffix; a path that cannot be written is one line) and return the ``matplotlib.figure.Figure``."""
     from matplotlib.figure import Figure
 
     n = 1 + len(report.steps)
@@ -26,7 +28,7 @@ def figure(report, path):
         _step_panel(ax, k, s)
     for ax in axes[n:]:
         ax.set_visible(False)
-    fig.savefig(path, dpi=110)
+    save_figure(fig, path, dpi=110)
     return fig
 
 
