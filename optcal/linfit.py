@@ -11,7 +11,7 @@ from __future__ import annotations
 import numpy as np
 
 from .errors import InputError
-from .model import Model
+from .model import T_CELLS, Model
 
 
 def _quadric(N: np.ndarray, full: bool) -> tuple[np.ndarray, np.ndarray, float]:
@@ -77,8 +77,7 @@ def linear_start(model: Model, N: np.ndarray, g_local: float = 1.0, ref: np.ndar
             )
         K, b, T = ellipsoid_to_params(Qn, o)
     values = {"K_x": K[0], "K_y": K[1], "K_z": K[2], "b_x": b[0], "b_y": b[1], "b_z": b[2]}
-    angles = {"S_xz": T[0, 1], "S_xy": T[0, 2], "S_yz": T[1, 0], "S_yx": T[1, 2], "S_zy": T[2, 0], "S_zx": T[2, 1]}
-    values.update(angles)
+    values.update({name: T[i, j] for (i, j), name in T_CELLS.items()})
     for k, n in enumerate(names):
         if n in values:
             x[k] = values[n]

@@ -102,6 +102,11 @@ NAMED_MODELS: dict[str, tuple[str, ...]] = {
 
 _TERM_ORDER = list(TERMS)
 
+# The installation matrix T's off-diagonal cells (row i, column j) and the angle in each (docs/design.md
+# §3.2): T = I + these cells, u = T·A. The one statement of this map: every module that builds T or reads
+# angles from a matrix uses it.
+T_CELLS = {(0, 1): "S_xz", (0, 2): "S_xy", (1, 0): "S_yz", (1, 2): "S_yx", (2, 0): "S_zy", (2, 1): "S_zx"}
+
 
 class NumpyOps:
     """Array operations for the generic forward map (works for real and complex arrays)."""
@@ -220,13 +225,13 @@ class Model:
             v = get(name)
             return zero if v is None else v
 
-        # Installation matrix T (docs/design.md §3.2); absent angles are zero (the gauge of `misalignment`).
-        u = [
-            Ax + s("S_xz") * Ay + s("S_xy") * Az,
-            s("S_yz") * Ax + Ay + s("S_yx") * Az,
-            s("S_zy") * Ax + s("S_zx") * Ay + Az,
-        ]
+        # Installation matrix T (docs/design.md §3.2): unit diagonal, the angles in the cells of T_CELLS;
+        # absent angles are zero (the gauge of `misalignment`). Row by row, u_i = t_i0 + t_i1 + t_i2.
         A3 = (Ax, Ay, Az)
+        u = []
+        for i in range(3):
+            t = [A3[j] if j == i else s(T_CELLS[i, j]) * A3[j] for j in range(3)]
+            u.append(t[0] + t[1] + t[2])
         out = []
         for i, a in enumerate(AXES):
             lin = u[i] + s(f"b_{a}")
@@ -282,9 +287,7 @@ class Model:
                    if f"{prefix}_{AXES[i]}{AXES[j]}" in ix]
             return tuple(np.array(c) for c in zip(*got)) if got else None
 
-        # T's off-diagonal cells (docs/design.md §3.2), as `components` reads them: row i, column j.
-        s_cells = {(0, 1): "S_xz", (0, 2): "S_xy", (1, 0): "S_yz", (1, 2): "S_yx", (2, 0): "S_zy", (2, 1): "S_zx"}
-        present = [(i, j, ix[n]) for (i, j), n in s_cells.items() if n in ix]
+        present = [(i, j, ix[n]) for (i, j), n in T_CELLS.items() if n in ix]
         return {
             "K": axes("K"), "b": axes("b"), "K2": axes("K2"), "K3": axes("K3"), "kappa": axes("kappa"),
             "beta": axes("beta"), "gamma": axes("gamma"), "d": axes("d"),
