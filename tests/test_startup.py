@@ -139,22 +139,22 @@ def _write_recording(path):
 
 def test_arrow_reader_is_loaded_at_first_read(tmp_path, monkeypatch):
     arrow_csv = pytest.importorskip("pyarrow.csv")
-    from optcal import recording
+    from optcal.recording import reading
 
     _write_recording(tmp_path / "r.csv")
-    monkeypatch.setattr(recording, "_arrow_csv", recording._NOT_LOADED)
-    rec = recording.read_recording(tmp_path / "r.csv", units="counts")
-    assert recording._arrow_csv is arrow_csv
+    monkeypatch.setattr(reading, "_arrow_csv", reading._NOT_LOADED)
+    rec = reading.read_recording(tmp_path / "r.csv", units="counts")
+    assert reading._arrow_csv is arrow_csv
     assert rec.N[-1].tolist() == [49, -49, 98]
 
 
 def test_without_pyarrow_the_numpy_reader_is_used(tmp_path, monkeypatch):
-    from optcal import recording
+    from optcal.recording import reading
 
     _write_recording(tmp_path / "r.csv")
-    monkeypatch.setattr(recording, "_arrow_csv", recording._NOT_LOADED)
+    monkeypatch.setattr(reading, "_arrow_csv", reading._NOT_LOADED)
     monkeypatch.setitem(sys.modules, "pyarrow", None)  # `import pyarrow...` raises ImportError
     monkeypatch.setitem(sys.modules, "pyarrow.csv", None)
-    rec = recording.read_recording(tmp_path / "r.csv", units="counts")
-    assert recording._arrow_csv is None
+    rec = reading.read_recording(tmp_path / "r.csv", units="counts")
+    assert reading._arrow_csv is None
     assert rec.N[-1].tolist() == [49, -49, 98]
