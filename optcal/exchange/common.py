@@ -23,10 +23,10 @@ import numpy as np
 
 from ..errors import InputError
 from ..gravity import G0
-from ..model import TERMS, Model, get_model
+from ..model import T_CELLS, TERMS, Model, get_model
 
-# T's off-diagonal cells, (row, column) -> parameter name (docs/design.md §3.2).
-CELLS = {(0, 1): "S_xz", (0, 2): "S_xy", (1, 0): "S_yz", (1, 2): "S_yx", (2, 0): "S_zy", (2, 1): "S_zx"}
+# T's off-diagonal cells, (row, column) -> parameter name (docs/design.md §3.2), as the model states them.
+CELLS = T_CELLS
 UPPER = ((0, 1), (0, 2), (1, 2))  # the cells the gauge of `misalignment` sets to zero (docs/design.md §6.3)
 LOWER = ((1, 0), (2, 0), (2, 1))
 
