@@ -21,7 +21,7 @@ from __future__ import annotations
 import numpy as np
 from scipy.spatial.distance import cdist
 
-from .bas import clip_unit, nan_to_inf, row_norms, uniform_pm1
+from ._unitbox import clip_unit, nan_to_inf, row_norms, uniform_pm1
 
 
 class Board:

@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .bas import clip_unit, nan_to_inf, normalised_start, unit_rows
+from ._unitbox import clip_unit, nan_to_inf, normalised_start, unit_rows
 from .base import Option, Solver, positive, probability
 from .registry import register
 
@@ -41,7 +41,7 @@ class _Draws:
             self.state = self.rng.bit_generator.state
             u = self.rng.random((self.k, self.width))
             r = np.multiply(u[:, :-1], 2.0)
-            r -= 1.0  # rng.uniform(-1, 1)'s own arithmetic, −1 + 2·u (see bas.uniform_pm1)
+            r -= 1.0  # rng.uniform(-1, 1)'s own arithmetic, −1 + 2·u (see _unitbox.uniform_pm1)
             self.b = unit_rows(r.reshape(self.k, self.m, self.n))
             self.u = u[:, -1].tolist()
             self.rows = min(2 * self.rows, self.max_rows)

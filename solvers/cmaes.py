@@ -8,7 +8,7 @@ import numpy as np
 
 from optcal.errors import BudgetExhausted
 
-from .bas import normalised_start
+from ._unitbox import normalised_start
 from .base import Option, Solver, positive
 from .registry import register
 

@@ -47,8 +47,8 @@ from optcal.errors import InputError
 from optcal.model import TERMS
 
 from . import _fish
+from ._unitbox import clip_unit
 from .afsa import FISH_OPTIONS
-from .bas import clip_unit
 from .base import Option, Solver, positive
 from .registry import register
 

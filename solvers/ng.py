@@ -18,7 +18,7 @@ import numpy as np
 
 from optcal.errors import BudgetExhausted, InputError
 
-from .bas import normalised_start
+from ._unitbox import normalised_start
 from .base import Option, Solver
 from .registry import register_family
 

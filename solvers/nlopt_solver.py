@@ -45,6 +45,7 @@ import numpy as np
 
 from optcal.errors import BudgetExhausted, InputError
 
+from ._unitbox import normalised_start
 from .base import Option, Solver, StopSolver
 from .registry import register, register_variant
 
@@ -122,8 +123,7 @@ class NLopt(Solver):
 
     def _solve(self, problem, x0, rng, callback):
         cfg = self.config
-        pn = problem.normalised()
-        z0 = np.clip(pn.from_full(problem.to_full(x0)[0]), -1.0, 1.0)
+        pn, z0 = normalised_start(problem, x0)
         n = pn.n
         opt = nlopt.opt(getattr(nlopt, cfg["algorithm"]), n)
         opt.set_lower_bounds(-np.ones(n))

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .bas import clip_unit, finite_costs, nan_to_inf, normalised_start
+from ._unitbox import clip_unit, finite_costs, nan_to_inf, normalised_start
 from .base import Option, Solver, positive
 from .registry import register
 

@@ -26,6 +26,7 @@ from scipy.optimize import differential_evolution, minimize
 
 from optcal.errors import BudgetExhausted, InputError
 
+from ._unitbox import normalised_start
 from .base import Option, Solver, positive, probability
 from .registry import register
 
@@ -82,9 +83,8 @@ class ScipyDE(Solver):
 
     def _solve(self, problem, x0, rng, callback):
         cfg = self.config
-        pn = problem.normalised()
+        pn, z0 = normalised_start(problem, x0)
         n = pn.n
-        z0 = np.clip(pn.from_full(problem.to_full(x0)[0]), -1.0, 1.0)
         S = cfg["popsize"] * n
         budget = problem.counter.budget
         maxiter = cfg["maxiter"]

@@ -35,7 +35,8 @@ from optcal.kernels import evaluate
 from optcal.presets import PAPER_TRUTH, manufacturer_presets
 from optcal.problem import CalibrationProblem, Counter
 from optcal.simulate import simulate
-from solvers.bas import DrawAhead, unit_rows
+from solvers._unitbox import unit_rows
+from solvers.bas import DrawAhead
 from solvers.bsas import _Draws
 
 BUDGET = 20_000
