@@ -155,7 +155,7 @@ def noise_from_recording(path, *, columns=None, rate: float | None = None, units
     """Read a raw recording (:func:`optcal.recording.read_recording`: the same columns, units and rate
     rules as a calibration recording) and analyse the stretch ``interval`` = (start, end) in seconds from
     its first sample (either may be None; default the whole file)."""
-    from ..recording import read_recording
+    from ..recording.reading import read_recording  # the core reader (the package also re-exports its workflow)
 
     rec = read_recording(path, columns, rate, units)
     start, end = interval if interval is not None else (None, None)
