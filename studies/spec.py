@@ -26,7 +26,7 @@ from pydantic import ValidationError
 from optcal.errors import InputError
 
 from .spec_schema import EXECUTORS as EXECUTORS  # re-exported: studies.execute reads it
-from .spec_schema import SolverEntry, SpecFile, error_line
+from .spec_schema import Budget, Executor, Navigation, SolverEntry, SpecFile, Verification, error_line
 
 if sys.version_info >= (3, 11):
     import tomllib
@@ -34,6 +34,14 @@ else:  # pragma: no cover
     import tomli as tomllib
 
 SPEC_DIR = Path(__file__).parent / "specs"
+
+# The keys each table takes (the schema's fields).
+TOP_KEYS = set(SpecFile.model_fields)
+SOLVER_KEYS = set(SolverEntry.model_fields)
+VERIFICATION_KEYS = set(Verification.model_fields)
+NAVIGATION_KEYS = set(Navigation.model_fields)
+EXECUTOR_KEYS = set(Executor.model_fields)
+BUDGET_KEYS = set(Budget.model_fields)
 
 @dataclass(frozen=True)
 class SolverConfig:
