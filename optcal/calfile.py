@@ -29,7 +29,6 @@ from .model import Context, Model, get_model
 
 FORMAT = "optcal-calibration"
 FORMAT_VERSION = 1
-G0 = 9.80665
 CHUNK = 65_536  # samples per inverse call in apply(): temporaries stay in cache-friendly sizes (measured fastest)
 
 

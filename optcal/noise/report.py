@@ -12,9 +12,9 @@ from typing import ClassVar
 import numpy as np
 
 from ..errors import InputError
+from ..gravity import G0
 from .fit import FLICKER_FACTOR, RW_TAU_S, WHITE_TAU_S, Coefficient, Fit
 
-G0 = 9.80665  # m/s² per g
 UNIT_SCALE = {"g": 1.0, "mg": 1e3, "m/s2": G0}  # output units per g
 
 
