@@ -166,18 +166,11 @@ def test_xsens_residual_against_the_noise_floor(xsens_txt):
     assert rms["diag6"][0] > 20 * rms_l9  # 3312 µg
 
 
-@pytest.mark.xfail(strict=True, reason="optcal cannot read a gzip-compressed recording: xsens_acc.mat.gz is refused "
-                   "with 'has no numeric rows' (the layout sniffer reads the compressed bytes as text); it should "
-                   "decompress .gz (and .xz, .bz2) by the suffix, as numpy.loadtxt and pyarrow.csv do")
 def test_xsens_gzip_is_read_directly(capsys):
     code, out = _cli(["calibrate", str(IMU_TK / "xsens_acc.mat.gz"), *XSENS_ARGS, "--model", "linear9"], capsys)
     assert code == 0 and out["n_positions"] == 40
 
 
-@pytest.mark.xfail(strict=True, reason="--units counts assumes int16 rails (−32768/32767) for saturation: "
-                   "unsigned 16-bit ADC counts (0…65535, zero g near 32768) are all flagged saturated, every "
-                   "interval is dropped and the fit fails with 'found 1 static interval(s)'; optcal should "
-                   "recognise unsigned data (all outputs > 0, centred near 2^15) or take a uint16 rail option")
 def test_xsens_unsigned_counts_without_saturation_option(xsens_txt, capsys):
     args = [a for a in XSENS_ARGS if a not in ("--saturation", "65535")]
     code, out = _cli(["calibrate", str(xsens_txt), *args, "--model", "linear9"], capsys)
@@ -367,8 +360,6 @@ def test_phone_residual_against_the_noise_floor(phone_csv):
     assert theirs.fit.rms_g == pytest.approx(cal.fit.rms_g, rel=0.1)  # 2.67 mg against 2.60 mg
 
 
-@pytest.mark.xfail(strict=True, reason="optcal cannot read MATLAB .mat files: a raw recording stored as one "
-                   "8042×3 matrix in a level 5 MAT file (no time column) is refused with 'has no numeric rows'")
 def test_phone_mat_read_directly(capsys):
     code, out = _cli(["calibrate", str(HB / "MobileAccData30orientationRawSample01.mat"), "--raw", "--rate",
                       HB_PHONE_RATE, "--units", "m/s2", "--model", "linear9", "--json"], capsys)

@@ -132,8 +132,11 @@ def test_formats_columns_and_rate(tmp_path, rec24):
     for r in (by_name, by_index, by_role):
         np.testing.assert_array_equal(r.N, N[:n])
     assert by_role.temp is not None and by_role.temp[-1] == pytest.approx(20 + 0.001 * (n - 1))
-    with pytest.raises(InputError, match="in seconds"):  # a time column in ms disagrees with the rate
-        read_recording(p3, columns="time_ms,ax,ay,az", rate=100, units="counts")
+    # a time column in ms is read as ms: its 10 ms steps are the given 100 Hz (issue #13; it used to be refused)
+    ms = read_recording(p3, columns="time_ms,ax,ay,az", rate=100, units="counts")
+    assert ms.reading["time_unit"] == "ms" and ms.rate == pytest.approx(100.0) and ms.t[-1] == pytest.approx(29.99)
+    with pytest.raises(InputError, match="none of them the rate 37 Hz"):  # a rate no unit of the column gives
+        read_recording(p3, columns="time_ms,ax,ay,az", rate=37, units="counts")
     with pytest.raises(InputError, match="not numeric"):
         read_recording(p3, columns="part,ax,ay,az", units="counts")
     with pytest.raises(InputError, match="did you mean 'ay'"):

@@ -1,5 +1,8 @@
-"""The layout of a raw recording's file (docs/design.md §9.2), from its first lines: the delimiter, a header,
-leading ``key,value`` lines (an ``Fs,100`` line gives the rate) and which column holds which role.
+"""The layout of a raw recording's file (docs/design.md §9.2), from its first lines: the delimiter (comma,
+semicolon, tab or whitespace) and decimal mark, a header, leading ``key,value`` lines (an ``Fs,100`` line
+gives the rate) and which column holds which role. Compressed files (``.gz``, ``.bz2``, ``.xz``) are read
+through the standard library's decompressors by their suffix, a UTF-8 byte-order mark is dropped, and a
+MATLAB level 5 ``.mat`` file (:func:`mat_table`, scipy.io.loadmat) gives a table of its numeric variables.
 
 Errors name the parameters of :func:`optcal.recording.read_recording` in backquotes (`` `columns` ``); the
 command line puts its option names there (optcal/commands/_dataopts.py).
@@ -7,10 +10,16 @@ command line puts its option names there (optcal/commands/_dataopts.py).
 
 from __future__ import annotations
 
+import bz2
 import difflib
+import gzip
+import io
 import itertools
+import lzma
 from dataclasses import dataclass
 from pathlib import Path
+
+import numpy as np
 
 from ..errors import InputError
 
@@ -25,6 +34,10 @@ ALIASES = {
 POSITIONAL = {3: ("ax", "ay", "az"), 4: ("t", "ax", "ay", "az"), 5: ("t", "ax", "ay", "az", "temp")}
 RATE_KEYS = ("fs", "rate", "sample rate", "sampling rate", "sample_rate", "sampling_rate", "fs_hz", "rate_hz")
 SNIFF_LINES = 200
+COMPRESSED = {".gz": gzip.open, ".bz2": bz2.open, ".xz": lzma.open}
+# columns only a positions file has (docs/design.md §9.1): a raw recording has one row per sample
+POSITIONS_ONLY = ("position", "n", "sx", "sy", "sz", "ref_x", "ref_y", "ref_z")
+FEW_ROWS = 100  # a raw recording this short cannot hold the static intervals of a calibration
 
 
 @dataclass
@@ -36,14 +49,111 @@ class Layout:
     header: list[str] | None
     meta: dict
     first: list[str]  # the fields of the first data row (to check a fast reader started there)
+    decimal: str = "."  # "," for a decimal comma (then the delimiter is not a comma)
 
 
-def is_number(s: str) -> bool:
+def is_number(s: str, decimal: str = ".") -> bool:
     try:
-        float(s)
+        float(s.replace(",", ".") if decimal == "," else s)
     except ValueError:
         return False
     return True
+
+
+def compression(path: Path) -> str | None:
+    """The compression suffix of ``path`` (``.gz``, ``.bz2``, ``.xz``), or None."""
+    suffix = path.suffix.lower()
+    return suffix if suffix in COMPRESSED else None
+
+
+def inner_suffix(path: Path) -> str:
+    """The suffix that names the format, under any compression suffix (``x.mat.gz`` → ``.mat``)."""
+    return Path(path.stem).suffix.lower() if compression(path) else path.suffix.lower()
+
+
+def open_binary(path: Path):
+    """The file's bytes as a stream, decompressed by its suffix."""
+    try:
+        return COMPRESSED.get(compression(path), open)(path, "rb")
+    except OSError as exc:
+        raise InputError(f"cannot read {path}: {exc.strerror or exc}") from None
+
+
+def is_mat(path: Path) -> bool:
+    """A MATLAB level 5 (or 7.3) MAT file: its 128-byte header starts with ``MATLAB``. A text matrix that
+    MATLAB's ``save -ascii`` wrote under a ``.mat`` name (imu_tk's recordings) is not."""
+    if inner_suffix(path) != ".mat":
+        return False
+    with open_binary(path) as fh:
+        try:
+            return fh.read(6) == b"MATLAB"
+        except (OSError, EOFError, lzma.LZMAError) as exc:
+            raise InputError(f"cannot read {path}: {exc}") from None
+
+
+def mat_table(path: Path) -> tuple[list[str] | None, np.ndarray]:
+    """A MAT file's numeric variables as one table (scipy.io.loadmat): a single matrix is returned as it
+    is, without a header (columns by position, as a headerless text file; a 3 × n or 4 × n matrix is
+    transposed); several variables of one length n are columns named by the variables (an n × k matrix
+    ``acc`` giving ``acc_0`` … ``acc_{k-1}``)."""
+    from scipy.io import loadmat
+
+    try:
+        with open_binary(path) as fh:
+            m = loadmat(io.BytesIO(fh.read()))
+    except NotImplementedError:
+        raise InputError(f"{path} is a MATLAB v7.3 (HDF5) file; save it with save(..., '-v7') to read it") from None
+    except (ValueError, TypeError, OSError) as exc:
+        raise InputError(f"cannot read MAT file {path}: {exc}") from None
+    found = {k: np.asarray(v) for k, v in m.items() if not k.startswith("__")}
+    arrays = {k: (v.T if v.ndim == 2 and v.shape[0] < v.shape[1] and v.shape[0] <= 5 else v).astype(float)
+              for k, v in found.items() if v.dtype.kind in "iufb" and v.ndim <= 2 and v.size > 1}
+    if not arrays:
+        raise InputError(f"{path} holds no numeric matrix (variables: {', '.join(found) or 'none'}); "
+                         "save the samples as an n × 3 or n × 4 matrix")
+    if len(arrays) == 1:
+        (a,) = arrays.values()
+        return None, a.reshape(len(a), -1)
+    lengths = {k: max(v.shape) if v.ndim == 1 or 1 in v.shape else v.shape[0] for k, v in arrays.items()}
+    if len(set(lengths.values())) > 1:
+        raise InputError(f"{path}: its variables have different lengths "
+                         f"({', '.join(f'{k} {n}' for k, n in lengths.items())}); keep one table of samples")
+    names, cols = [], []
+    for k, v in arrays.items():
+        v = v.reshape(lengths[k], -1)
+        names += [k] if v.shape[1] == 1 else [f"{k}_{j}" for j in range(v.shape[1])]
+        cols.append(v)
+    return names, np.hstack(cols)
+
+
+def mat_layout(path: Path) -> tuple[Layout, np.ndarray]:
+    """The :class:`Layout` of a MAT file's table (:func:`mat_table`) and the table itself."""
+    header, table = mat_table(path)
+    if header is not None:
+        refuse_duplicates(header, path)
+    lay = Layout(None, 0, table.shape[1], (True,) * table.shape[1], header, {}, [])
+    return lay, table
+
+
+def refuse_duplicates(header: list[str], path: Path) -> None:
+    """Two columns of one name (case-insensitive) would make the name ambiguous: refused, naming it."""
+    low = [h.lower() for h in header]
+    for j, h in enumerate(low):
+        if h and h in low[:j]:
+            raise InputError(f"{path}: the header names column {header[j]!r} twice (columns {low.index(h)} and "
+                             f"{j}); rename one of them")
+
+
+def _delimiter(line: str) -> tuple[str | None, str]:
+    """Delimiter and decimal mark of a data line: semicolon or tab first (they leave a comma free to be a
+    decimal comma), whitespace when it splits the line into numbers (``1,5 2,25``), else a comma."""
+    for d in (";", "\t"):
+        if d in line:
+            return d, "," if any("," in f and is_number(f, ",") for f in split_fields(line, d)) else "."
+    ws = line.split()
+    if len(ws) > 1 and "," in line and all(is_number(f, ",") for f in ws):
+        return None, ","
+    return ("," if "," in line else None), "."
 
 
 def split_fields(line: str, delim: str | None) -> list[str]:
@@ -54,17 +164,18 @@ def split_fields(line: str, delim: str | None) -> list[str]:
 def sniff_layout(path: Path) -> Layout:
     """Delimiter, header, leading key/value lines and the first data line, from the file's first lines."""
     try:
-        with open(path, encoding="utf-8", errors="replace") as fh:
+        with io.TextIOWrapper(open_binary(path), encoding="utf-8-sig", errors="replace") as fh:
             head = list(itertools.islice(fh, SNIFF_LINES))
-    except OSError as exc:
-        raise InputError(f"cannot read {path}: {exc.strerror or exc}") from None
+    except (OSError, EOFError, lzma.LZMAError) as exc:
+        raise InputError(f"cannot read {path}: {getattr(exc, 'strerror', None) or exc}") from None
     lines = [(i, ln.strip()) for i, ln in enumerate(head) if ln.strip() and not ln.lstrip().startswith("#")]
     if not lines:
         raise InputError(f"{path} is empty; a raw recording needs one row per sample (t, ax, ay, az)")
-    last = lines[-1][1]
-    delim = next((d for d in (",", ";", "\t") if d in last), None)
+    if "\x00" in "".join(ln for _, ln in lines[:5]):
+        raise InputError(f"{path} is a binary file, not text; a raw recording is a text table or a MAT file")
+    delim, dec = _delimiter(lines[-1][1])
     rows = [(i, split_fields(ln, delim)) for i, ln in lines]
-    pattern = [(len(f), tuple(is_number(x) for x in f)) for _, f in rows]
+    pattern = [(len(f), tuple(is_number(x, dec) for x in f)) for _, f in rows]
     ref = pattern[-1]
     if not any(ref[1]):
         raise InputError(f"{path} has no numeric rows; a raw recording needs one row per sample (t, ax, ay, az)")
@@ -76,17 +187,30 @@ def sniff_layout(path: Path) -> Layout:
     # A header has text wherever the data have numbers; a line with the data's width and numbers in it is
     # a data row that does not parse (an empty or text cell), and must not be skipped silently.
     if before and len(before[-1][1]) == ref[0] and not any(
-            d and is_number(x) for x, d in zip(before[-1][1], ref[1])):
+            d and is_number(x, dec) for x, d in zip(before[-1][1], ref[1])):
         header = before[-1][1]
         before = before[:-1]
+        refuse_duplicates(header, path)
     for i, f in reversed(before):  # the last such line is the one that breaks the run of data rows
-        if len(f) == ref[0] and any(is_number(x) for x in f):
+        if len(f) == ref[0] and any(is_number(x, dec) for x in f):
             raise InputError(
                 f"{path}: line {i + 1} ({','.join(f)}) has the width of a data row but not its numbers "
                 "(an empty or text cell?); fix or remove it"
             )
     meta = {f[0].strip().lower(): f[1].strip() for _, f in before if len(f) >= 2}
-    return Layout(delim, rows[start][0], ref[0], ref[1], header, meta, rows[start][1])
+    return Layout(delim, rows[start][0], ref[0], ref[1], header, meta, rows[start][1], dec)
+
+
+def positions_file_reason(lay: Layout, nrows: int) -> str | None:
+    """Why a file read as a raw recording looks like a positions file (docs/design.md §9.1), or None: its
+    header names columns only positions files have, or it has too few rows for a recording."""
+    names = [h.lower() for h in lay.header or []]
+    only = [c for c in POSITIONS_ONLY if c in names]
+    if only and all(c in names for c in ("ax", "ay", "az")):
+        return f"its columns {', '.join(only)} are those of a positions file"
+    if nrows < FEW_ROWS:
+        return f"it has {nrows} rows, too few for a recording with one row per sample"
+    return None
 
 
 def resolve_column(ref: str, lay: Layout, path: Path) -> int:
