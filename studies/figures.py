@@ -309,9 +309,10 @@ def _curve_panels(panels: list[dict], title: str, path: Path, order: list[str] |
     return _save(fig, path)
 
 
-def runtime_ecdf(at, title: str, path: Path, order: list[str] | None = None) -> Path:
+def runtime_ecdf(at, title: str, path: Path, order: list[str] | None = None, only: list[str] | None = None) -> Path:
     """Runtime ECDFs (COCO / IOHprofiler): per solver the fraction of (trial, target) pairs reached against
-    evaluations, one panel for the cost targets and one for the accuracy targets (:mod:`studies.anytime`)."""
+    evaluations, one panel for the cost targets and one for the accuracy targets (:mod:`studies.anytime`).
+    ``only``: draw these solvers alone (every one of them in colour, up to twice the usual number)."""
     from .anytime import grid
 
     x = grid(at.top)
@@ -322,8 +323,11 @@ def runtime_ecdf(at, title: str, path: Path, order: list[str] | None = None) -> 
         panels.append({
             "title": head + ", ".join(fmt.format(t) for t in targets), "xlabel": "cost evaluations",
             "ylabel": "fraction of (trial, target) pairs reached", "x": x, "legend_title": "solver (ECDF area)",
-            "curves": [(s, at.ecdf(kind, i, x), at.area(kind, i)) for i, s in enumerate(at.solvers)]})
-    return _curve_panels(panels, title, path, order)
+            "curves": [(s, at.ecdf(kind, i, x), at.area(kind, i)) for i, s in enumerate(at.solvers)
+                       if only is None or s in only]})
+    if only is not None:  # colours numbered within the subset, so that no two of its solvers share a style
+        order = [s for s in (order or []) if s in only]
+    return _curve_panels(panels, title, path, order, n=MAX_LINES if only is None else 2 * MAX_LINES)
 
 
 def data_profiles(at, title: str, path: Path, order: list[str] | None = None) -> Path:

@@ -163,9 +163,19 @@ def anytime_section(rows: list[dict], order: list[str], spec: dict, figdir: Path
     order = [r["solver"] for r in recs]  # one colour per solver in every figure
     name = spec["name"]
     p1 = figures.runtime_ecdf(at, f"{name}: runtime ECDFs", figdir / "anytime_ecdf.png", order)
+    search = search_methods(spec, at.solvers)
+    if search:
+        ref = [s for s in ("scipy-lm",) if s in at.solvers]
+        p0 = figures.runtime_ecdf(at, f"{name}: runtime ECDFs of the search methods" + (" and scipy-lm" if ref else ""),
+                                  figdir / "anytime_ecdf_search.png", order, only=search + ref)
     p2 = figures.data_profiles(at, f"{name}: data profiles", figdir / "data_profiles.png", order)
     p3 = figures.performance_profiles(at, f"{name}: performance profiles", figdir / "performance_profiles.png", order)
-    L += [f"![runtime ECDFs](figures/{p1.name})", "", f"![data profiles](figures/{p2.name})", "",
+    L += [f"![runtime ECDFs](figures/{p1.name})", ""]
+    if search:
+        L += [f"The search methods alone (every solver of the metaheuristic and global families, run jointly: "
+              f"{', '.join(f'`{s}`' for s in search)}), beside scipy-lm, each in colour:", "",
+              f"![runtime ECDFs of the search methods](figures/{p0.name})", ""]
+    L += [f"![data profiles](figures/{p2.name})", "",
           f"![performance profiles](figures/{p3.name})", ""]
     k1, k2 = f"{pk1}_{pt1:g}", f"{pk2}_{pt2:g}"
     L += [f"Per solver, largest cost-ECDF area first; *reached*: share of (trial, target) pairs met within the "
@@ -185,6 +195,27 @@ def anytime_section(rows: list[dict], order: list[str], spec: dict, figdir: Path
                           with_ci(r[f"solved_{k2}"], r[f"solved_{k2}_ci"], ".0f", 100, " %"),
                           with_ci(r[f"fastest_{k2}"], r[f"fastest_{k2}_ci"], ".0f", 100, " %")] for r in recs])
     return L
+
+
+def search_methods(spec: dict, present: list[str]) -> list[str]:
+    """The labels of the spec's in-field configurations whose solver belongs to the metaheuristic or global
+    family (docs/design.md §10: a solver's ``family``), in the spec's order: the derivative-free searches
+    that the anytime figures put side by side (a wrapper, such as staged:, has its own family and is left
+    out). A configuration that can no longer be built (a solver since removed) is left out."""
+    import solvers
+
+    out = []
+    for c in spec.get("solvers", []):
+        label = c.get("label") or c["name"]
+        if label not in present or c.get("reference"):
+            continue
+        try:
+            family = solvers.get(c["name"], **c.get("options", {})).family
+        except Exception:  # noqa: BLE001 - an old store may name a solver this installation lacks
+            continue
+        if family in ("metaheuristic", "global"):
+            out.append(label)
+    return out
 
 
 def _target_name(kind: str, target: float) -> str:

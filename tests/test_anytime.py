@@ -220,6 +220,10 @@ def test_the_report_has_the_anytime_section_with_its_figures_targets_and_interva
         p = tmp_path / "figures" / f"{f}.png"
         assert p.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" and p.stat().st_size > 20_000
         assert f"figures/{f}.png" in section
+    # the search methods (metaheuristic and global families) get their own ECDF figure, beside scipy-lm
+    p = tmp_path / "figures" / "anytime_ecdf_search.png"
+    assert p.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" and "figures/anytime_ecdf_search.png" in section
+    assert "run jointly: `pso`), beside scipy-lm" in section
     table = [r for r in section.splitlines() if r.startswith("| `")]
     assert [r.split("`")[1] for r in table] == ["scipy-lm", "pso"]  # every in-field solver, turntable left out
     # scipy-lm from the presets is the reference optimum: it meets every cost target on every problem
@@ -232,6 +236,18 @@ def test_the_report_has_the_anytime_section_with_its_figures_targets_and_interva
     s = json.loads((tmp_path / "summary.json").read_text())[0]
     lo, hi = s["accuracy_ci"]
     assert lo < s["accuracy"] < hi and len(s["runtime_median_s_ci"]) == 2
+
+
+def test_search_methods_are_the_in_field_metaheuristic_and_global_configurations():
+    from studies.report_sections import search_methods
+
+    spec = {"solvers": [{"name": n, "label": lab, "options": {}, "reference": ref} for n, lab, ref in [
+        ("scipy-lm", "scipy-lm", False), ("bsas", "bsas", False), ("staged:bsas", "staged:bsas", False),
+        ("nlopt-crs2", "nlopt-crs2", False), ("nlopt-bobyqa", "nlopt-bobyqa", False), ("cmaes", "cmaes", False),
+        ("ng:OnePlusOne", "ng:OnePlusOne", False), ("pso", "turntable-pso", True), ("no-such", "gone", False)]]}
+    present = [c["label"] for c in spec["solvers"]]
+    assert search_methods(spec, present) == ["bsas", "nlopt-crs2", "cmaes", "ng:OnePlusOne"]
+    assert search_methods(spec, ["scipy-lm", "cmaes"]) == ["cmaes"]
 
 
 def test_an_old_store_without_anytime_columns_still_reports(tmp_path):
