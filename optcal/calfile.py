@@ -1,12 +1,16 @@
 """The calibration file (docs/design.md §9.3): a versioned JSON record of a fitted calibration that can be applied
 to new raw data to give calibrated specific force.
 
-Content: ``format``, ``format_version``, ``model``, ``terms``, ``parameters`` {name: value},
-``stderr`` {name: value or null}, ``units`` {``input``: "g", ``output``: the data's units}, ``g_local``
-(in g), ``data`` {``n_positions``, ``rms_residual_g``, ``source``}, ``solver``, ``created`` (ISO-8601 UTC),
-``observability`` {rank, n_parameters, unobservable}, and, for models with temperature or drift terms,
-``context`` {``T0``, ``t0``}: the reference temperature and time of the calibration data (docs/design.md §3.4),
-which applying the file to new data must reuse.
+Content: ``format``, ``format_version`` (2), ``model``, ``terms``, ``parameters`` {name: value},
+``stderr`` {name: value or null}, ``units`` {``raw``: the sensor's output units (what the data were in and what
+:meth:`CalibrationFile.apply` takes), ``calibrated``: "g" (what it gives), ``parameters``: {name: unit}},
+``g_local`` (in g), ``data`` {``n_positions``, ``rms_residual_g``, ``source``}, ``solver``, ``created``
+(ISO-8601 UTC), ``observability`` {rank, n_parameters, unobservable}, and, for models with temperature or drift
+terms, ``context`` {``T0``, ``t0``}: the reference temperature and time of the calibration data
+(docs/design.md §3.4), which applying the file to new data must reuse.
+
+Version 1 named the units ``input`` ("g") and ``output`` (the raw units), which read backwards to users; a
+version-1 file is still read, its fields mapped by :func:`upgrade`.
 
 Floats are written with ``repr`` precision (Python's ``json`` does this), so a round trip is exact.
 """
@@ -24,11 +28,14 @@ import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, PrivateAttr, ValidationError, model_validator
 from pydantic_core import PydanticCustomError
 
+from .data import UNITS
 from .errors import InputError
 from .model import Context, Model, get_model
 
 FORMAT = "optcal-calibration"
-FORMAT_VERSION = 1
+FORMAT_VERSION = 2
+READ_VERSIONS = (1, 2)  # version 1 is mapped to 2 on reading (upgrade)
+CALIBRATED_UNITS = "g"  # what apply() gives: specific force in units of g0 (docs/design.md §2)
 CHUNK = 65_536  # samples per inverse call in apply(): temporaries stay in cache-friendly sizes (measured fastest)
 
 
@@ -37,8 +44,40 @@ def _finite_or_none(v) -> float | None:
     return v if math.isfinite(v) else None
 
 
+def units_record(model: Model, raw: str) -> dict:
+    """The file's ``units`` field: the raw output units, the calibrated units and each parameter's unit
+    (:meth:`optcal.model.Model.units`)."""
+    if raw not in UNITS:
+        raise InputError(f"unknown raw output units {raw!r}; use one of {', '.join(UNITS)}")
+    return {"raw": raw, "calibrated": CALIBRATED_UNITS, "parameters": model.units(raw)}
+
+
+def upgrade(d: dict) -> dict:
+    """A calibration record in the current version's fields: a record whose ``units`` still use version 1's
+    names (``input``: "g", ``output``: the raw units) gets ``raw``, ``calibrated`` and ``parameters`` in
+    their place and format_version 2. Anything else is returned as it is (the reader then checks it)."""
+    units = d.get("units") if isinstance(d, dict) else None
+    if not (isinstance(units, dict) and "output" in units and "raw" not in units):
+        return d
+    out = dict(d)
+    raw = units["output"]
+    new = {"raw": raw, "calibrated": units.get("input", CALIBRATED_UNITS)}
+    try:
+        terms = d.get("terms")
+        model = get_model("+".join(terms) if isinstance(terms, list) and terms else d.get("model"))
+        if raw in UNITS:
+            new["parameters"] = model.units(raw)
+    except (InputError, TypeError):
+        pass  # the reader names what is wrong with the model
+    out["units"] = new
+    if out.get("format_version") == 1:
+        out["format_version"] = FORMAT_VERSION
+    return out
+
+
 def calibration_to_dict(cal, *, units_in: str = "g", units_out: str | None = None, source=None) -> dict:
-    """The JSON-ready dictionary of a fitted :class:`optcal.fit.Calibration`."""
+    """The JSON-ready dictionary of a fitted :class:`optcal.fit.Calibration`. ``units_out`` is the raw output
+    units (the data's by default), written as ``units.raw``; ``units_in`` the calibrated units, always g."""
     model: Model = cal.model
     data = cal.problem.data
     if units_out is None:
@@ -52,7 +91,7 @@ def calibration_to_dict(cal, *, units_in: str = "g", units_out: str | None = Non
         "terms": list(model.terms),
         "parameters": {n: float(v) for n, v in zip(model.names, np.asarray(cal.x, float))},
         "stderr": {n: _finite_or_none(s) for n, s in zip(model.names, np.asarray(cal.stderr, float))},
-        "units": {"input": units_in, "output": units_out},
+        "units": units_record(model, units_out),
         "g_local": float(cal.problem.g_local),
         "data": {
             "n_positions": len(data),
@@ -95,13 +134,28 @@ class CalibrationFile:
     x: np.ndarray
     stderr: np.ndarray  # NaN where the file has null (unobservable or not estimated)
     g_local: float
-    units_in: str
-    units_out: str
-    meta: dict = field(default_factory=dict)  # the whole file's content
+    units_in: str  # the calibrated output's units: "g" (the file's units.calibrated)
+    units_out: str  # the raw output's units (the file's units.raw): what apply() takes
+    meta: dict = field(default_factory=dict)  # the whole file's content (a version-1 file's as upgraded)
+
+    @property
+    def raw_units(self) -> str:
+        """Units of the raw outputs the calibration was fitted to and applies to (``units.raw``)."""
+        return self.units_out
+
+    @property
+    def calibrated_units(self) -> str:
+        """Units of the calibrated specific force :meth:`apply` returns (``units.calibrated``): g."""
+        return self.units_in
 
     @property
     def parameters(self) -> dict[str, float]:
         return self.model.to_dict(self.x)
+
+    @property
+    def parameter_units(self) -> dict[str, str]:
+        """{parameter name: unit} (docs/design.md §3.1) for the raw units."""
+        return self.model.units(self.units_out)
 
     def context(self, n: int, temp=None, t=None) -> Context | None:
         """The model's context for new data, relative to the calibration's reference T0 and t0."""
@@ -149,8 +203,9 @@ class _Record(BaseModel):
 
 
 class _Units(_Record):
-    input: str
-    output: str
+    raw: str
+    calibrated: Literal["g"]
+    parameters: dict[str, str] | None = None
 
 
 class _DataInfo(_Record):
@@ -165,10 +220,10 @@ class _Context(_Record):
 
 
 class _CalibrationRecord(_Record):
-    """Format version 1 (docs/design.md §9.3), in the order the reader checks it."""
+    """Format version 2 (docs/design.md §9.3), in the order the reader checks it."""
 
     format: Literal["optcal-calibration"]
-    format_version: Literal[1]
+    format_version: Literal[2]
     model: str
     terms: list[str]
     parameters: dict[str, Annotated[float, Field(allow_inf_nan=False)]]
@@ -195,6 +250,13 @@ class _CalibrationRecord(_Record):
         model.from_dict(self.parameters)  # a name the model lacks: InputError naming it
         if any(self.parameters[model.names[i]] == 0 for i in model.groups()["scale"]):
             raise _problem("a scale factor is zero; the calibration cannot be applied")
+        if self.units.raw not in UNITS:
+            raise _problem(f"units.raw {self.units.raw!r} is not an output unit optcal knows; "
+                           f"it must be one of {', '.join(UNITS)}")
+        if self.units.parameters is not None and self.units.parameters != model.units(self.units.raw):
+            wrong = sorted(n for n, u in model.units(self.units.raw).items() if self.units.parameters.get(n) != u)
+            raise _problem(f"units.parameters disagree with units.raw {self.units.raw!r} for "
+                           f"{', '.join(wrong) or 'extra names'} (docs/design.md §3.1); {_RECREATE}")
         ctx = self.context or _Context()
         for col, key in (("temp", "T0"), ("t", "t0")):
             if col in model.needs and getattr(ctx, key) is None:
@@ -251,11 +313,17 @@ def read_calibration(path) -> CalibrationFile:
     if not isinstance(d, dict) or d.get("format") != FORMAT:
         raise InputError(f"{path} is not an optcal calibration file (no \"format\": \"{FORMAT}\")")
     version = d.get("format_version")
-    if version != FORMAT_VERSION:
+    if isinstance(version, bool) or version not in READ_VERSIONS:
         raise InputError(
-            f"{path} has format_version {version!r}; this optcal reads version {FORMAT_VERSION} only "
-            "(re-create the file with this version's optcal calibrate -o)"
+            f"{path} has format_version {version!r}; this optcal reads versions "
+            f"{' and '.join(map(str, READ_VERSIONS))} (re-create the file with this version's optcal calibrate -o)"
         )
+    if version == 1:
+        units = d.get("units")
+        if isinstance(units, dict) and "raw" in units:
+            raise InputError(f"{path}: format_version 1 names its units input and output, not raw; "
+                             "set format_version to 2 or re-create it with optcal calibrate -o")
+        d = upgrade(d)
     try:
         rec = _CalibrationRecord.model_validate(d)
     except ValidationError as exc:
@@ -263,4 +331,4 @@ def read_calibration(path) -> CalibrationFile:
     model = rec._model
     x = model.from_dict(rec.parameters)
     stderr = np.array([np.nan if rec.stderr.get(n) is None else float(rec.stderr[n]) for n in model.names])
-    return CalibrationFile(model, x, stderr, float(rec.g_local), rec.units.input, rec.units.output, d)
+    return CalibrationFile(model, x, stderr, float(rec.g_local), rec.units.calibrated, rec.units.raw, d)

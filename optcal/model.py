@@ -36,6 +36,8 @@ class Term:
     # The term's output is affine in the specific force and needs no data column: a model made only of
     # such terms is inverted in closed form.
     affine: bool = False
+    # The unit of each parameter (docs/design.md §3.1 "unit"), "{out}" standing for the output units.
+    param_unit: str = "1"
 
 
 def _axes(prefix: str) -> tuple[str, ...]:
@@ -45,14 +47,17 @@ def _axes(prefix: str) -> tuple[str, ...]:
 TERMS: dict[str, Term] = {
     t.name: t
     for t in (
-        Term("scale", _axes("K"), "scale", description="scale factors, output units per g", affine=True),
-        Term("bias", _axes("b"), "bias", description="biases in g (output offset K·b)", affine=True),
+        Term("scale", _axes("K"), "scale", description="scale factors, output units per g", affine=True,
+             param_unit="{out}/g"),
+        Term("bias", _axes("b"), "bias", description="biases in g (output offset K·b)", affine=True,
+             param_unit="g"),
         Term(
             "misalignment",
             ("S_yz", "S_zy", "S_zx"),
             "misalignment",
             description="installation angles in the identifiable gauge S_xz = S_xy = S_yx = 0, rad",
             affine=True,
+            param_unit="rad",
         ),
         Term(
             "misalignment6",
@@ -60,9 +65,12 @@ TERMS: dict[str, Term] = {
             "misalignment",
             description="the seeds' six installation angles, rad (three directions unobservable)",
             affine=True,
+            param_unit="rad",
         ),
-        Term("quadratic", _axes("K2"), "nonlinear", description="second-order scale, output units per g²"),
-        Term("cubic", _axes("K3"), "nonlinear", description="third-order scale, output units per g³"),
+        Term("quadratic", _axes("K2"), "nonlinear", description="second-order scale, output units per g²",
+             param_unit="{out}/g²"),
+        Term("cubic", _axes("K3"), "nonlinear", description="third-order scale, output units per g³",
+             param_unit="{out}/g³"),
         Term(
             "scale_asymmetry",
             _axes("kappa"),
@@ -74,6 +82,7 @@ TERMS: dict[str, Term] = {
             ("c_xy", "c_xz", "c_yz", "c_yx", "c_zx", "c_zy"),
             "nonlinear",
             description="cross-axis products, per g",
+            param_unit="1/g",
         ),
         Term(
             "temperature_bias",
@@ -81,6 +90,7 @@ TERMS: dict[str, Term] = {
             "temperature",
             needs=("temp",),
             description="bias temperature coefficient, g per °C",
+            param_unit="g/°C",
         ),
         Term(
             "temperature_scale",
@@ -88,8 +98,9 @@ TERMS: dict[str, Term] = {
             "temperature",
             needs=("temp",),
             description="scale temperature coefficient, per °C",
+            param_unit="1/°C",
         ),
-        Term("bias_drift", _axes("d"), "drift", needs=("t",), description="bias drift, g per s"),
+        Term("bias_drift", _axes("d"), "drift", needs=("t",), description="bias drift, g per s", param_unit="g/s"),
     )
 }
 
@@ -101,6 +112,9 @@ NAMED_MODELS: dict[str, tuple[str, ...]] = {
 }
 
 _TERM_ORDER = list(TERMS)
+
+# How each output unit of optcal.data.UNITS is written beside a number (docs/design.md §2).
+UNIT_NAMES = {"g": "g", "m/s2": "m/s²", "counts": "counts", "volts": "V", "mg": "mg"}
 
 # The installation matrix T's off-diagonal cells (row i, column j) and the angle in each (docs/design.md
 # §3.2): T = I + these cells, u = T·A. The one statement of this map: every module that builds T or reads
@@ -161,6 +175,14 @@ class Model:
     def is_affine(self) -> bool:
         """True when every term is affine in the specific force (the inverse is then closed-form)."""
         return all(TERMS[t].affine for t in self.terms)
+
+    def units(self, output_units: str) -> dict[str, str]:
+        """{parameter name: its unit} for data whose outputs are in ``output_units`` (docs/design.md §2, §3.1):
+        K in output units per g, b in g, angles in rad, K2 per g², K3 per g³, temperature terms per °C,
+        drift per s. The one statement of the parameters' units: printed tables and files take them from here."""
+        out = UNIT_NAMES.get(output_units, output_units)
+        out = f"({out})" if "/" in out else out
+        return {p: TERMS[t].param_unit.format(out=out) for t in self.terms for p in TERMS[t].params}
 
     def index(self, name: str) -> int:
         return self.names.index(name)

@@ -39,9 +39,11 @@ def test_round_trip_is_exact(tmp_path, fitted):
     path = tmp_path / "cal.json"
     write_calibration(fitted, path, units_in="g", units_out="g", source="sim 24")
     d = json.loads(path.read_text())
-    assert d["format"] == FORMAT and d["format_version"] == FORMAT_VERSION == 1
+    assert d["format"] == FORMAT and d["format_version"] == FORMAT_VERSION == 2
     assert d["model"] == "seed15" and d["terms"] == ["scale", "bias", "misalignment6", "quadratic"]
-    assert d["units"] == {"input": "g", "output": "g"} and d["solver"] == "scipy-lm"
+    assert d["units"] == {"raw": "g", "calibrated": "g", "parameters": fitted.model.units("g")}
+    assert d["units"]["parameters"]["K_x"] == "g/g" and d["units"]["parameters"]["S_xz"] == "rad"
+    assert d["solver"] == "scipy-lm"
     assert d["data"] == {"n_positions": 24, "rms_residual_g": fitted.fit.rms_g, "source": "sim 24"}
     assert datetime.fromisoformat(d["created"].replace("Z", "+00:00")).tzinfo is not None
     assert d["observability"]["rank"] == 12 and len(d["observability"]["unobservable"]) == 3
@@ -78,14 +80,14 @@ def test_other_versions_and_missing_fields_are_clear_errors(tmp_path, fitted):
 
     check(None, "not a JSON calibration file", text="{not json")
     check({**good, "format": "imucal"}, "not an optcal calibration file")
-    check({**good, "format_version": 2}, "format_version 2; this optcal reads version 1")
+    check({**good, "format_version": 3}, "format_version 3; this optcal reads versions 1 and 2")
     check({k: v for k, v in good.items() if k != "format_version"}, "format_version None")
     for key in ("model", "terms", "parameters", "stderr", "units", "g_local", "data", "solver", "created"):
         check({k: v for k, v in good.items() if k != key}, f"lacks the field '{key}'")
     check({**good, "parameters": {k: v for k, v in good["parameters"].items() if k != "K_y"}}, "K_y")
     check({**good, "parameters": {**good["parameters"], "K_x": "big"}}, "not a number")
     check({**good, "model": "linear9"}, "does not match its terms")
-    check({**good, "units": {"input": "g"}}, "lacks 'output'")
+    check({**good, "units": {"calibrated": "g"}}, "lacks 'raw'")
     check({**good, "data": {"n_positions": 24}}, "rms_residual_g")
     check({**good, "g_local": 9.81}, "not a local gravity in g")
     with pytest.raises(InputError, match="cannot read"):
@@ -105,7 +107,7 @@ def test_the_schema_names_the_field_in_one_line(tmp_path, fitted):
         ({**good, "parameters": {**good["parameters"], "K_x": math.inf}},
          "field 'parameters.K_x' is inf, not a finite number"),
         ({**good, "parameters": {**good["parameters"], "K_q": 1.0}}, "parameter(s) K_q are not in model seed15"),
-        ({**good, "note": "mine"}, "field 'note' is not part of format version 1"),
+        ({**good, "note": "mine"}, "field 'note' is not part of format version 2"),
         ({**good, "data": {**good["data"], "n_positions": 24.5}}, "field 'data.n_positions' is not an integer"),
         ({**good, "units": "g"}, "field 'units' is not an object (it is string \"g\")"),
         ({**good, "solver": 3}, "field 'solver' is not a string (it is integer 3)"),
@@ -187,10 +189,10 @@ def test_cli_apply_bad_input(counts_cal, tmp_path, capsys):
     write_calibration(counts_cal, cal, units_in="g", units_out="counts")
     N = counts_cal.model.forward(counts_cal.x, random_orientations(500, np.random.default_rng(5)))[0]
     raw = _raw(tmp_path / "raw.csv", np.arange(500) / 100.0, N)
-    v2 = tmp_path / "v2.json"
-    v2.write_text(json.dumps({**json.loads(cal.read_text()), "format_version": 2}))
+    v3 = tmp_path / "v3.json"
+    v3.write_text(json.dumps({**json.loads(cal.read_text()), "format_version": 3}))
     cases = [
-        (["apply", str(v2), raw, "-o", str(tmp_path / "a.csv")], "format_version 2"),
+        (["apply", str(v3), raw, "-o", str(tmp_path / "a.csv")], "format_version 3"),
         (["apply", str(cal), raw, "-o", str(tmp_path / "b.csv"), "--units", "g"], "fitted to outputs in 'counts'"),
         (["apply", str(cal), str(tmp_path / "none.csv"), "-o", str(tmp_path / "c.csv")], "cannot read"),
     ]
@@ -234,3 +236,28 @@ def test_calibrate_cli_writes_a_readable_file(tmp_path, capsys):
     printed = json.loads(capsys.readouterr().out)
     cf = read_calibration(cal)
     assert cf.parameters == printed["parameters"] and cf.meta["data"]["source"] == str(pos)
+
+
+def test_a_version_1_file_is_read_with_its_units_mapped(counts_cal, tmp_path):
+    """Version 1 named the units input ("g") and output (the raw units); they are read as units.calibrated and
+    units.raw, and the parameters are the same to the bit (docs/design.md §9.3)."""
+    d = calibration_to_dict(counts_cal, units_out="counts")
+    assert d["units"]["raw"] == "counts" and d["units"]["calibrated"] == "g"
+    assert d["units"]["parameters"]["K_x"] == "counts/g" and d["units"]["parameters"]["K2_x"] == "counts/g²"
+    v1 = {**d, "format_version": 1, "units": {"input": "g", "output": "counts"}}
+    (tmp_path / "v1.json").write_text(json.dumps(v1))
+    cf = read_calibration(tmp_path / "v1.json")
+    assert cf.raw_units == cf.units_out == "counts" and cf.calibrated_units == cf.units_in == "g"
+    assert cf.meta["format_version"] == 2 and cf.meta["units"] == d["units"]
+    np.testing.assert_array_equal(cf.x, counts_cal.x)
+    # a version-2 file with version 1's names, or with units that contradict each other, is refused
+    cases = [({**d, "units": {"input": "g", "output": "counts"}}, "field 'units' lacks 'raw'"),
+             ({**v1, "units": {"raw": "counts", "calibrated": "g"}}, "format_version 1 names its units input"),
+             ({**d, "units": {**d["units"], "raw": "furlongs"}}, "units.raw 'furlongs' is not an output unit"),
+             ({**d, "units": {**d["units"], "raw": "g"}}, "units.parameters disagree with units.raw 'g' for K2_x"),
+             ({**d, "units": {**d["units"], "calibrated": "m/s2"}}, "field 'units.calibrated'")]
+    for doc, message in cases:
+        (tmp_path / "bad.json").write_text(json.dumps(doc))
+        with pytest.raises(InputError) as exc:
+            read_calibration(tmp_path / "bad.json")
+        assert message in str(exc.value) and "\n" not in str(exc.value), str(exc.value)
