@@ -397,10 +397,15 @@ def test_bad_input_non_numeric_and_nan(tmp_path, rec24, capsys):
 
 
 def test_bad_input_no_rest_at_the_start(tmp_path, capsys):
+    """A rest period given with --init-s must be at rest; without it (issue #13) the quietest windows set
+    the threshold and the recording calibrates (tests/test_recording_formats.py checks the intervals)."""
     t, N, _, _ = synth(np.random.default_rng(5), start_moving=True)
     path = write(tmp_path / "moving.csv", t, N)
-    code, err = _cli(["calibrate", path, "--raw", "--units", "counts", "--model", "linear9"], capsys)
+    code, err = _cli(["calibrate", path, "--raw", "--units", "counts", "--model", "linear9", "--init-s", "2"], capsys)
     assert code == 2 and "are not at rest" in err and "--init-s" in err
+    assert main(["calibrate", path, "--raw", "--units", "counts", "--model", "linear9"]) == 0
+    out = capsys.readouterr().out
+    assert "24 static interval(s)" in out and "quietest windows" in out
 
 
 def test_bad_input_no_static_intervals(tmp_path, capsys):

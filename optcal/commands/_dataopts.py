@@ -21,6 +21,8 @@ FLAGS = {
     "columns": "--columns",
     "rate": "--rate",
     "saturation": "--saturation",
+    "adc": "--adc",
+    "time_unit": "--time-unit",
     "labels": "--labels",
     "intervals": "--intervals",
     "window_s": "--window",
@@ -28,6 +30,8 @@ FLAGS = {
     "init_s": "--init-s",
     "threshold_k": "--threshold-k",
 }
+# what the library's errors name that is not a parameter of positions_from_raw: its choice of reader
+READERS = {"raw": "--raw"}
 
 
 def add_gravity_options(p: argparse.ArgumentParser) -> None:
@@ -48,15 +52,21 @@ def add_data_options(p: argparse.ArgumentParser, *, units_default: str | None = 
                    "t,ax,ay,az,temp, or role=column items")
     r.add_argument("--rate", type=float, metavar="HZ", help="sample rate when the recording has no time column")
     r.add_argument("--saturation", type=float, metavar="VALUE",
-                   help="|output| at which a sample is saturated (default for counts: the int16 rails)")
+                   help="|output| at which a sample is saturated (default: the ADC's rails, see --adc, and "
+                   "values an axis sticks to at its extremes)")
+    r.add_argument("--adc", metavar="FORMAT", help="the counts' format, intB or uintB (int16, uint16, int12, ...); "
+                   "its rails are saturation (default for counts: signed or unsigned 16, 24 or 32 bits from the data)")
+    r.add_argument("--time-unit", choices=("s", "ms", "us", "ns"),
+                   help="unit of the time column (default: from the median step, a rate of 1 Hz to 100 kHz)")
     r.add_argument("--intervals", metavar="FILE", help="static intervals by hand: JSON or CSV of start,end "
                    "sample indices (end exclusive), or imucal's section list")
     r.add_argument("--labels", metavar="COLUMN[=L1,L2,...]",
                    help="static intervals from a label column: runs of the listed labels (all if none)")
     r.add_argument("--min-static", type=float, default=1.0, metavar="S", help="shortest static interval, s (1)")
     r.add_argument("--window", type=float, default=1.0, metavar="S", help="variance window, s (default 1)")
-    r.add_argument("--init-s", type=float, default=2.0, metavar="S",
-                   help="initial rest period whose variance sets the threshold, s (default 2)")
+    r.add_argument("--init-s", type=float, metavar="S",
+                   help="initial rest period whose variance sets the threshold, s (default: the first 2 s if "
+                   "they are at rest, else the noise floor of the quietest windows)")
     r.add_argument("--threshold-k", metavar="K|A:B", help="threshold multiplier(s) of the initial-rest variance; "
                    "a range is searched and the best fit kept (default 2:10, as imu_tk)")
     add_gravity_options(p)
@@ -69,7 +79,7 @@ def gravity_from_args(args) -> float:
 
 def with_flags(message: str) -> str:
     """``message`` with each backquoted parameter of :data:`FLAGS` replaced by its option."""
-    return re.sub(r"`(\w+)`", lambda m: FLAGS.get(m[1], m[0]), message)
+    return re.sub(r"`(\w+)`", lambda m: FLAGS.get(m[1], READERS.get(m[1], m[0])), message)
 
 
 @contextmanager
@@ -101,25 +111,36 @@ def raw_options(args) -> dict:
     return {
         "columns": getattr(args, "columns", None), "rate": getattr(args, "rate", None),
         "units": getattr(args, "units", "g") or "g", "saturation": getattr(args, "saturation", None),
+        "adc": getattr(args, "adc", None), "time_unit": getattr(args, "time_unit", None),
         "labels": column, "label_values": None if values is None else values.split(","),
         "intervals": getattr(args, "intervals", None) or None,
         "threshold_k": parse_ks(getattr(args, "threshold_k", None)),
         "window_s": getattr(args, "window", 1.0), "min_static_s": getattr(args, "min_static", 1.0),
-        "init_s": getattr(args, "init_s", 2.0),
+        "init_s": getattr(args, "init_s", None),
         "model": getattr(args, "model", None) or getattr(args, "base", None) or "diag6",
         "g_local": gravity_from_args(args),
     }
 
 
 def load_positions(args, path) -> PositionsData:
-    """Positions from a positions CSV, or (``--raw``) from a raw recording via static-interval detection."""
+    """Positions from a positions CSV or MAT file, or (``--raw``) from a raw recording via static-interval
+    detection. A raw recording given as positions is named as such (and a positions file given with
+    ``--raw`` by the reader)."""
     if getattr(args, "raw", False):
         from ..recording.workflow import positions_from_raw
 
         with flag_names():
             return positions_from_raw(path, **raw_options(args))
-    from ..data import check_units, read_positions
+    from pathlib import Path
 
-    data = read_positions(path, units=args.units)
+    from ..data import check_units, read_positions
+    from ..recording.positions import mat_positions
+    from ..recording.sniff import is_mat, raw_file_reason
+
+    reason = raw_file_reason(Path(path)) if Path(path).is_file() else None
+    if reason:
+        raise InputError(f"{path} looks like a raw recording, not a positions file ({reason}); pass --raw")
+    with flag_names():
+        data = mat_positions(path, units=args.units) if is_mat(Path(path)) else read_positions(path, units=args.units)
     check_units(data, args.units)
     return data

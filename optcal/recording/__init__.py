@@ -37,14 +37,15 @@ from .intervals import given_intervals, label_intervals, read_intervals
 from .positions import positions_from_recording
 from .reading import _NOT_LOADED as _NOT_LOADED  # the reader's "pyarrow not imported yet" marker
 from .reading import INT16_RAILS, Recording, read_recording
-from .report import describe_detection
+from .report import describe_detection, detection_summary
 from .sniff import ALIASES, POSITIONAL, RATE_KEYS, ROLES, SNIFF_LINES
 
 _WORKFLOW = ("choose_threshold", "fit_score", "positions_from_raw")
 
 __all__ = [
     "ALIASES", "DEFAULT_KS", "INT16_RAILS", "NO_REST_RATIO", "POSITIONAL", "RATE_KEYS", "ROLES", "SNIFF_LINES",
-    "DetectionResult", "Recording", "choose_threshold", "describe_detection", "detect_static", "fit_score",
+    "DetectionResult", "Recording", "choose_threshold", "describe_detection", "detect_static",
+    "detection_summary", "fit_score",
     "given_intervals", "label_intervals", "parse_ks", "positions_from_raw", "positions_from_recording",
     "read_intervals", "read_recording", "too_few", "variance_statistic",
 ]

@@ -7,6 +7,14 @@ The statistic of each sample is the norm of the per-axis variances over a window
 is the same norm over an initial rest period. Runs of static samples shorter than a minimum are ignored,
 and an interval holding a saturated sample is dropped. The search over k, which fits a model to each
 candidate, is :func:`optcal.recording.workflow.choose_threshold`.
+
+A known rest at the start is not needed. Without ``init_s``, the first :data:`DEFAULT_INIT_S` seconds
+are the rest period when they are at rest (ς_init at most :data:`NO_REST_RATIO` times the level of the
+quietest windows), as in imu_tk; otherwise ς_init is the noise floor of the recording itself: the
+:data:`QUIET_PERCENTILE`-th percentile of ς over the windows that move at all (the quietest windows of a
+recording of poses are windows inside a pose). With ``init_s`` given, the first ``init_s`` seconds must be
+at rest. When too few intervals are found, :meth:`Detector.diagnosis` says why (saturated samples, runs too
+short, runs just above the threshold) and what to change.
 """
 
 from __future__ import annotations
@@ -20,6 +28,9 @@ from ..model import Model
 from .reading import Recording
 
 NO_REST_RATIO = 20.0  # initial-rest variance this many times the quietest windows': not at rest
+DEFAULT_INIT_S = 2.0  # s: the rest period tried at the start when `init_s` is not given
+QUIET_PERCENTILE = 5.0  # the noise floor without a rest period: this percentile of the moving windows' ς
+NOISY_FACTOR = 3.0  # a run under this many times the threshold, long enough, but not under it: "too noisy"
 DEFAULT_KS = tuple(float(k) for k in range(2, 11))  # imu_tk's threshold multipliers, searched by default
 
 
@@ -34,7 +45,8 @@ class DetectionResult:
     window: int | None = None  # samples in the variance window
     min_samples: int = 1
     init_samples: int | None = None
-    init_variance: float | None = None  # ς_init, the variance norm of the initial rest period
+    init_variance: float | None = None  # ς_init, the variance norm of the initial rest period (or noise floor)
+    reference: str = "initial rest"  # what ς_init is: "initial rest" or "quietest windows"
     statistic: np.ndarray | None = None  # ς(t) per sample (NaN at the edges)
     k: float | None = None
     threshold: float | None = None
@@ -98,23 +110,23 @@ def _samples(rec: Recording, seconds: float, param: str) -> int:
 
 @dataclass
 class Detector:
-    """The part of detection that does not depend on k: the statistic and the initial-rest variance."""
+    """The part of detection that does not depend on k: the statistic and the reference variance ς_init."""
 
     rec: Recording
     window: int
     min_samples: int
-    init_samples: int
+    init_samples: int | None  # None: ς_init is the noise floor of the quietest windows
     init_variance: float
     statistic: np.ndarray
 
     @classmethod
-    def of(cls, rec: Recording, window_s: float = 1.0, min_static_s: float = 1.0, init_s: float = 2.0):
+    def of(cls, rec: Recording, window_s: float = 1.0, min_static_s: float = 1.0, init_s: float | None = None):
         w = _samples(rec, window_s, "window_s") | 1
-        n_init = _samples(rec, init_s, "init_s")
+        n_init = _samples(rec, DEFAULT_INIT_S if init_s is None else init_s, "init_s")
         if len(rec) < max(2 * w, n_init + w):
             raise InputError(
                 f"{rec.path}: {len(rec)} samples ({rec.duration:.1f} s) are too few for a {window_s:g} s window "
-                f"and a {init_s:g} s initial rest; record longer"
+                f"and a {n_init / rec.rate:g} s initial rest; record longer"
             )
         stat = variance_statistic(rec.N, w)
         init_var = float(np.linalg.norm(rec.N[:n_init].var(axis=0)))
@@ -126,11 +138,15 @@ class Detector:
             raise InputError(f"{rec.path}: the outputs never change; this is not a recording of a sensor being turned")
         quiet = float(np.percentile(moving, 1.0))
         if init_var > NO_REST_RATIO * quiet:
-            raise InputError(
-                f"{rec.path}: the first {init_s:g} s are not at rest (their variance is "
-                f"{init_var / quiet:.3g} × that of the quietest windows); start the recording "
-                "with the sensor still, or set the rest period with `init_s`"
-            )
+            if init_s is not None:
+                raise InputError(
+                    f"{rec.path}: the first {init_s:g} s are not at rest (their variance is "
+                    f"{init_var / quiet:.3g} × that of the quietest windows); start the recording "
+                    "with the sensor still, or set the rest period with `init_s` (or leave it unset to use "
+                    "the quietest windows)"
+                )
+            floor = float(np.percentile(moving, QUIET_PERCENTILE))
+            return cls(rec, w, _samples(rec, min_static_s, "min_static_s"), None, floor, stat)
         if init_var == 0.0:
             init_var = quiet  # a quantised, perfectly still start: the finest variance seen sets the scale
         return cls(rec, w, _samples(rec, min_static_s, "min_static_s"), n_init, init_var, stat)
@@ -147,13 +163,56 @@ class Detector:
     def result(self, k: float) -> DetectionResult:
         notes: list[str] = []
         iv = self.intervals(k, notes)
+        ref = "initial rest" if self.init_samples is not None else "quietest windows"
+        if self.init_samples is None:
+            notes.append(f"no rest at the start: ς_init is the noise floor, the {QUIET_PERCENTILE:g}th percentile "
+                         "of the variance statistic")
         return DetectionResult(self.rec, iv, "variance", None, self.window, self.min_samples, self.init_samples,
-                               self.init_variance, self.statistic, float(k), float(k * self.init_variance), notes)
+                               self.init_variance, ref, self.statistic, float(k), float(k * self.init_variance),
+                               notes)
+
+    def diagnosis(self, k: float, needed: int) -> tuple[str, str]:
+        """Why threshold k gives fewer than ``needed`` intervals, and what to change: (counts, advice), for
+        :func:`too_few`. Counts: samples set aside as saturated (and the intervals they cost), static runs
+        shorter than ``min_static_s``, and runs long enough that stay under :data:`NOISY_FACTOR` times the
+        threshold but not under it (too noisy)."""
+        thr = k * self.init_variance
+        stat = np.nan_to_num(self.statistic, nan=np.inf)
+        runs = _runs(stat < thr)
+        lens = runs[:, 1] - runs[:, 0]
+        short = np.sort(lens[lens < self.min_samples])[::-1]
+        long_runs = runs[lens >= self.min_samples]
+        c = np.concatenate([[0], np.cumsum(self.rec.saturated)])
+        lost = int(np.sum(c[long_runs[:, 1]] - c[long_runs[:, 0]] > 0)) if len(long_runs) else 0
+        found = len(long_runs) - lost
+        near = _runs(stat < NOISY_FACTOR * thr)
+        near = near[near[:, 1] - near[:, 0] >= self.min_samples]
+        cs = np.concatenate([[0], np.cumsum(stat < thr)])
+        noisy = int(np.sum(cs[near[:, 1]] - cs[near[:, 0]] == 0)) if len(near) else 0
+        nsat = int(self.rec.saturated.sum())
+        parts = [f"{nsat} sample(s) set aside as saturated"
+                 + (f" ({lost} interval(s) dropped)" if lost else ""),
+                 f"{len(short)} candidate(s) shorter than `min_static_s` = {self.min_samples / self.rec.rate:g} s"
+                 + (f" (the longest {short[0] / self.rec.rate:.2g} s)" if len(short) else ""),
+                 f"{noisy} too noisy for the threshold (k = {k:g})"]
+        missing = needed - found
+        if len(short) >= missing and short[missing - 1] >= 3:
+            cut = np.floor(short[missing - 1] / self.rec.rate * 10) / 10
+            advice = f"lower `min_static_s` to {max(cut, 0.1):g} s"
+        elif lost and found + lost >= needed:
+            advice = ("declare the ADC's range with `adc` or `saturation` if those values are not its rails, or "
+                      "record within its range")
+        elif noisy:
+            advice = f"raise `threshold_k` (e.g. to {2 * k:g})"
+        else:
+            advice = "record more poses, each held still for longer than `min_static_s`"
+        return ", ".join(parts), advice
 
 
 def detect_static(recording: Recording, k: float = 4.0, *, window_s: float = 1.0, min_static_s: float = 1.0,
-                  init_s: float = 2.0) -> DetectionResult:
-    """Static intervals at threshold k·ς_init (Tedaldi et al. 2014, §IV-A)."""
+                  init_s: float | None = None) -> DetectionResult:
+    """Static intervals at threshold k·ς_init (Tedaldi et al. 2014, §IV-A); ς_init from the first ``init_s``
+    seconds, or without it from a rest at the start or the quietest windows (:class:`Detector`)."""
     if not k > 0:
         raise InputError(f"the threshold multiplier k must be positive, got {k}")
     return Detector.of(recording, window_s, min_static_s, init_s).result(k)
@@ -179,10 +238,12 @@ def parse_ks(spec) -> tuple[float, ...]:
     return ks
 
 
-def too_few(found: int, model: Model, how: str = "") -> InputError:
-    """The error for fewer static intervals than ``model`` has parameters."""
+def too_few(found: int, model: Model, how: str = "", diagnosis: tuple[str, str] | None = None) -> InputError:
+    """The error for fewer static intervals than ``model`` has parameters, with :meth:`Detector.diagnosis`'s
+    counts and advice when detection found them."""
     how = f" {how}" if how else ""
+    counts, advice = diagnosis or ("", "record more poses, lower `min_static_s`, or use a smaller model (e.g. diag6)")
     return InputError(
         f"found {found} static interval(s){how}, but model {model.name} needs at least {model.n_params} "
-        "(one per parameter); record more poses, lower `min_static_s`, or use a smaller model (e.g. diag6)"
+        f"(one per parameter){': ' + counts if counts else ''}; {advice}"
     )

@@ -117,7 +117,7 @@ def read_recording(path, columns=None, rate: float | None = None, units: str = "
     n = len(raw)
     if n < 2:
         raise InputError(f"{path} has {n} sample(s); a raw recording needs many samples per static pose")
-    reason = positions_file_reason(lay, n)
+    reason = positions_file_reason(lay, n, "t" in cols)
     if reason:
         raise InputError(f"{path} looks like a positions file, not a raw recording ({reason}); "
                          "read it as positions (drop `raw`)")

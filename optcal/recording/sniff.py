@@ -38,6 +38,7 @@ COMPRESSED = {".gz": gzip.open, ".bz2": bz2.open, ".xz": lzma.open}
 # columns only a positions file has (docs/design.md §9.1): a raw recording has one row per sample
 POSITIONS_ONLY = ("position", "n", "sx", "sy", "sz", "ref_x", "ref_y", "ref_z")
 FEW_ROWS = 100  # a raw recording this short cannot hold the static intervals of a calibration
+MANY_ROWS = 1000  # a file of samples this long, with none of a positions file's own columns, is a recording
 
 
 @dataclass
@@ -201,14 +202,15 @@ def sniff_layout(path: Path) -> Layout:
     return Layout(delim, rows[start][0], ref[0], ref[1], header, meta, rows[start][1], dec)
 
 
-def positions_file_reason(lay: Layout, nrows: int) -> str | None:
+def positions_file_reason(lay: Layout, nrows: int, timed: bool) -> str | None:
     """Why a file read as a raw recording looks like a positions file (docs/design.md §9.1), or None: its
-    header names columns only positions files have, or it has too few rows for a recording."""
+    header names columns only positions files have, or it has no time column (``timed`` False) and too few
+    rows for a recording."""
     names = [h.lower() for h in lay.header or []]
     only = [c for c in POSITIONS_ONLY if c in names]
     if only and all(c in names for c in ("ax", "ay", "az")):
         return f"its columns {', '.join(only)} are those of a positions file"
-    if nrows < FEW_ROWS:
+    if nrows < FEW_ROWS and not timed:
         return f"it has {nrows} rows, too few for a recording with one row per sample"
     return None
 
@@ -284,4 +286,31 @@ def rate_from_meta(meta: dict) -> float | None:
     for k in RATE_KEYS:
         if k in meta and is_number(meta[k]):
             return float(meta[k])
+    return None
+
+
+def raw_file_reason(path: Path) -> str | None:
+    """Why a file given as a positions file (docs/design.md §9.1) looks like a raw recording, or None: a
+    MAT file's matrix or a table with :data:`MANY_ROWS` rows or more and none of the columns only positions
+    files have, or a table whose columns are named as a recording's (``acc_x``, ``time``) or not at all."""
+    try:
+        if is_mat(path):
+            header, table = mat_table(path)
+            names, nrows = [h.lower() for h in header or []], len(table)
+        else:
+            lay = sniff_layout(path)
+            names = [h.lower() for h in lay.header or []]
+            with io.TextIOWrapper(open_binary(path), encoding="utf-8-sig", errors="replace") as fh:
+                nrows = sum(1 for _ in fh) - lay.skiprows
+            if lay.header is None and lay.ncol in POSITIONAL and all(lay.numeric):
+                return f"{nrows} rows of {lay.ncol} numbers and no header"
+            if any(c in names for c in POSITIONS_ONLY):
+                return None  # a positions file, perhaps with misnamed columns: its reader says which
+            if lay.header is not None and not all(c in names for c in ("ax", "ay", "az")):
+                role_columns(None, lay, path)  # names a recording's columns (acc_x, ...): else not a recording
+                return f"its columns {', '.join(lay.header)} are a recording's"
+    except InputError:
+        return None
+    if nrows >= MANY_ROWS and not any(c in names for c in POSITIONS_ONLY):
+        return f"{nrows} rows, one per sample, and no position, n or sx column"
     return None

@@ -47,12 +47,12 @@ def fit_score(data: PositionsData, model, g_local: float = 1.0, solver: str = "s
 
 def choose_threshold(recording: Recording, model, fit_cost_fn=None, *, ks=DEFAULT_KS, g_local: float = 1.0,
                      solver: str = "scipy-lm", window_s: float = 1.0, min_static_s: float = 1.0,
-                     init_s: float = 2.0) -> DetectionResult:
+                     init_s: float | None = None) -> DetectionResult:
     """Search the threshold multiplier k over ``ks`` and keep the one whose calibration fits best
     (Tedaldi et al. 2014, §IV-A; imu_tk tries k = 2…10). ``fit_cost_fn(positions) -> float`` scores a
     candidate (default :func:`fit_score` of ``model`` fitted with ``solver``). Interval sets met before
     are not refitted. A candidate needs more positions than the model has parameters; if none has, the
-    error says how many were found."""
+    error says how many were found and why (:meth:`~optcal.recording.detection.Detector.diagnosis`)."""
     model = get_model(model)
     det = Detector.of(recording, window_s, min_static_s, init_s)
     cost_fn = fit_cost_fn or (lambda d: fit_score(d, model, g_local, solver))
@@ -77,7 +77,8 @@ def choose_threshold(recording: Recording, model, fit_cost_fn=None, *, ks=DEFAUL
     if best is None:
         most = max(search, key=lambda r: r["n_intervals"])
         if most["n_intervals"] < model.n_params:
-            raise too_few(most["n_intervals"], model, f"at best (k = {most['k']:g})")
+            raise too_few(most["n_intervals"], model, f"at best (k = {most['k']:g})",
+                          det.diagnosis(most["k"], model.n_params))
         fits = [r for r in search if r["n_intervals"] >= model.n_params]
         if all(r["n_intervals"] == model.n_params for r in fits):  # no spare degree of freedom: take it
             res = det.result(most["k"])
@@ -91,22 +92,25 @@ def choose_threshold(recording: Recording, model, fit_cost_fn=None, *, ks=DEFAUL
 
 
 def positions_from_raw(path: str | Path, *, columns=None, rate: float | None = None, units: str = "g",
-                       saturation: float | None = None, labels: str | None = None,
+                       saturation: float | None = None, adc: str | None = None, time_unit: str | None = None,
+                       labels: str | None = None,
                        label_values: Sequence[str] | None = None, intervals: str | Path | None = None,
                        threshold_k: float | str | Sequence[float] | None = None, window_s: float = 1.0,
-                       min_static_s: float = 1.0, init_s: float = 2.0, model="diag6",
+                       min_static_s: float = 1.0, init_s: float | None = None, model="diag6",
                        g_local: float = 1.0) -> PositionsData:
-    """Positions from a raw recording. ``columns``, ``rate`` (Hz), ``units``, ``saturation`` and
-    ``labels`` (a label column) are :func:`~optcal.recording.read_recording`'s. The static intervals come
-    from the file ``intervals`` (:func:`~optcal.recording.read_intervals`), else from the runs of
+    """Positions from a raw recording. ``columns``, ``rate`` (Hz), ``units``, ``saturation``, ``adc``,
+    ``time_unit`` and ``labels`` (a label column) are :func:`~optcal.recording.read_recording`'s. The
+    static intervals come from the file ``intervals`` (:func:`~optcal.recording.read_intervals`), else from the runs of
     ``label_values`` (all labels if None) in the column ``labels``, else from the variance detector with
-    window ``window_s``, shortest interval ``min_static_s`` and initial rest ``init_s`` (all in s): one
+    window ``window_s``, shortest interval ``min_static_s`` and initial rest ``init_s`` (all in s; without
+    ``init_s``, a rest at the start or the quietest windows, :class:`~optcal.recording.detection.Detector`): one
     threshold multiplier ``threshold_k`` (:func:`~optcal.recording.parse_ks`: a number, ``"2:10"``, ...)
     is used as it is (:func:`~optcal.recording.detect_static`), several (default 2…10) are searched for
     the best fit of ``model`` at local gravity ``g_local`` (g; :func:`~optcal.recording.choose_threshold`).
     Fewer intervals than ``model`` has parameters, or outputs whose magnitude does not fit ``units``, are an
     InputError."""
-    rec = read_recording(path, columns, rate, units, saturation=saturation, labels=labels)
+    rec = read_recording(path, columns, rate, units, saturation=saturation, labels=labels, adc=adc,
+                         time_unit=time_unit)
     model = get_model(model)
     if intervals is not None:
         det = given_intervals(rec, *read_intervals(intervals))
@@ -116,6 +120,9 @@ def positions_from_raw(path: str | Path, *, columns=None, rate: float | None = N
         ks = parse_ks(threshold_k)
         if len(ks) == 1:
             det = detect_static(rec, ks[0], window_s=window_s, min_static_s=min_static_s, init_s=init_s)
+            if det.n_intervals < model.n_params:
+                detector = Detector.of(rec, window_s, min_static_s, init_s)
+                raise too_few(det.n_intervals, model, f"(k = {ks[0]:g})", detector.diagnosis(ks[0], model.n_params))
         else:
             det = choose_threshold(rec, model, ks=ks, g_local=g_local, window_s=window_s,
                                    min_static_s=min_static_s, init_s=init_s)
