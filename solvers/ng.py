@@ -209,4 +209,5 @@ ng_solver.family = Nevergrad.family
 ng_solver.options = Nevergrad.options
 ng_solver.requires = Nevergrad.requires
 ng_solver.list_hint = LIST_HINT
+ng_solver.unavailable_message = Nevergrad.unavailable_message
 register_family("ng", ng_solver)

@@ -186,3 +186,17 @@ def test_ng_without_nevergrad_says_how_to_install_it(positions_csv, monkeypatch,
     assert code == 2 and len(err.splitlines()) == 1
     assert 'pip install "optcal[nevergrad]"' in err
 
+
+
+def test_solvers_listing_names_the_ng_family(capsys):
+    assert main(["solvers"]) == 0
+    out = capsys.readouterr().out
+    assert "cmaes" in out and "ng:<NAME>" in out
+    assert "ng:<NAME>  [metaheuristic]  available" in out and 'ng.optimizers.registry' in out
+
+
+def test_solvers_json_lists_the_family_with_its_options(capsys):
+    assert main(["solvers", "--json"]) == 0
+    fam = json.loads(capsys.readouterr().out)["families"]
+    assert [f["prefix"] for f in fam] == ["ng"]
+    assert fam[0]["options"]["batch"]["default"] == 0 and fam[0]["available"] is True

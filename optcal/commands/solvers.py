@@ -1,5 +1,6 @@
 """optcal solvers: every registered solver (built-in and plugins) with its options and defaults, whether it
-can run here, and the wrapper prefixes that compose with any of them (``staged:bsas``, ``mcs:nafsa``).
+can run here, the wrapper prefixes that compose with any of them (``staged:bsas``, ``mcs:nafsa``), and the
+families whose members are named in another library (``ng:NGOpt``: nevergrad's optimisers).
 
 A command, so application layer (CONTRIBUTING.md, "Layers"): it imports the registry from ``solvers``
 directly, inside :func:`listing` so that building the parser (``optcal --help``) does not load the solver
@@ -32,7 +33,7 @@ def _plain(v):
 
 
 def listing(names: list[str] | None = None) -> dict:
-    """{"solvers": [...], "wrappers": [...]} as printed by ``optcal solvers --json``."""
+    """{"solvers": [...], "wrappers": [...], "families": [...]} as printed by ``optcal solvers --json``."""
     from solvers import registry as reg
 
     known = reg.names()
@@ -62,7 +63,17 @@ def listing(names: list[str] | None = None) -> dict:
             "prefix": prefix, "usage": f"{prefix}:<solver>", "doc": doc[0] if doc else "",
             "options": {k: {"default": _plain(o.default), "doc": o.doc} for k, o in opts.items()},
         })
-    return {"solvers": out, "wrappers": wrappers}
+    families = []
+    for d in reg.describe_all(families=True):
+        if "prefix" not in d:
+            continue
+        entry = {"prefix": d["prefix"], "usage": d["name"], "family": d["family"], "available": d["available"],
+                 "doc": d["doc"], "list_hint": d["list_hint"],
+                 "options": {k: {"default": _plain(o["default"]), "doc": o["doc"]} for k, o in d["options"].items()}}
+        if not d["available"]:
+            entry["message"] = reg.family_factory(d["prefix"]).unavailable_message()
+        families.append(entry)
+    return {"solvers": out, "wrappers": wrappers, "families": families}
 
 
 def _option_lines(options: dict) -> list[str]:
@@ -90,5 +101,14 @@ def run(args) -> int:
         for w in info["wrappers"]:
             lines.append(f"{w['usage']}  {w['doc']}")
             lines.extend(_option_lines(w["options"]))
+        if info["families"]:
+            lines.append("")
+            lines.append("families (PREFIX:NAME, NAME from another library; its settings pass through --option):")
+        for f in info["families"]:
+            state = "available" if f["available"] else f"UNAVAILABLE: {f['message']}"
+            lines.append(f"{f['usage']}  [{f['family']}]  {state}  {f['doc']}")
+            lines.extend(_option_lines(f["options"]))
+            if f["list_hint"]:
+                lines.append(f"    names: {f['list_hint']}")
     print("\n".join(lines))
     return 0
