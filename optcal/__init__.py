@@ -1,8 +1,9 @@
 """optcal: reference-free calibration of triaxial accelerometers, and a bench for comparing optimisers.
 
-The problem library: models, schemes, simulation, data I/O, the calibration problem, analysis
-(observability, Cramér-Rao bounds), discovery, navigation, calibration files and the CLI. It never
-imports ``solvers`` or ``studies``; where it needs a fit it asks the registry by name at run time.
+The problem library (the core layer: models, schemes, simulation, data I/O, the calibration problem,
+analysis, discovery's statistics, navigation, calibration files), and above it the application layer (the
+CLI, the workflows that run a solver, the Python API), which imports ``solvers`` directly; the core never
+does (CONTRIBUTING.md, "Layers"). This package is a facade over both: its names load at first use.
 
 The public names are loaded at first use (PEP 562), so that ``import optcal`` and ``optcal --help`` do not
 import NumPy, SciPy or anything heavier; ``from optcal import simulate`` works as before. The front door for
