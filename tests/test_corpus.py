@@ -235,8 +235,8 @@ def test_hassan_bao_24_positions_reproduce_their_lm_result(tmp_path, capsys):
 
 def test_hassan_bao_49_positions_agree_with_the_24(tmp_path, capsys):
     """The 49-position file holds the 24 positions and 25 more between them (the 24 are its rows 0, 2, 6,
-    8, ..., 26, 29, 30, 32, ..., 48, to 3e-17). Fitted on all 49 the scale factors move by at most 1.6e-4 relative (0.5 SE of
-    the 24-position fit) and the offsets by at most 0.50 mg (1.9 SE, on y); the 24 and 25 positions
+    8, ..., 26, 29, 30, 32, ..., 48, to 3e-17). Fitted on all 49 the scale factors move by at most 1.6e-4
+    relative (0.5 SE of the 24-position fit) and the offsets by at most 0.50 mg (1.9 SE, on y); the 24 and 25 positions
     share half their data, so this is a consistency check, not an independent one. The residual RMS
     (no noise figure is given with these means) grows from 0.43 mg to 0.84 mg: the 25 added positions fit
     worse than the 24 the authors kept for their published result."""
@@ -260,9 +260,6 @@ def test_hassan_bao_49_positions_agree_with_the_24(tmp_path, capsys):
     assert b["n_positions"] == 49 and 0.7e-3 < b["rms_residual_g"] < 1.0e-3  # measured 0.836 mg
 
 
-@pytest.mark.xfail(strict=True, reason="optcal cannot read MATLAB .mat files: a positions file stored as "
-                   "one 3×24 matrix in a level 5 MAT file is refused with \"cannot read ...: 'utf-8' codec can't "
-                   "decode byte 0xb3\"; it should read a single numeric n×3 or 3×n matrix (scipy.io.loadmat)")
 def test_hassan_bao_mat_positions_read_directly(capsys):
     code, out = _cli(["calibrate", str(HB / "CalibrationOfLowCostTriaxialInertialSensors.mat"), "--units", "g",
                       "--model", "linear9", "--json"], capsys)

@@ -45,7 +45,8 @@ def reading_line(how: dict, n_saturated: int) -> str:
     if how.get("format"):
         what = how["format"] + (f", {how['compression']}-compressed" if how.get("compression") else "")
         if how.get("delimiter"):
-            what += f", {'tab' if how['delimiter'] == chr(9) else how['delimiter']}-separated"
+            names = {",": "comma", ";": "semicolon", "\t": "tab"}
+            what += f", {names.get(how['delimiter'], how['delimiter'])}-separated"
         if how.get("decimal") == ",":
             what += ", decimal comma"
         parts.append(what)
