@@ -121,6 +121,11 @@ def read_positions(path: str | Path, units: str = "g") -> PositionsData:
     if not rows:
         raise InputError(f"{path} is empty; a positions CSV needs a header with ax, ay, az and one row per position")
     header = [h.strip() for h in rows[0]]
+    for name in dict.fromkeys(header):
+        where = [i + 1 for i, h in enumerate(header) if h == name]
+        if len(where) > 1 and name:
+            raise InputError(f"{path}: the header names column {name!r} {len(where)} times (columns "
+                             f"{', '.join(map(str, where))}); keep one, or rename the others")
     missing = [c for c in REQUIRED if c not in header]
     if missing:
         hints = []
@@ -181,20 +186,51 @@ def read_positions(path: str | Path, units: str = "g") -> PositionsData:
 UNITS = ("g", "m/s2", "counts", "volts", "mg")
 
 
+def guess_units(magnitude: float) -> str | None:
+    """The output units a static sensor's typical output magnitude suggests (docs/design.md §2): about 1 is
+    g, 9.8 m/s², 1000 mg, and a power of two from 128 up (16384 for a ±2 g 16-bit ADC) counts; else None."""
+    m = float(magnitude)
+    if not math.isfinite(m) or m <= 0:
+        return None
+    if 0.9 <= m <= 1.1:
+        return "g"
+    if 9.70 <= m <= 9.90:
+        return "m/s2"
+    if 960 <= m <= 1040:
+        return "mg"
+    if m >= 100 and abs(m / 2.0 ** round(math.log2(m)) - 1) <= 0.12:
+        return "counts"
+    return None
+
+
+# The range of the median output magnitude each unit allows (a sensor at rest reads 1 g, within a factor 2).
+_PLAUSIBLE = {"g": (0.5, 2.0), "m/s2": (0.5 * G0, 2.0 * G0), "mg": (500.0, 2000.0)}
+
+
 def check_units(data: PositionsData, units: str) -> None:
-    """Refuse data whose norms say they are in m/s² while the user declared other units."""
+    """Refuse data whose output magnitudes contradict the units declared: norms that look like m/s², g, mg
+    or counts (a power of two per g) while other units are declared (docs/design.md §2)."""
     if units not in UNITS:
         raise InputError(f"unknown units {units!r}; use one of {', '.join(UNITS)}")
     with np.errstate(over="ignore"):  # a wild value overflows to inf: the problem names that position later
         med = float(np.median(np.linalg.norm(data.N, axis=1)))
-    looks_ms2 = 9.70 <= med <= 9.90
-    if units != "m/s2" and looks_ms2:
+    looks = guess_units(med)
+    if units != "m/s2" and looks == "m/s2":
         raise InputError(
             f"the outputs' norms are about {med:.3f}, which looks like m/s², but the units are {units!r}; "
             "pass --units m/s2 (and --gravity for your local g if you know it)"
         )
     if units == "g" and not 0.5 <= med <= 2.0:
+        like = f"look like {looks}" if looks else "are not in g"
         raise InputError(
-            f"the outputs' norms are about {med:.4g}, not about 1, so they are not in g; "
-            "pass --units counts (or m/s2, volts) to say what they are"
+            f"the outputs' norms are about {med:.4g}, not about 1, so they {like}; "
+            f"pass --units {looks or 'counts'} (or m/s2, volts) to say what they are"
         )
+    lo_hi = _PLAUSIBLE.get(units)
+    if lo_hi is not None and math.isfinite(med) and not lo_hi[0] <= med <= lo_hi[1]:
+        like = f"which looks like {looks}" if looks else "which no static sensor reads"
+        raise InputError(f"the outputs' norms are about {med:.5g}, {like}, not {units} (a sensor at rest reads "
+                         f"{lo_hi[0]:g} to {lo_hi[1]:g} {units}); pass --units {looks or 'counts'} or convert the data")
+    if units == "counts" and looks in ("g", "m/s2"):
+        raise InputError(f"the outputs' norms are about {med:.4g}, which looks like {looks}, not {units}; "
+                         f"pass --units {looks}")

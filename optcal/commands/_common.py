@@ -41,11 +41,15 @@ def refuse_overwrite(path: str | None, force: bool) -> None:
         raise InputError(f"{path} exists; choose another output path or pass --force to overwrite it")
 
 
-def parameter_table(names, values, stderr=None, truth: dict | None = None) -> str:
-    """A fixed-width table: name, estimate, standard error, and the truth and error in SEs when given."""
+def parameter_table(names, values, stderr=None, truth: dict | None = None, units: dict | None = None) -> str:
+    """A fixed-width table: name, estimate, standard error, the unit of both (``units``: {name: unit}, from
+    :meth:`optcal.model.Model.units`, docs/design.md §2), and the truth and error in SEs when given."""
     import numpy as np
 
+    uw = max([4] + [len(units.get(n, "")) for n in names]) if units else 0
     head = f"{'parameter':<10} {'estimate':>16} {'std. error':>12}"
+    if units:
+        head += f" {'unit':<{uw}}"
     if truth:
         head += f" {'truth':>16} {'error/SE':>9}"
     lines = [head, "-" * len(head)]
@@ -53,12 +57,47 @@ def parameter_table(names, values, stderr=None, truth: dict | None = None) -> st
         se = None if stderr is None else stderr[i]
         se_txt = "unobservable" if se is None or not np.isfinite(se) else f"{se:12.3e}"
         row = f"{n:<10} {values[i]:16.9g} {se_txt:>12}"
+        if units:
+            row += f" {units.get(n, ''):<{uw}}"
         if truth and n in truth:
             err = values[i] - truth[n]
             z = f"{err / se:9.2f}" if se is not None and np.isfinite(se) and se > 0 else f"{'':>9}"
             row += f" {truth[n]:16.9g} {z}"
-        lines.append(row)
+        lines.append(row.rstrip())
     return "\n".join(lines)
+
+
+def refuse_same_file(output: str | None, *inputs, option: str = "-o") -> None:
+    """An output path that names one of the command's input files is refused: the input would be replaced by
+    its own result."""
+    from os.path import samefile
+
+    if not output:
+        return
+    out = Path(output)
+    for src in inputs:
+        if not src:
+            continue
+        same = out.resolve() == Path(src).resolve()
+        if not same and out.exists() and Path(src).exists():
+            same = samefile(out, src)
+        if same:
+            raise InputError(f"{option} {output} is also an input of this command; write the result to another file")
+
+
+def check_output_folder(path: str | None, option: str = "-o") -> None:
+    """The folder an output is written to exists (checked before any work, so nothing is half done)."""
+    if not path:
+        return
+    folder = Path(path).resolve().parent
+    if not folder.is_dir():
+        raise InputError(f"{option} {path}: the folder {folder} does not exist; create it or choose another path")
+
+
+def check_seed(seed: int | None, option: str = "--seed") -> None:
+    """Seeds of numpy's generators are non-negative integers."""
+    if seed is not None and seed < 0:
+        raise InputError(f"{option} {seed} is negative; give a seed of 0 or more")
 
 
 def add_noise_from_options(p, dwell_help: str, reading: str) -> None:

@@ -7,7 +7,7 @@ from typing import TYPE_CHECKING
 
 from ..errors import InputError
 from ..gravity import G0
-from ._common import refuse_overwrite
+from ._common import check_output_folder, refuse_overwrite, refuse_same_file
 from ._dataopts import add_data_options, flag_names, gravity_from_args
 
 if TYPE_CHECKING:
@@ -42,23 +42,58 @@ def write_csv(path: Path, columns: dict[str, np.ndarray], fmt: dict[str, str]) -
         raise InputError(f"cannot write {path}: {exc.strerror or exc}") from None
 
 
+# Options of add_data_options that only the static-interval detector reads: apply converts every sample.
+DETECTOR_OPTIONS = {"raw": ("--raw", False), "intervals": ("--intervals", None), "labels": ("--labels", None),
+                    "init_s": ("--init-s", None), "threshold_k": ("--threshold-k", None),
+                    "window": ("--window", 1.0), "min_static": ("--min-static", 1.0)}
+# The median magnitude of the raw outputs against the calibration's at rest (|K|·g_local): beyond this factor
+# either way the data are not in the calibration's units (docs/design.md §9.3).
+MAGNITUDE_FACTOR = 4.0
+
+
+def check_magnitude(cal, N, path) -> None:
+    """Refuse raw outputs whose typical magnitude is not what the calibration's sensor gives at 1 g, naming
+    the units the data look like (a calibration fitted in counts applied to data in g, ...)."""
+    import numpy as np
+
+    from ..data import guess_units
+
+    with np.errstate(over="ignore", invalid="ignore"):
+        med = float(np.median(np.linalg.norm(N, axis=1)))
+    K = cal.x[cal.model.groups()["scale"]]
+    expect = float(np.mean(np.abs(K))) * cal.g_local
+    if not (np.isfinite(med) and med > 0 and 1 / MAGNITUDE_FACTOR <= med / expect <= MAGNITUDE_FACTOR):
+        looks = guess_units(med)
+        hint = f", which looks like {looks}" if looks and looks != cal.units_out else ""
+        raise InputError(f"the raw outputs of {path} have a median magnitude of {med:.4g}{hint}, but the calibration "
+                         f"was fitted to outputs in {cal.units_out!r}, which read about {expect:.4g} at rest; apply "
+                         f"a calibration fitted in the data's units")
+
+
 def run(args) -> int:
     import numpy as np
 
     from ..calfile import read_calibration
     from ..recording.reading import read_recording
 
+    given = [flag for key, (flag, default) in DETECTOR_OPTIONS.items() if getattr(args, key, default) != default]
+    if given:
+        raise InputError(f"{', '.join(given)} select static intervals, which apply does not: it converts every "
+                         "sample of the recording; drop them")
+    refuse_same_file(args.output, args.calibration, args.data)
     refuse_overwrite(args.output, args.force)
+    check_output_folder(args.output)
+    g = gravity_from_args(args)
     cal = read_calibration(args.calibration)
     if args.units is not None and args.units != cal.units_out:
         raise InputError(
             f"the data are declared in {args.units!r} but {args.calibration} was fitted to outputs in "
             f"{cal.units_out!r}; convert the data or drop --units"
         )
-    g = gravity_from_args(args) if (args.gravity is not None or args.latitude is not None) else None
     with flag_names():
         rec = read_recording(args.data, args.columns, args.rate, cal.units_out, saturation=args.saturation,
                              need_time="t" in cal.model.needs)
+    check_magnitude(cal, rec.N, args.data)
     has_t = "t" in rec.columns
     A = cal.apply(rec.N, temp=rec.temp, t=rec.t if has_t else None)
     scale = OUTPUT_UNITS[args.output_units]
@@ -80,7 +115,8 @@ def run(args) -> int:
     print(f"median |A| = {np.median(norm):.6f} g (calibration's local gravity {cal.g_local:.6f} g)")
     if rec.saturated.any():
         print(f"note: {int(rec.saturated.sum())} saturated sample(s) are flagged in column 'saturated'")
-    if g is not None and abs(g - cal.g_local) > 1e-6:
+    gave_gravity = getattr(args, "gravity", None) is not None or args.latitude is not None
+    if gave_gravity and abs(g - cal.g_local) > 1e-6:
         print(f"note: the local gravity given ({g:.6f} g) differs from the calibration's ({cal.g_local:.6f} g); "
               "the output is specific force and does not depend on it")
     return 0

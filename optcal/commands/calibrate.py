@@ -7,11 +7,14 @@ import json
 from ..errors import InputError
 from ._common import (
     add_noise_from_options,
+    check_output_folder,
+    check_seed,
     describe_noise,
     noise_from_args,
     parameter_table,
     parse_options,
     refuse_overwrite,
+    refuse_same_file,
 )
 from ._dataopts import add_data_options, flag_names, gravity_from_args, load_positions
 
@@ -42,12 +45,17 @@ def run(args) -> int:
     from ..fit import calibrate
     from ..presets import load_presets
 
+    check_seed(args.seed)
+    inputs = (args.data, args.presets, args.noise_from)
+    refuse_same_file(args.output, *inputs)
     refuse_overwrite(args.output, args.force)
+    check_output_folder(args.output)
     if args.plot:  # checked before anything is fitted or written
         from ..plots import check_figure_path
 
         if not args.raw:
             raise InputError("--plot draws a raw recording; use it with --raw")
+        refuse_same_file(args.plot, *inputs, args.output, option="--plot")
         refuse_overwrite(args.plot, args.force)
         check_figure_path(args.plot)
     g_local = gravity_from_args(args)
@@ -76,13 +84,16 @@ def run(args) -> int:
 
         save_figure(figure, args.plot)
     if args.json:
-        print(json.dumps({**cal.to_dict(), **({"noise_from": noise} if noise else {})}, indent=2))
+        units = cal.model.units(data.units)  # beside "parameters", in the same order (docs/design.md §2)
+        print(json.dumps({**cal.to_dict(), "units": units, "output_units": data.units,
+                          **({"noise_from": noise} if noise else {})}, indent=2))
         return 0
     if detection is not None:
         from ..recording.report import describe_detection
 
         print(describe_detection(detection))
-    print(f"model {cal.model.name}, {len(data)} positions, g_local = {cal.problem.g_local:.9f} g, solver {cal.solver}")
+    print(f"model {cal.model.name}, {len(data)} positions, outputs in {data.units}, "
+          f"g_local = {cal.problem.g_local:.9f} g, solver {cal.solver}")
     print(f"residual RMS {cal.fit.rms_g * 1e6:.3f} µg, cost {cal.fit.cost:.6e}, "
           f"{cal.result.nfev} evaluations, {cal.result.runtime_s * 1e3:.1f} ms ({cal.result.message})")
     print("observability: " + cal.observability.describe())
@@ -90,7 +101,7 @@ def run(args) -> int:
         print(describe_noise(noise))
     for note in cal.notes:
         print(f"note: {note}")
-    print(parameter_table(cal.model.names, cal.x, cal.stderr))
+    print(parameter_table(cal.model.names, cal.x, cal.stderr, units=cal.model.units(data.units)))
     for written in (args.output, args.plot):
         if written:
             print(f"wrote {written}")
