@@ -36,7 +36,10 @@ def recording_figure(recording: Recording, detection: DetectionResult, residuals
         else:
             m = len(rec) // step * step
             blocks = rec.N[:m, j].reshape(-1, step)
-            ax.fill_between(rec.t[:m:step], blocks.min(1), blocks.max(1), lw=0, alpha=0.8, label=f"a{c}")
+            # the block means as a line (a fill of blocks a few samples wide is too thin to see), and
+            # their min/max around it, which keeps every spike visible
+            (line,) = ax.plot(rec.t[:m:step], blocks.mean(1), lw=0.6, label=f"a{c}")
+            ax.fill_between(rec.t[:m:step], blocks.min(1), blocks.max(1), lw=0, alpha=0.5, color=line.get_color())
     for s, e in det.intervals:
         for a in axes:
             a.axvspan(rec.t[s], rec.t[e - 1], color="tab:green", alpha=0.15, lw=0)
