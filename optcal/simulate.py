@@ -56,6 +56,15 @@ def simulate(
     With ``reference``, the data carry the turntable's commanded specific force in ``ref_*``; the true
     orientation differs from the commanded one by a random rotation of ``reference_error_arcsec`` per axis.
     """
+    for name, value, low in (("noise_g", noise_g, 0.0), ("tilt_deg", tilt_deg, 0.0),
+                             ("reference_error_arcsec", reference_error_arcsec, 0.0)):
+        if not (np.isfinite(value) and value >= low):
+            raise InputError(f"simulate: {name} = {value!r} must be a finite number of 0 or more")
+    for name, value in (("dwell_s", dwell_s), ("rate_hz", rate_hz), ("g_local", g_local)):
+        if not (np.isfinite(value) and value > 0):
+            raise InputError(f"simulate: {name} = {value!r} must be a positive finite number")
+    if noise_density is not None and not (np.isfinite(noise_density) and noise_density >= 0):
+        raise InputError(f"simulate: noise_density = {noise_density!r} must be a finite number of 0 or more (g/√Hz)")
     model = get_model(model)
     gen = model
     values = dict(truth)

@@ -341,7 +341,7 @@ def test_cli_uses_the_union_of_parameters_of_different_models(files, capsys):
         (["{cal}", "--truth", "{truth}", "--hours", "-1"], "hours"),
         (["{cal}", "--truth", "{dir}/units.json"], "units"),
         (["{cal}", "--truth", "{truth}", "--plot", "{dir}/no/such/dir/nav.png"], "cannot write"),
-        (["{cal}", "--truth", "{truth}", "--gyro-bias", "1,x,2"], "--gyro-bias"),
+        (["{cal}", "--truth", "{truth}", "--gyro-bias-dph", "1,x,2"], "--gyro-bias"),
     ],
 )
 def test_cli_bad_input_is_one_line_exit_2(files, capsys, argv, fragment):

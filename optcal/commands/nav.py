@@ -42,10 +42,11 @@ def add_arguments(p):
     p.add_argument("--attitude", default="0,0,0", metavar="ROLL,PITCH,YAW",
                    help="fixed attitude in deg, FRD body against NED (default 0,0,0: x north, z down); "
                    "write a negative first angle as --attitude=-10,0,0")
-    p.add_argument("--gyro-bias", default="0,0,0", metavar="X,Y,Z", help="constant gyro bias, deg/h, body frame")
+    p.add_argument("--gyro-bias-dph", default="0,0,0", metavar="X,Y,Z", help="constant gyro bias, deg/h, body frame")
     p.add_argument("--self-align", action="store_true",
                    help="run a static self-alignment first (default: the initial attitude is known)")
     p.add_argument("--plot", metavar="FILE.png", help="plot latitude, longitude and position error over time")
+    p.add_argument("--force", action="store_true", help="overwrite an existing --plot file")
     p.add_argument("--json", action="store_true",
                    help="print {max_error_nmi, mean_error_nmi, hours, latitude_deg} as JSON")
 
@@ -73,6 +74,9 @@ def _load_truth(path: str) -> tuple[dict[str, float], tuple[str, ...], str | Non
         raise InputError(f"truth {path} is not valid JSON ({exc})") from None
     if not isinstance(obj, dict):
         raise InputError(f"truth {path} must be a JSON object {{name: value}} or a calibration file")
+    if not obj:
+        raise InputError(f"truth {path} is empty; give the true parameters {{name: value}} (at least K_x, K_y, K_z) "
+                         "or a calibration file")
     if obj.get("format") == FORMAT:
         cal = read_calibration(path)
         return cal.parameters, cal.model.terms, cal.units_out
@@ -86,6 +90,28 @@ def _load_truth(path: str) -> tuple[dict[str, float], tuple[str, ...], str | Non
             raise InputError(f"truth {path}: {k} = {v!r} is not a finite number")
         values[k] = float(v)
     return values, _terms_of(values), None
+
+
+# The truth's scale factors against the calibration's: beyond this factor either way they are in other units.
+SCALE_FACTOR_RATIO = 4.0
+
+
+def _check_plain_truth_units(path, truth: dict, K_true, cal) -> None:
+    """A plain {name: value} truth states no units: its scale factors (1 where it has none) must be of the
+    calibration's size, else the two are in different output units (docs/design.md §9.3)."""
+    import numpy as np
+
+    from ..data import guess_units
+
+    k_t, k_c = float(np.mean(np.abs(K_true))), float(np.mean(np.abs(cal.x[cal.model.groups()["scale"]])))
+    if 1 / SCALE_FACTOR_RATIO <= k_t / k_c <= SCALE_FACTOR_RATIO:
+        return
+    looks = guess_units(k_t)
+    given = "" if any(n.startswith("K_") for n in truth) else " (it gives none, so 1)"
+    like = f", which looks like outputs in {looks}" if looks else ""
+    raise InputError(f"truth {path}'s scale factors are about {k_t:.4g}{given}{like}, but the calibration's are about "
+                     f"{k_c:.4g} (outputs in {cal.units_out}); give the truth in {cal.units_out}, or as a calibration "
+                     "file that states its units")
 
 
 def _terms_of(names) -> tuple[str, ...]:
@@ -126,7 +152,18 @@ def run(args) -> int:
     from ..nav import navigation_error, plot_navigation
 
     attitude = _triple(args.attitude, "--attitude")
-    gyro = _triple(args.gyro_bias, "--gyro-bias")
+    gyro = _triple(args.gyro_bias_dph, "--gyro-bias-dph")
+    if args.plot:  # checked before anything is computed
+        from ..plots import check_figure_path
+
+        if not Path(args.plot).resolve().parent.is_dir():
+            raise InputError(f"cannot write the plot {args.plot}: the folder {Path(args.plot).resolve().parent} does "
+                             "not exist; create it or choose another path")
+        if Path(args.plot).resolve() in (Path(args.calibration).resolve(), Path(args.truth).resolve()):
+            raise InputError(f"--plot {args.plot} is also an input of this command; write the figure elsewhere")
+        if Path(args.plot).exists() and not args.force:
+            raise InputError(f"{args.plot} exists; choose another --plot path or pass --force to overwrite it")
+        check_figure_path(args.plot)
     cal = read_calibration(args.calibration)
     truth, truth_terms, truth_units = _load_truth(args.truth)
     if truth_units is not None and truth_units != cal.units_out:
@@ -136,6 +173,8 @@ def run(args) -> int:
     x_true, x_est = vectors(model, truth, cal.parameters)
     if np.any(x_true[model.groups()["scale"]] == 0):
         raise InputError(f"truth {args.truth} has a zero scale factor; give K_x, K_y, K_z")
+    if truth_units is None:
+        _check_plain_truth_units(args.truth, truth, x_true[model.groups()["scale"]], cal)
     res = navigation_error(model, x_true, x_est, hours=args.hours, latitude_deg=args.latitude,
                            height_m=args.height, attitude_deg=attitude, gyro_bias_dph=gyro,
                            self_alignment=args.self_align)
@@ -144,8 +183,8 @@ def run(args) -> int:
         try:
             plot_navigation({label: res}, args.plot,
                             title=f"{Path(args.calibration).name} vs truth, {args.hours:g} h at {args.latitude:g}°")
-        except OSError as exc:
-            raise InputError(f"cannot write the plot {args.plot}: {exc.strerror or exc}") from None
+        except (OSError, ValueError) as exc:
+            raise InputError(f"cannot write the plot {args.plot}: {getattr(exc, 'strerror', None) or exc}") from None
     if args.json:
         print(json.dumps(res.to_dict()))
         return 0

@@ -3,9 +3,11 @@
 from __future__ import annotations
 
 import json
+import logging
+import math
 
 from ..errors import InputError
-from ._common import read_json_object, refuse_overwrite
+from ._common import check_output_folder, check_seed, read_json_object, refuse_overwrite, refuse_same_file
 
 HELP = "simulate static positions of an accelerometer and write a positions CSV (default model nonlinear12)"
 
@@ -56,6 +58,52 @@ def parse_effects(items: list[str]) -> dict[str, dict[str, float]]:
     return effects
 
 
+# The SD of a position mean: a navigation-grade sensor averaged for seconds gives 1 to 100 µg; above 1 mg
+# is warned about, above 1 g (a position mean noisier than gravity itself) refused.
+NOISE_WARN_UG, NOISE_MAX_UG = 1_000.0, 1_000_000.0
+
+
+def check_noise_ug(noise_ug: float, option: str = "--noise-ug") -> None:
+    """A noise SD in µg: finite, not negative, not absurd; a warning when it looks like another unit."""
+    if not math.isfinite(noise_ug) or noise_ug < 0:
+        raise InputError(f"{option} {noise_ug:g} must be a finite SD of 0 µg or more")
+    if noise_ug > NOISE_MAX_UG:
+        raise InputError(f"{option} {noise_ug:g} µg ({noise_ug * 1e-6:g} g) per position mean is noisier than "
+                         "gravity itself; give the SD in µg (10 is typical)")
+    if noise_ug > NOISE_WARN_UG:
+        logging.getLogger("optcal").warning(
+            f"{option} {noise_ug:g} µg: {noise_ug / 1000:g} mg per position mean is implausible for a "
+            "navigation-grade sensor (1 to 100 µg); the option is in µg")
+
+
+def check_options(args) -> None:
+    """Every number simulate reads, with its unit, before anything is drawn or written."""
+    check_seed(args.seed)
+    check_noise_ug(args.noise_ug)
+    for value, option, unit in ((args.tilt_deg, "--tilt-deg", "deg"),
+                                (args.reference_error_arcsec, "--reference-error-arcsec", "arcsec")):
+        if not math.isfinite(value) or value < 0:
+            raise InputError(f"{option} {value:g} must be a finite SD of 0 {unit} or more")
+    if args.tilt_deg > 45:
+        raise InputError(f"--tilt-deg {args.tilt_deg:g} is not a placement error; give the SD in degrees (0 to 45)")
+    if args.dwell_s is not None and not (math.isfinite(args.dwell_s) and args.dwell_s > 0):
+        raise InputError(f"--dwell-s {args.dwell_s:g} must be a positive dwell per position in seconds")
+    if args.reference_error_arcsec and not args.reference:
+        raise InputError("--reference-error-arcsec is the turntable's error: use it with --reference")
+    from ..gravity import check_gravity_g
+
+    try:
+        check_gravity_g(args.gravity_g)
+    except InputError as exc:
+        raise InputError(f"--gravity-g: {exc}") from None
+    refuse_same_file(args.output, args.truth)
+    refuse_same_file(args.truth_out, args.truth, args.output, option="--truth-out")
+    refuse_overwrite(args.output, args.force)
+    refuse_overwrite(args.truth_out, args.force)
+    check_output_folder(args.output)
+    check_output_folder(args.truth_out, "--truth-out")
+
+
 def run(args) -> int:
     import numpy as np
 
@@ -63,11 +111,14 @@ def run(args) -> int:
     from ..presets import draw_truth
     from ..simulate import simulate
 
-    refuse_overwrite(args.output, args.force)
-    refuse_overwrite(args.truth_out, args.force)
+    check_options(args)
     model = get_model(args.model)
     rng = np.random.default_rng(args.seed)
     truth = read_json_object(args.truth, "truth") if args.truth else draw_truth(model, rng)
+    bad = [k for k, v in truth.items() if isinstance(v, bool) or not isinstance(v, int | float) or not math.isfinite(v)]
+    if bad:
+        raise InputError(f"truth {args.truth}: {', '.join(bad)} must be finite numbers (the model's parameters in "
+                         "their units, docs/design.md §3.1)")
     unknown = sorted(set(truth) - set(model.names))
     if unknown:
         raise InputError(f"truth has parameter(s) {', '.join(unknown)} that model {model.name} lacks; use --effect "
@@ -77,16 +128,25 @@ def run(args) -> int:
         try:
             c1, c2 = (float(v) for v in args.temp.split(":"))
         except ValueError:
-            raise InputError(f"--temp {args.temp!r} must be C1:C2, e.g. 20:40") from None
+            raise InputError(f"--temp {args.temp!r} must be C1:C2 in °C, e.g. 20:40") from None
+        if not all(math.isfinite(c) and -100 <= c <= 200 for c in (c1, c2)):
+            raise InputError(f"--temp {args.temp!r}: give temperatures in °C, between -100 and 200")
         temp = (c1, c2)
     sim = simulate(
         model, truth, rng, scheme=args.scheme, noise_g=args.noise_ug * 1e-6, tilt_deg=args.tilt_deg, temp=temp,
         times=args.dwell_s is not None, dwell_s=args.dwell_s or 10.0, effects=parse_effects(args.effect),
         reference=args.reference, reference_error_arcsec=args.reference_error_arcsec, g_local=args.gravity_g,
     )
-    sim.data.to_csv(args.output)
+    # both files are rendered before either is written
+    files = {args.output: sim.data.to_csv()}
     if args.truth_out:
-        with open(args.truth_out, "w") as fh:
-            json.dump(sim.truth, fh, indent=2)
-    print(f"wrote {len(sim.data)} positions ({sim.model.name}) to {args.output}")
+        files[args.truth_out] = json.dumps(sim.truth, indent=2)
+    for path, text in files.items():
+        try:
+            with open(path, "w") as fh:
+                fh.write(text)
+        except OSError as exc:
+            raise InputError(f"cannot write {path}: {exc.strerror or exc}") from None
+    print(f"wrote {len(sim.data)} positions ({sim.model.name}, noise {args.noise_ug:g} µg per position mean) "
+          f"to {args.output}")
     return 0
