@@ -96,9 +96,9 @@ def main() -> None:
                figs / "real_hassan_bao_phone.png")
 
     hb = real / "hassan_bao"
-    positions_figure({"Hassan & Bao, 24 positions": mat_positions(hb / "CalibrationOfLowCostTriaxialInertialSensors.mat"),
-                      "Hassan & Bao, 49 positions": mat_positions(hb / "CalibrationOfLowCostTriaxialInertialSensors50.mat")},
-                     figs / "real_hassan_bao_positions.png")
+    sets = {f"Hassan & Bao, {n} positions": mat_positions(hb / f"CalibrationOfLowCostTriaxialInertialSensors{s}.mat")
+            for n, s in ((24, ""), (49, "50"))}
+    positions_figure(sets, figs / "real_hassan_bao_positions.png")
 
 
 if __name__ == "__main__":
