@@ -17,6 +17,7 @@ from pathlib import Path
 import numpy as np
 
 from .errors import InputError
+from .jsonfile import read_json_object
 from .model import TERMS, Model, get_model
 
 # One-sigma spread of each parameter family of a navigation-grade sensor, output in g (K ≈ 1).
@@ -107,14 +108,7 @@ def manufacturer_presets(truth: dict[str, float], rng: np.random.Generator, erro
 
 def load_presets(path: str | Path) -> Presets:
     """Read a presets JSON: ``{"values": {...}, "halfwidth": {...}}`` or a plain ``{name: value}``."""
-    try:
-        obj = json.loads(Path(path).read_text())
-    except OSError as exc:
-        raise InputError(f"cannot read presets {path}: {exc.strerror}") from None
-    except json.JSONDecodeError as exc:
-        raise InputError(f"presets {path} is not valid JSON ({exc.msg} at line {exc.lineno})") from None
-    if not isinstance(obj, dict):
-        raise InputError(f"presets {path} must be a JSON object of parameter values")
+    obj = read_json_object(path, "presets")
     values = obj.get("values", obj if "halfwidth" not in obj else {})
     if "parameters" in obj and isinstance(obj["parameters"], dict):  # a calibration file
         values = obj["parameters"]

@@ -12,7 +12,6 @@ what no format can hold (nonlinear, temperature and drift terms).
 
 from __future__ import annotations
 
-import json
 import os
 import tempfile
 from dataclasses import dataclass
@@ -23,6 +22,7 @@ import numpy as np
 
 from ..errors import InputError
 from ..gravity import G0
+from ..jsonfile import parse_json_object
 from ..model import T_CELLS, TERMS, Model, get_model
 
 # T's off-diagonal cells, (row, column) -> parameter name (docs/design.md §3.2), as the model states them.
@@ -199,14 +199,7 @@ def read_text(path, what: str) -> str:
 
 
 def read_json(path, what: str) -> dict:
-    text = read_text(path, what)
-    try:
-        obj = json.loads(text)
-    except json.JSONDecodeError as exc:
-        raise InputError(f"{path} is not a JSON {what} file ({exc.msg} at line {exc.lineno})") from None
-    if not isinstance(obj, dict):
-        raise InputError(f"{path} is not a {what} file (a JSON object)")
-    return obj
+    return parse_json_object(read_text(path, what), path, f"{what} file")
 
 
 def matrix3(value, name: str, path, shape=(3, 3)) -> np.ndarray:

@@ -6,7 +6,6 @@ recording file, and the white-noise density of a recording or of a saved analysi
 
 from __future__ import annotations
 
-import json
 import logging
 import math
 from dataclasses import dataclass
@@ -15,6 +14,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import InputError
+from ..jsonfile import read_json_object
 from .fit import DEFAULT_CI, chi2_interval, greenhall_edf, noise_type, read_terms
 from .report import UNIT_SCALE, AxisNoise, NoiseReport
 
@@ -208,11 +208,8 @@ def load_white_noise(path, **reading) -> WhiteNoise:
     except OSError as exc:
         raise InputError(f"cannot read {path}: {exc.strerror or exc}") from None
     if head.lstrip().startswith("{"):
-        try:
-            obj = json.loads(p.read_text())
-        except json.JSONDecodeError as exc:
-            raise InputError(f"{path} is not valid JSON ({exc.msg} at line {exc.lineno})") from None
-        if not isinstance(obj, dict) or obj.get("kind") != "optcal noise":
+        obj = read_json_object(p, "noise analysis")
+        if obj.get("kind") != "optcal noise":
             raise InputError(f"{path} is not the JSON of an optcal noise analysis (no \"kind\": \"optcal noise\")")
         d = obj.get("white_noise_density_rms_g_per_sqrt_hz")
         if not isinstance(d, (int, float)) or not d > 0:
