@@ -1,6 +1,6 @@
 """The corpus of real recordings (issue #13, item 5): each recording that other people made on a real
 accelerometer is calibrated end to end and compared with its source's own calibration or a stated
-reference. docs/real_data_corpus.md gives the numbers; each folder's README gives the provenance.
+reference. docs/real_data.md gives the numbers; each folder's README gives the provenance.
 
 Recordings of this file (the three of ``tests/test_real_data.py`` are the rest of the corpus):
 
@@ -16,9 +16,11 @@ Recordings of this file (the three of ``tests/test_real_data.py`` are the rest o
   m/s², 30 hand-held orientations, no time column. Reference: the 30 static intervals the authors chose by
   hand (CombinedAlgorithm.m) and a bias vector left in a comment of that script.
 
-optcal cannot read two of these formats today (a gzip-compressed text file; MATLAB .mat files) and calls
-unsigned counts saturated: the tests marked ``xfail(strict=True)`` state what it should do; the others
-convert the file in a temporary folder first (the conversion is the test's, not optcal's).
+Three of these files were once unreadable (a gzip-compressed text file; MATLAB .mat files) and unsigned counts
+were called saturated; the tests that read them directly (``*_read_directly``,
+``test_xsens_unsigned_counts_without_saturation_option``) were strict xfails until issue #13. The others
+convert the file in a temporary folder first (the conversion is the test's), which keeps the comparison
+with the upstream bytes.
 """
 
 import gzip
@@ -93,7 +95,7 @@ XSENS_ARGS = ["--raw", "--units", "counts", "--saturation", "65535", "--gravity"
 
 @pytest.fixture(scope="module")
 def xsens_txt(tmp_path_factory):
-    """The recording decompressed, byte for byte the upstream file (optcal reads no .gz: see the xfail)."""
+    """The recording decompressed, byte for byte the upstream file (optcal also reads the .gz directly)."""
     path = tmp_path_factory.mktemp("xsens") / "xsens_acc.mat"
     path.write_bytes(gzip.decompress((IMU_TK / "xsens_acc.mat.gz").read_bytes()))
     return path
