@@ -204,7 +204,7 @@ def guess_units(magnitude: float) -> str | None:
 
 
 # The range of the median output magnitude each unit allows (a sensor at rest reads 1 g, within a factor 2).
-_PLAUSIBLE = {"g": (0.5, 2.0), "m/s2": (0.5 * G0, 2.0 * G0), "mg": (500.0, 2000.0)}
+_PLAUSIBLE = {"mg": (500.0, 2000.0)}
 
 
 def check_units(data: PositionsData, units: str) -> None:
@@ -229,8 +229,8 @@ def check_units(data: PositionsData, units: str) -> None:
     lo_hi = _PLAUSIBLE.get(units)
     if lo_hi is not None and math.isfinite(med) and not lo_hi[0] <= med <= lo_hi[1]:
         like = f"which looks like {looks}" if looks else "which no static sensor reads"
-        raise InputError(f"the outputs' norms are about {med:.5g}, {like}, not {units} (a sensor at rest reads "
+        raise InputError(f"the outputs' magnitude is about {med:.5g}, {like}, not {units} (a sensor at rest reads "
                          f"{lo_hi[0]:g} to {lo_hi[1]:g} {units}); pass --units {looks or 'counts'} or convert the data")
     if units == "counts" and looks in ("g", "m/s2"):
-        raise InputError(f"the outputs' norms are about {med:.4g}, which looks like {looks}, not {units}; "
+        raise InputError(f"the outputs' magnitude is about {med:.4g}, which looks like {looks}, not {units}; "
                          f"pass --units {looks}")

@@ -46,6 +46,10 @@ def run(args) -> int:
     from ..presets import load_presets
 
     check_seed(args.seed)
+    if args.dwell_s is not None and not args.noise_from:
+        raise InputError("--dwell-s sets the dwell for --noise-from; give --noise-from too, or leave it out")
+    if args.budget is not None and args.budget < 1:
+        raise InputError(f"--budget {args.budget} must be a number of evaluations of 1 or more")
     inputs = (args.data, args.presets, args.noise_from)
     refuse_same_file(args.output, *inputs)
     refuse_overwrite(args.output, args.force)

@@ -6,6 +6,7 @@ import json
 from pathlib import Path
 
 from ..errors import InputError
+from ._common import refuse_overwrite, refuse_same_file
 from ._dataopts import add_data_options, gravity_from_args, load_positions
 
 HELP = "discover the terms a model is missing (F-test and BIC, forward selection; default base model linear9)"
@@ -27,17 +28,30 @@ def add_arguments(p):
                    help=f"family-wise significance per step, split over the candidates (default {DEFAULT_ALPHA})")
     p.add_argument("--bic-threshold", type=float, default=DEFAULT_BIC_THRESHOLD,
                    help=f"a term must also change BIC by less than this (default {DEFAULT_BIC_THRESHOLD})")
-    p.add_argument("--noise", type=float, metavar="G",
-                   help="noise of each position's mean per axis in g (default: from n and sx, sy, sz, if present)")
-    p.add_argument("--json", action="store_true", help="print the report as one JSON object")
+    p.add_argument("--noise-ug", type=float, metavar="UG",
+                   help="noise of each position's mean per axis, µg (default: from n and sx, sy, sz, if present)")
+    p.add_argument("--json", action="store_true",
+                   help="print the report as one JSON object (with the final parameters' units)")
     p.add_argument("--plot", metavar="FILE.png", help="write the residual figure (one panel per step)")
+    p.add_argument("--force", action="store_true", help="overwrite an existing --plot file")
     add_data_options(p)
 
 
 def run(args) -> int:
     from ..discovery.workflow import discover
 
+    noise_g = None
+    if args.noise_ug is not None:
+        from .simulate import check_noise_ug
+
+        if args.noise_ug == 0:
+            raise InputError("--noise-ug 0: the noise of a position mean is never zero; give it in µg (e.g. 10) "
+                             "or leave it out to take it from n and sx, sy, sz")
+        check_noise_ug(args.noise_ug)
+        noise_g = args.noise_ug * 1e-6
     if args.plot:
+        refuse_same_file(args.plot, args.data, option="--plot")
+        refuse_overwrite(args.plot, args.force)
         out = Path(args.plot)
         if out.parent and not out.parent.is_dir():
             raise InputError(f"--plot {args.plot}: directory {out.parent} does not exist; create it or choose "
@@ -48,17 +62,21 @@ def run(args) -> int:
     g_local = gravity_from_args(args)
     data = load_positions(args, args.data)
     report = discover(data, base=args.base, candidates=candidates, g_local=g_local, alpha=args.alpha,
-                      bic_threshold=args.bic_threshold, noise_g=args.noise)
+                      bic_threshold=args.bic_threshold, noise_g=noise_g)
     if args.plot:
         report.plot(args.plot)
     if args.json:
-        print(json.dumps(report.to_dict(), indent=2))
+        final = report.final_model  # units beside final_parameters (docs/design.md §2)
+        print(json.dumps({**report.to_dict(), "units": final.units(data.units), "output_units": data.units},
+                         indent=2))
     else:
         if isinstance(data.extra, dict) and data.extra.get("detection") is not None:
             from ..recording import describe_detection
 
             print(describe_detection(data))
         print(report.summary())
+        units = report.final_model.units(data.units)
+        print(f"units (outputs in {data.units}): " + ", ".join(f"{n} {u}" for n, u in units.items()))
         if args.plot:
             print(f"wrote {args.plot}")
     return 0

@@ -5,7 +5,7 @@ from __future__ import annotations
 import json
 
 from ..errors import InputError
-from ._common import add_noise_from_options, describe_noise, noise_from_args
+from ._common import add_noise_from_options, check_seed, describe_noise, noise_from_args
 
 HELP = "observability and Cramér-Rao table for a scheme and model (default scheme 24, model seed15)"
 
@@ -29,6 +29,18 @@ def run(args) -> int:
     from ..problem import CalibrationProblem
     from ..simulate import simulate
 
+    check_seed(args.seed)
+    if args.noise_ug is not None:
+        from .simulate import check_noise_ug
+
+        if args.noise_ug == 0:
+            raise InputError("--noise-ug 0: with no noise every bound is zero; give the SD of a position mean in µg "
+                             "(e.g. 10)")
+        check_noise_ug(args.noise_ug)
+    if args.dwell_s is not None and not (args.dwell_s > 0 and np.isfinite(args.dwell_s)):
+        raise InputError(f"--dwell-s {args.dwell_s:g} must be a positive dwell per position in seconds")
+    if args.dwell_s is not None and not args.noise_from:
+        raise InputError("--dwell-s sets the dwell for --noise-from; give --noise-from too, or leave it out")
     noise = None
     if args.noise_from:
         if args.noise_ug is not None:
@@ -48,10 +60,13 @@ def run(args) -> int:
     x = sim.truth_vector(model)
     obs = observability(problem, x)
     sd, mask = crlb(problem, x, args.noise_ug * 1e-6)
+    # the representative truth's outputs are in g (K = 1): the bounds are in those parameter units (§2)
+    units = model.units("g")
     if args.json:
         out = {"scheme": args.scheme, "model": model.name, "noise_ug": args.noise_ug, "n_positions": len(sim.data),
                **obs.to_dict(),
                "crlb": {n: (float(s) if np.isfinite(s) else None) for n, s in zip(model.names, sd)},
+               "units": units, "output_units": "g",
                **({"noise_from": noise} if noise else {})}
         print(json.dumps(out, indent=2))
         return 0
@@ -60,7 +75,7 @@ def run(args) -> int:
     print("observability: " + obs.describe())
     if noise:
         print(describe_noise(noise))
-    print(f"{'parameter':<10} {'Cramér-Rao SD':>14}")
+    print(f"{'parameter':<10} {'Cramér-Rao SD':>14} unit (outputs in g)")
     for n, s in zip(model.names, sd):
-        print(f"{n:<10} {s:14.3e}" if np.isfinite(s) else f"{n:<10} {'unobservable':>14}")
+        print(f"{n:<10} {s:14.3e} {units[n]}" if np.isfinite(s) else f"{n:<10} {'unobservable':>14}")
     return 0
