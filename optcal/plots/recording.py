@@ -62,6 +62,8 @@ def recording_figure(recording: Recording, detection: DetectionResult, residuals
     if len(res) == len(mid):
         a.bar(mid, res * 1e6, width=np.maximum(width, rec.duration / 200), color="tab:blue")
     a.axhline(0, color="k", lw=0.5)
+    if len(res) and np.max(np.abs(res)) < 1e-9:  # an exact fit (as many positions as parameters): rounding
+        a.set_ylim(-1.0, 1.0)
     a.set_ylabel("residual [µg]")
     a.set_xlabel("time [s]")
     return fig
