@@ -2,7 +2,8 @@
 
 from __future__ import annotations
 
-from ._common import parameter_table
+from ..errors import InputError
+from ._common import check_seed, parameter_table
 
 HELP = "simulate a 24-position data set and calibrate it (the first end-to-end example; default model nonlinear12)"
 
@@ -22,7 +23,13 @@ def run(args) -> int:
     from ..model import get_model
     from ..presets import draw_truth
     from ..simulate import simulate
+    from .simulate import check_noise_ug
 
+    check_seed(args.seed)
+    check_noise_ug(args.noise_ug)
+    if args.noise_ug == 0:
+        raise InputError("--noise-ug 0: the standard errors need a noise; give the SD of a position mean in µg "
+                         "(e.g. 10)")
     model = get_model(args.model)
     rng = np.random.default_rng(args.seed)
     truth = draw_truth(model, rng)
@@ -32,5 +39,5 @@ def run(args) -> int:
     print(f"{cal.solver}: residual RMS {cal.fit.rms_g * 1e6:.2f} µg, {cal.result.nfev} evaluations, "
           f"{cal.result.runtime_s * 1e3:.1f} ms")
     print("standard errors are Cramér-Rao bounds at the fitted point for the stated noise")
-    print(parameter_table(model.names, cal.x, cal.stderr, truth))
+    print(parameter_table(model.names, cal.x, cal.stderr, truth, units=model.units(sim.data.units)))
     return 0

@@ -29,8 +29,9 @@ def run(args) -> int:
     from ..errors import InputError
     from ..exchange import export_text
     from ..exchange.common import write_new
-    from ._common import refuse_overwrite
+    from ._common import refuse_overwrite, refuse_same_file
 
+    refuse_same_file(args.output, args.calibration)
     refuse_overwrite(args.output, args.force)
     if args.bias_online and args.format != "kalibr":
         raise InputError("--bias-online applies to --format kalibr only")

@@ -33,11 +33,13 @@ def run(args) -> int:
     from ..calfile import read_calibration
     from ..exchange import import_calibration
     from ..exchange.common import write_new
-    from ._common import refuse_overwrite
+    from ._common import check_output_folder, refuse_overwrite, refuse_same_file
     from ._dataopts import gravity_from_args
 
+    refuse_same_file(args.output, args.file)
     refuse_overwrite(args.output, args.force)
-    g = gravity_from_args(args) if (args.gravity is not None or args.latitude is not None) else None
+    check_output_folder(args.output)
+    g = gravity_from_args(args) if (args.gravity is not None or args.latitude is not None or args.height) else None
     doc, notes = import_calibration(args.file, args.format, units=args.units, calibrated=args.calibrated_units,
                                     model=args.model, g_local=g)
     if "output" in doc.get("units", {}):

@@ -5,10 +5,11 @@ optcal.plots.noise's."""
 from __future__ import annotations
 
 import json
+import math
 from pathlib import Path
 
 from ..errors import InputError
-from ._common import refuse_overwrite
+from ._common import refuse_overwrite, refuse_same_file
 
 HELP = ("noise of a static recording from its Allan deviation: white-noise density, bias instability, "
         "bias random walk; Kalibr's imu.yaml")
@@ -70,8 +71,16 @@ def _check_output(path: str | None, force: bool) -> None:
 def run(args) -> int:
     from ..noise import noise_from_recording
 
+    for path, option in ((args.plot, "--plot"), (args.kalibr_yaml, "--kalibr-yaml")):
+        refuse_same_file(path, args.recording, option=option)
     _check_output(args.plot, args.force)
     _check_output(args.kalibr_yaml, args.force)
+    if not 0 < args.ci < 1:
+        raise InputError(f"--ci {args.ci:g} must be a confidence level between 0 and 1, e.g. 0.683")
+    for value, option, unit in ((args.scale, "--scale", "output units per g"), (args.tau_max, "--tau-max", "s"),
+                                (args.rate, "--rate", "Hz")):
+        if value is not None and not (math.isfinite(value) and value > 0):
+            raise InputError(f"{option} {value:g} must be a positive number of {unit}")
     if args.plot and args.kalibr_yaml and Path(args.plot).resolve() == Path(args.kalibr_yaml).resolve():
         raise InputError("--plot and --kalibr-yaml name the same file")
     fmt = None
