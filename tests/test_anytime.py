@@ -3,6 +3,8 @@ of its data set), and the analyses of studies.anytime on hand-made inputs with k
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 import pytest
 from test_studies import BASE, spec_of
@@ -268,3 +270,32 @@ def test_an_old_store_without_anytime_columns_still_reports(tmp_path):
         rows = st.rows()
     assert all(r["anytime"] is None and r["f_opt"] is None for r in rows)
     assert not any((tmp_path / "figures" / f"{f}.png").exists() for f in FIGS)
+
+
+def test_a_new_solver_in_one_file_appears_in_every_report_without_further_code(tmp_path, monkeypatch, capsys):
+    """The example plugin (one file, examples/random_search_plugin) registered as a new solver: the study
+    runs it, and the per-cell table, the anytime table, the search-methods ECDF and the IOHprofiler export all
+    carry it, with no code that names it."""
+    import json
+
+    from optcal.cli import main
+    from solvers import registry
+
+    monkeypatch.syspath_prepend(str(Path(__file__).resolve().parents[1] / "examples" / "random_search_plugin"))
+    from optcal_random_search import RandomSearch
+
+    monkeypatch.setitem(registry._SOLVERS, RandomSearch.name, (RandomSearch, {}))
+    sp = spec_of(solvers_toml='[[solvers]]\nname = "scipy-lm"\n[[solvers]]\nname = "random-search"\n'
+                              'options = {m = 10, iterations = 25}\n')
+    run_study(sp, tmp_path / "study", progress=False)
+    text = write_report(tmp_path / "study").read_text()
+    cell = text.split("## nonlinear12, 24 positions")[1].split("\n## ")[0]
+    assert "| `random-search` |" in cell
+    section = text.split("## Anytime performance")[1]
+    assert [r.split("`")[1] for r in section.splitlines() if r.startswith("| `")] == ["scipy-lm", "random-search"]
+    assert "run jointly: `random-search`), beside scipy-lm" in section
+    assert main(["study", "export", str(tmp_path / "study"), "--format", "ioh", "-o", str(tmp_path / "ioh")]) == 0
+    assert sorted(p.name for p in (tmp_path / "ioh").iterdir()) == ["random-search", "scipy-lm"]
+    (meta,) = (tmp_path / "ioh" / "random-search").glob("*.json")
+    assert json.loads(meta.read_text())["algorithm"]["name"] == "random-search"
+    capsys.readouterr()
