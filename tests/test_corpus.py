@@ -107,7 +107,7 @@ def test_xsens_file_is_the_upstream_file(xsens_txt):
     a = np.loadtxt(xsens_txt)
     assert a.shape == (51175, 4)
     # unsigned ADC counts, zero g near 2^15 (outputs 26922…40115): 96 % of the samples are at or above the
-    # int16 rail 32767 on some axis, which is what optcal's default saturation test for counts looks at
+    # int16 rail 32767 on some axis, which optcal's former int16 saturation test for counts flagged
     N = a[:, 1:]
     assert N.min() == 26922 and N.max() == 40115
     assert 0.95 < np.mean(N.max(axis=1) >= 32767) < 0.97
