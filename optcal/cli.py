@@ -2,7 +2,9 @@
 ``HELP``, ``add_arguments(parser)`` and ``run(args) -> int``; they are found automatically. Other packages
 add commands the same way through the ``optcal.commands`` entry-point group (``studies`` adds ``study``).
 
-Errors a user can fix (:class:`~optcal.errors.InputError`) print one line and exit with status 2.
+Errors a user can fix (:class:`~optcal.errors.InputError`) print one line and exit with status 2. The
+library names its parameters in backquotes (`` `workers` ``), never a flag; here a backquoted name that is
+the destination of one of the running command's options becomes that option (``--workers``).
 ``optcal --version`` prints the installed version; ``-q/--quiet`` and ``-v/--verbose`` (before or after the
 command's name) set the level of the ``optcal`` logger: WARNING by default, -v INFO, -vv DEBUG, -q ERROR.
 """
@@ -14,6 +16,7 @@ import importlib
 import logging
 import os
 import pkgutil
+import re
 import sys
 from importlib.metadata import entry_points
 
@@ -103,8 +106,29 @@ def build_parser() -> argparse.ArgumentParser:
     for name, mod in _command_modules():
         p = sub.add_parser(name, help=mod.HELP, description=mod.HELP, parents=[common])
         mod.add_arguments(p)
-        p.set_defaults(_run=mod.run)
+        p.set_defaults(_run=mod.run, _flags=_flags_of(p))
     return parser
+
+
+def _flags_of(parser: argparse.ArgumentParser) -> dict[str, str]:
+    """{destination: its long option} of a command's options, sub-commands' included (``optcal study run``)."""
+    out: dict[str, str] = {}
+    for action in parser._actions:
+        if isinstance(action, argparse._SubParsersAction):
+            for sub in action.choices.values():
+                for dest, flag in _flags_of(sub).items():
+                    out.setdefault(dest, flag)
+            continue
+        longs = [s for s in action.option_strings if s.startswith("--")]
+        if longs:
+            out.setdefault(action.dest, longs[0])
+    return out
+
+
+def with_flags(message: str, flags: dict[str, str]) -> str:
+    """``message`` with every backquoted parameter that is one of the command's options replaced by the
+    option (`` `workers` `` → ``--workers``); other backquoted words are left as they are."""
+    return re.sub(r"`([A-Za-z_][A-Za-z0-9_]*)`", lambda m: flags.get(m.group(1), m.group(0)), message)
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -128,7 +152,7 @@ def _run(args) -> int:
         sys.stdout.flush()  # inside the try: a reader that left early is met here, not at interpreter exit
         return rc
     except InputError as exc:
-        print(f"optcal {args.command}: error: {exc}", file=sys.stderr)
+        print(f"optcal {args.command}: error: {with_flags(str(exc), getattr(args, '_flags', {}))}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:
         print(f"optcal {args.command}: interrupted", file=sys.stderr)

@@ -180,7 +180,7 @@ def _writer_lock(folder: Path):
             fcntl.flock(fh, fcntl.LOCK_EX | fcntl.LOCK_NB)
         except OSError:
             raise InputError(f"another `optcal study run` is writing to {folder}; wait for it, or use another "
-                             "--out folder") from None
+                             "`out` folder") from None
         yield
     finally:
         fh.close()
@@ -215,12 +215,12 @@ def run_study(spec: Spec, folder: str | Path, *, executor: str | None = None, wo
     ex = executor or spec.executor["kind"]
     if ex not in EXECUTORS:
         raise InputError(f"unknown executor {ex!r}; use one of {', '.join(EXECUTORS)}")
-    nw = int(workers or spec.executor["workers"])
+    nw = int(spec.executor["workers"] if workers is None else workers)
     if nw < 1:
-        raise InputError(f"--workers must be at least 1, got {nw}")
+        raise InputError(f"`workers` must be at least 1, got {nw}")
     sched = scheduler if scheduler is not None else spec.executor.get("scheduler", "")
     if sched and ex != "dask":
-        raise InputError("--scheduler is for --executor dask")
+        raise InputError("`scheduler` is for the dask `executor`")
     all_trials = trials(spec)
     code = code_version()  # the code that runs the trials (later commits do not relabel this session)
     t0 = time.perf_counter()

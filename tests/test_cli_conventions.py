@@ -125,3 +125,21 @@ def test_parser_building_imports_no_heavy_module_or_allantools():
     proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
     assert proc.returncode == 0, proc.stderr
     assert proc.stdout.strip() == "[]"
+
+
+def test_library_errors_name_parameters_and_the_cli_names_its_options(tmp_path, capsys):
+    """The library names a parameter in backquotes, never a flag; the command line shows its own option."""
+    import pytest
+
+    from optcal.errors import InputError
+    from studies.execute import run_study
+    from studies.spec import load
+
+    with pytest.raises(InputError, match="`workers` must be at least 1") as e:
+        run_study(load("ci"), tmp_path / "s1", workers=0, progress=False)
+    assert "--" not in str(e.value)
+    assert cli.main(["study", "run", "ci", "--workers", "0", "--out", str(tmp_path / "s2")]) == 2
+    err = capsys.readouterr().err
+    assert "--workers must be at least 1" in err and "`" not in err
+    # a backquoted word that is not one of the command's options stays as it is
+    assert cli.with_flags("`workers` and `nothing`", {"workers": "--workers"}) == "--workers and `nothing`"

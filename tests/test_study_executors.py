@@ -105,5 +105,5 @@ def test_dask_default_local_cluster_matches_serial_and_resumes(spec, serial_rows
 def test_scheduler_needs_dask(spec, tmp_path):
     from optcal.errors import InputError
 
-    with pytest.raises(InputError, match="--scheduler is for --executor dask"):
+    with pytest.raises(InputError, match="`scheduler` is for the dask `executor`"):
         run_study(spec, tmp_path, executor="processes", scheduler="tcp://127.0.0.1:1", progress=False)

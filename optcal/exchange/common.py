@@ -122,13 +122,13 @@ def parameters_of(lin: LinearPart, model: str | None = None) -> tuple[Model, np.
     else:
         name = get_model(model).name
         if name not in LINEAR_MODELS:
-            raise InputError(f"--model {model}: an import gives the linear part only; choose one of "
+            raise InputError(f"`model` {model}: an import gives the linear part only; choose one of "
                              f"{', '.join(LINEAR_MODELS)}")
         cells = {"diag6": (), "linear9": LOWER, "scale+bias+misalignment6": UPPER + LOWER}[name]
         lost = [CELLS[c] for c in UPPER + LOWER if c not in cells and T[c] != 0]
         if lost:
-            raise InputError(f"--model {model} cannot hold this calibration's misalignment {', '.join(lost)} "
-                             f"(non-zero); choose scale+bias+misalignment6 or leave --model out")
+            raise InputError(f"`model` {model} cannot hold this calibration's misalignment {', '.join(lost)} "
+                             f"(non-zero); choose scale+bias+misalignment6 or leave `model` out")
     m = get_model(name)
     values = {f"K_{a}": float(K[i]) for i, a in enumerate("xyz")}
     values.update({f"b_{a}": float(o[i] / K[i]) for i, a in enumerate("xyz")})

@@ -42,7 +42,7 @@ def to_kalibr(lin: LinearPart, *, bias_online: bool = False) -> tuple[np.ndarray
     if np.any(bias != 0) and not bias_online:
         raise InputError("Kalibr's imu yaml holds no accelerometer bias (Kalibr estimates it online as a random "
                          f"walk), and this calibration's is {', '.join(f'{v:.6g}' for v in bias)} m/s²; pass "
-                         "--bias-online to export M alone, or choose another format")
+                         "`bias_online` to export M alone, or choose another format")
     return M, bias
 
 
