@@ -18,7 +18,8 @@ from .gauge import RTOL, n_position_residuals, natural_units, null_space
 from .problem import CalibrationProblem
 
 __all__ = ["GoodnessOfFit", "Observability", "covariance", "crlb", "fisher", "goodness_of_fit", "natural_units",
-           "observability", "standard_errors"]
+           "observability", "standard_errors", "loss_weights", "hat_values", "PositionDiagnostics",
+           "position_diagnostics", "ROBUST_LOSSES"]
 
 
 @dataclass(frozen=True)
@@ -78,12 +79,14 @@ def fisher(problem: CalibrationProblem, x_full: np.ndarray, sigma_g: float) -> n
 
 
 def crlb(problem: CalibrationProblem, x_full: np.ndarray | None = None, sigma_g: float | None = None,
-         rtol: float = RTOL) -> tuple[np.ndarray, np.ndarray]:
+         rtol: float = RTOL, weights: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
     """Cramér-Rao standard deviations of every parameter, and a mask of those that are observable.
 
     Noise is white, input-referred, ``sigma_g`` (g) per axis on each position's mean, so each norm
     residual has SD sigma_g. Unobservable directions are projected out (the bound is that of the gauge
     the presets fix); parameters with weight in them are marked not observable and their SD is NaN.
+    ``weights`` (one per position residual, e.g. a robust fit's :func:`loss_weights`) weight the Fisher
+    information, JᵀWJ/σ²: the covariance that iteratively reweighted least squares reports (docs/design.md §7.5).
     """
     x = problem.centre if x_full is None else np.asarray(x_full, float)
     sigma = sigma_g if sigma_g is not None else problem.noise_g
@@ -92,6 +95,8 @@ def crlb(problem: CalibrationProblem, x_full: np.ndarray | None = None, sigma_g:
     obs = observability(problem, x, rtol)
     u = natural_units(problem, x)
     J = problem.jacobian_full(x)[: n_position_residuals(problem)] * u
+    if weights is not None:
+        J = J * np.sqrt(np.asarray(weights, float))[:, None]
     F = J.T @ J / sigma**2
     if obs.null_space.size:
         P = np.eye(len(u)) - obs.null_space @ np.linalg.pinv(obs.null_space)
@@ -147,3 +152,236 @@ def standard_errors(problem: CalibrationProblem, x_full: np.ndarray, sigma_g: fl
     sigma = gof.sigma_g if sigma_g is None and problem.noise_g is None else (sigma_g or problem.noise_g)
     sd, _ = crlb(problem, x_full, sigma)
     return sd
+
+
+# -- per-position residuals, outliers and robust weights (docs/design.md §7.5) -----------------------------
+
+# SciPy least_squares' robust losses ρ(z), z = (r / f_scale)², and their derivative ρ'(z), which is the weight
+# of a residual in the iteratively reweighted least-squares view of the fit (Holland & Welsch 1977).
+ROBUST_LOSSES = ("linear", "soft_l1", "huber", "cauchy", "arctan")
+# Family-wise probability that a clean data set flags a position (Šidák-corrected per position).
+OUTLIER_ALPHA = 0.01
+
+
+def loss_weights(r: np.ndarray, loss: str, f_scale: float) -> np.ndarray:
+    """ρ'(z) of SciPy's ``loss`` at z = (r/f_scale)²: 1 for ``linear``, below 1 for residuals beyond f_scale."""
+    z = (np.asarray(r, float) / f_scale) ** 2
+    if loss == "linear":
+        return np.ones_like(z)
+    if loss == "soft_l1":
+        return 1.0 / np.sqrt(1.0 + z)
+    if loss == "huber":
+        return np.where(z <= 1.0, 1.0, 1.0 / np.sqrt(np.maximum(z, 1.0)))
+    if loss == "cauchy":
+        return 1.0 / (1.0 + z)
+    if loss == "arctan":
+        return 1.0 / (1.0 + z**2)
+    raise ValueError(f"unknown loss {loss!r}; one of {', '.join(ROBUST_LOSSES)}")
+
+
+def _hat_matrix(problem: CalibrationProblem, x_full: np.ndarray, weights=None) -> tuple[np.ndarray, int]:
+    """The hat matrix W½J(JᵀWJ)⁺JᵀW½ of the position residuals (J in natural units, over the directions with
+    relative singular value above RTOL) and the residual degrees of freedom, m − rank."""
+    u = natural_units(problem, x_full)
+    J = problem.jacobian_full(np.asarray(x_full, float))[: n_position_residuals(problem)] * u
+    if weights is not None:
+        J = J * np.sqrt(np.asarray(weights, float))[:, None]
+    U, s, _ = np.linalg.svd(J, full_matrices=False)
+    keep = s > RTOL * s[0]
+    return U[:, keep] @ U[:, keep].T, len(J) - int(keep.sum())
+
+
+def hat_values(problem: CalibrationProblem, x_full: np.ndarray, weights: np.ndarray | None = None) -> np.ndarray:
+    """Leverage h of each position residual: the diagonal of the hat matrix (Hoaglin & Welsch 1978). A
+    residual with h near 1 is fitted by its own parameters and cannot show an error; Σh is the rank."""
+    return np.clip(np.diag(_hat_matrix(problem, x_full, weights)[0]), 0.0, 1.0)
+
+
+def position_sigma(problem: CalibrationProblem, x_full: np.ndarray) -> np.ndarray | None:
+    """Noise SD (g) of each position residual from the data's ``n`` and ``sx, sy, sz`` (docs/design.md §7):
+    per axis s/√n/K0; for the norm residual the axes combine along the specific force's direction,
+    σ_i² = Σ_k (A_k/‖A‖)² σ_ik² (first order). None when the data lack them."""
+    sm = problem.data.noise_of_mean()
+    if sm is None:
+        return None
+    s = sm / problem._K0
+    if problem.reference:
+        return s.ravel()
+    A = problem.specific_force(x_full)
+    w = A / np.linalg.norm(A, axis=1, keepdims=True)
+    return np.sqrt(np.sum((w * s) ** 2, axis=1))
+
+
+@dataclass(frozen=True)
+class PositionDiagnostics:
+    """Per-position residuals with their noise, leverage and outlier test (docs/design.md §7.5)."""
+
+    index: np.ndarray  # (n,) row of the data, from 0
+    position: np.ndarray  # (n,) the data's position numbers
+    labels: list  # (n,) str or None
+    residual_g: np.ndarray  # (n,) signed norm residual, or the 3-axis misfit's length with a reference
+    sigma_g: np.ndarray  # (n,) noise SD of that residual, or the scale used when no noise is known
+    leverage: np.ndarray  # (n,) hat value (largest of the three axes with a reference)
+    statistic: np.ndarray  # (n,) |residual| / (σ·√(1−h)), in σ; NaN where h ≈ 1
+    p_value: np.ndarray  # (n,) two-sided, NaN where untested
+    weight: np.ndarray  # (n,) robust weight ρ'(z) (1 in a plain fit)
+    outlier: np.ndarray  # (n,) bool
+    off: np.ndarray  # (n,) residual of the fit without the outliers; an outlier's prediction error from the rest
+    threshold: float  # the statistic's flagging threshold, in σ
+    alpha: float  # per-position test level (Šidák)
+    sigma_source: str  # "stated", "measured", "robust scale" or "leave-one-out"
+    tested: bool  # False when the residuals cannot be tested (too few degrees of freedom)
+
+    def rows(self) -> list[dict]:
+        """One dict per position, keys naming their units (the calibration's ``positions``)."""
+        def num(v, nd=6):
+            return None if not np.isfinite(v) else round(float(v), nd)
+        return [{"index": int(i), "position": int(p), "label": lab, "residual_ug": num(r * 1e6, 3),
+                 "sigma_ug": num(s * 1e6, 3), "standardised": num(r / s if s > 0 else np.nan, 3),
+                 "leverage": num(h, 4), "statistic_sigma": num(t, 3), "p_value": num(pv, 8),
+                 "weight": num(w, 4), "outlier": bool(o), "off_ug": num(f * 1e6, 3)}
+                for i, p, lab, r, s, h, t, pv, w, o, f in zip(
+                    self.index, self.position, self.labels, self.residual_g, self.sigma_g, self.leverage,
+                    self.statistic, self.p_value, self.weight, self.outlier, self.off)]
+
+    def name(self, i: int) -> str:
+        lab = self.labels[i]
+        return f"position {int(self.position[i])}" + (f" (label {lab})" if lab not in (None, "") else "")
+
+
+def _labels(data) -> list:
+    extra = data.extra if isinstance(data.extra, dict) else {}
+    if isinstance(extra.get("label"), list | tuple) and len(extra["label"]) == len(data):
+        return [str(v) for v in extra["label"]]
+    det = extra.get("detection")
+    names = getattr(det, "names", None)
+    if names is not None and len(names) == len(data):
+        return [str(v) for v in names]
+    return [None] * len(data)
+
+
+def _scan(r, H, sigma, d, dof, alpha1, sequential):
+    """Backward outlier scan (Belsley, Kuh & Welsch 1980, §2.1, repeated): the position whose deletion
+    residual is least plausible is set aside while its p-value is below ``alpha1``, and the others are judged
+    on the fit without the set-aside ones (the linear downdate r + H_·D (I − H_DD)⁻¹ r_D). ``sigma`` per
+    residual, or None: then σ is the RMS of the fit without the set-aside positions and the candidate
+    (externally studentised, Student's t / F). Returns the set-aside positions, each position's statistic
+    (in σ), p-value, its prediction error from the other positions (g) and the noise used (per residual)."""
+    from scipy import stats
+
+    m = len(r)
+    n = m // d
+    D: list[int] = []
+    while True:
+        rows = np.array([k for i in D for k in range(i * d, i * d + d)], int)
+        if rows.size:
+            A = np.linalg.inv(np.eye(rows.size) - H[np.ix_(rows, rows)])
+            rr = r + H[:, rows] @ (A @ r[rows])
+            HH = H + H[:, rows] @ A @ H[rows, :]
+        else:
+            A, rr, HH = None, r, H
+        with np.errstate(divide="ignore", invalid="ignore"):
+            e2 = np.where(np.diag(HH) < 1 - 1e-9, rr**2 / (1.0 - np.diag(HH)), np.nan)
+        keep = np.ones(m, bool)
+        keep[rows] = False
+        nu = dof - rows.size
+        if sigma is None:
+            rss = float(np.sum(rr[keep] ** 2))
+            per = np.add.reduceat(np.where(keep, e2, 0.0), np.arange(0, m, d))
+            s2 = np.clip(rss - per, 0.0, None) / max(nu - d, 1)
+            sig = np.repeat(np.sqrt(s2), d)
+            with np.errstate(divide="ignore", invalid="ignore"):  # s = 0: no degrees of freedom left
+                q = np.add.reduceat(e2 / sig**2, np.arange(0, m, d))
+            with np.errstate(invalid="ignore"):
+                pv = stats.f.sf(q / d, d, nu - d) if nu - d >= 1 else np.full(n, np.nan)
+        else:
+            sig = sigma
+            q = np.add.reduceat(e2 / sig**2, np.arange(0, m, d))
+            pv = stats.chi2.sf(q, d)
+        pv = np.where(np.isfinite(q), pv, np.nan)
+        if D:  # the set-aside positions: their prediction errors from the others, e_D = (I − H_DD)⁻¹ r_D
+            eD = A @ r[rows]
+            sD = np.full(rows.size, np.sqrt(rss / max(nu, 1))) if sigma is None else sigma[rows]
+            qD = (eD**2 / (np.diag(A) * sD**2)).reshape(-1, d).sum(axis=1)
+            q[D] = qD
+            pv[D] = stats.f.sf(qD / d, d, max(nu, 1)) if sigma is None else stats.chi2.sf(qD, d)
+            sig = sig.copy()
+            sig[rows] = sD
+        cand = [i for i in range(n) if i not in D and np.isfinite(pv[i])]
+        if not sequential or not cand or len(D) >= n // 2 or (sigma is None and nu - 2 * d < 1):
+            break
+        j = max(cand, key=lambda i: q[i])  # the least plausible (p-values underflow to 0 together)
+        if pv[j] >= alpha1:
+            break
+        D.append(j)
+    off = rr.copy()
+    if D:
+        off[rows] = A @ r[rows]
+    return D, np.sqrt(q), pv, off, sig
+
+
+def position_diagnostics(problem: CalibrationProblem, x_full: np.ndarray, sigma_g: float | None = None,
+                         weights: np.ndarray | None = None, f_scale: float | None = None,
+                         alpha: float = OUTLIER_ALPHA) -> PositionDiagnostics:
+    """Each position's residual against its noise, and which positions are outliers.
+
+    The noise σ_i is ``sigma_g`` when given (stated), else the data's per-position noise (measured,
+    :func:`position_sigma`), else, for a robust fit, its ``f_scale``, else it is estimated from the residuals
+    of the other positions (leave-one-out). A residual r has SD σ·√(1−h) (h its leverage, :func:`hat_values`),
+    so a position's statistic is |r|/(σ√(1−h)), tested against the normal (χ² with 3 degrees of freedom with a
+    reference) or, with σ estimated, Student's t (F). A plain fit spreads a displaced position over the
+    others, so the plain fit's positions are scanned backwards (:func:`_scan`): the worst is set aside and the
+    rest judged without it. The per-position level is Šidák's α₁ = 1 − (1 − ``alpha``)^(1/n), so a clean
+    data set flags none with probability about 1 − alpha.
+    """
+    x = np.asarray(x_full, float)
+    r = problem.position_residuals(x)
+    d = 3 if problem.reference else 1
+    n = len(problem.data)
+    w = np.ones(len(r)) if weights is None else np.asarray(weights, float)
+    H, dof = _hat_matrix(problem, x, weights)
+    alpha1 = 1.0 - (1.0 - alpha) ** (1.0 / n)
+    if sigma_g is not None:
+        sig, source = np.full(len(r), float(sigma_g)), "stated"
+    elif (ps := position_sigma(problem, x)) is not None:
+        sig, source = ps, "measured"
+    elif weights is not None and f_scale is not None:
+        sig, source = np.full(len(r), float(f_scale)), "robust scale"
+    else:
+        sig, source = None, "leave-one-out"
+    D, stat, pv, off, sig = _scan(r, H, sig, d, dof, alpha1, sequential=weights is None)
+    out = np.zeros(n, bool)
+    out[D] = True
+    if weights is not None:
+        out = np.isfinite(pv) & (pv < alpha1)
+    tested = bool(np.any(np.isfinite(pv)))
+    h = np.diag(H)
+    from scipy import stats  # here, not at module level: importing optcal stays light
+
+    if d == 1:
+        thr = (float(stats.t.isf(alpha1 / 2, max(dof - 2, 1))) if source == "leave-one-out"
+               else float(stats.norm.isf(alpha1 / 2)))
+        res, sg, lev, wt, offp = r, sig, h, w, off
+    else:
+        thr = float(np.sqrt(stats.chi2.isf(alpha1, 3)))
+        res = np.linalg.norm(r.reshape(n, 3), axis=1)
+        offp = np.linalg.norm(off.reshape(n, 3), axis=1)
+        sg = np.sqrt(np.mean(sig.reshape(n, 3) ** 2, axis=1))
+        lev, wt = h.reshape(n, 3).max(axis=1), w.reshape(n, 3).min(axis=1)
+    return PositionDiagnostics(np.arange(n), np.asarray(problem.data.position), _labels(problem.data), res, sg,
+                               lev, stat, pv, wt, out, offp, thr, alpha1, source, tested)
+
+
+def noise_scale(problem: CalibrationProblem, x_full: np.ndarray, alpha: float = OUTLIER_ALPHA) -> float:
+    """The noise SD (g) of the position residuals estimated from a plain fit at ``x_full`` with its outliers
+    set aside (:func:`_scan`, σ unknown): √(RSS/dof) of the fit without them; the robust loss's default
+    ``f_scale`` when no noise is known (docs/design.md §7.5)."""
+    x = np.asarray(x_full, float)
+    r = problem.position_residuals(x)
+    d = 3 if problem.reference else 1
+    H, dof = _hat_matrix(problem, x)
+    D, _, _, off, _ = _scan(r, H, None, d, dof, 1.0 - (1.0 - alpha) ** (1.0 / len(problem.data)), True)
+    keep = np.ones(len(r), bool)
+    for i in D:
+        keep[i * d: i * d + d] = False
+    return float(np.sqrt(np.sum(off[keep] ** 2) / max(dof - d * len(D), 1)))

@@ -12,7 +12,17 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .analysis import GoodnessOfFit, Observability, crlb, goodness_of_fit, observability
+from .analysis import (
+    GoodnessOfFit,
+    Observability,
+    PositionDiagnostics,
+    crlb,
+    goodness_of_fit,
+    loss_weights,
+    natural_units,
+    observability,
+    position_diagnostics,
+)
 from .data import PositionsData
 from .errors import InputError
 from .model import Model, get_model
@@ -21,6 +31,13 @@ from .problem import CalibrationProblem
 
 # A fit whose χ² has a p-value below this does not match the stated noise (see `calibrate`).
 MISFIT_P = 1e-3
+# Weak fits (docs/design.md §7.5): fewer residual degrees of freedom than this, or than the parameters, are
+# noted; a parameter is "not determined" when its standard error exceeds half its value and this many natural
+# units (1 mrad, 1 mg, 0.1 % of the scale factor), so a small, well-measured term near zero is not reported.
+MIN_DOF = 3
+WEAK_SE = 1e-3
+# More outliers than this fraction of the positions point at the noise level or the model, not at positions.
+MANY_OUTLIERS = 0.2
 
 
 def get_solver(name: str, **options):
@@ -44,10 +61,32 @@ class Calibration:
     solver: str
     result: object  # the SolverResult
     notes: list = field(default_factory=list)  # what the user should know about these numbers
+    diagnostics: PositionDiagnostics | None = None  # per-position residuals and outliers (§7.5)
+    loss: str = "linear"
+    f_scale_g: float | None = None
 
     @property
     def parameters(self) -> dict[str, float]:
         return self.model.to_dict(self.x)
+
+    @property
+    def positions(self) -> list[dict]:
+        """One row per position: index, position, label, residual_ug, sigma_ug, standardised (r/σ), leverage,
+        statistic_sigma (|r|/(σ√(1−h))), p_value, weight (robust), outlier (docs/design.md §7.5)."""
+        return self.diagnostics.rows() if self.diagnostics is not None else []
+
+    def residual_table(self) -> str:
+        """The per-position residuals as fixed-width text, residuals and noise in µg."""
+        head = (f"{'#':>3} {'position':>8} {'label':<8} {'residual µg':>12} {'σ µg':>9} {'r/σ':>7} {'lever.':>6} "
+                f"{'weight':>6}  flag")
+        lines = [head, "-" * len(head)]
+        for r in self.positions:
+            def f(v, spec):
+                return format(v, spec) if v is not None else "-"
+            lines.append(f"{r['index']:>3} {r['position']:>8} {str(r['label'] or ''):<8} "
+                         f"{f(r['residual_ug'], '12.3f')} {f(r['sigma_ug'], '9.3f')} {f(r['standardised'], '7.2f')} "
+                         f"{f(r['leverage'], '6.3f')} {f(r['weight'], '6.3f')}  {'OUTLIER' if r['outlier'] else ''}")
+        return "\n".join(lines)
 
     def to_dict(self) -> dict:
         r = self.result
@@ -62,6 +101,8 @@ class Calibration:
             "g_local": self.problem.g_local,
             "solver": self.solver,
             "observability": self.observability.to_dict(),
+            "loss": self.loss, "f_scale_g": self.f_scale_g,
+            "positions": self.positions,
             "notes": list(self.notes),
             "nfev": r.nfev, "nit": r.nit, "runtime_s": r.runtime_s, "success": r.success, "message": r.message,
         }
@@ -87,7 +128,15 @@ def calibrate(data: PositionsData, model: str | Model = "nonlinear12", *, solver
     result = slv.solve(problem, x0=x0, budget=budget, rng=rng)
     x = problem.to_full(result.x)[0]
     obs = observability(problem, x)
+    loss = (result.extra or {}).get("loss", "linear")
+    f_scale = (result.extra or {}).get("f_scale")
+    weights = None if loss == "linear" or f_scale is None else loss_weights(problem.position_residuals(x), loss,
+                                                                            f_scale)
+    diag = position_diagnostics(problem, x, noise_g, weights, f_scale)
     gof = goodness_of_fit(problem, x)
+    if weights is not None and diag.outlier.any():
+        # χ² and the Birge ratio of a robust fit come from the positions it did not reject
+        gof = _gof_without(problem, x, diag.outlier, obs.rank, gof)
     sigma, notes = gof.sigma_g, []
     if gof.p_value is not None and gof.p_value < MISFIT_P:
         # The residuals are larger than the noise of the position means (the within-interval scatter of a
@@ -99,5 +148,71 @@ def calibrate(data: PositionsData, model: str | Model = "nonlinear12", *, solver
         notes.append(f"chi2/dof = {gof.chi2 / gof.dof:.3g} (p = {gof.p_value:.2g}): the residuals exceed the noise "
                      f"of the position means, so the standard errors are scaled by the Birge ratio {birge:.3g}; "
                      "the model may miss an effect (try optcal discover)")
-    sd, _ = crlb(problem, x, sigma)
-    return Calibration(model, x, sd, obs, gof, problem, solver, result, notes)
+    sd, _ = crlb(problem, x, sigma, weights=weights)
+    notes += _outlier_notes(diag, loss)
+    if weights is not None:
+        low = np.flatnonzero(diag.weight < 0.5)
+        notes.append(f"robust loss {loss} (f_scale = {f_scale * 1e6:.3g} µg): standard errors weight each position "
+                     "by the loss (IRLS weights)"
+                     + (f"; it gives less than half weight to {', '.join(diag.name(i) for i in low[:5])}, so the "
+                        "errors assume the noise of the positions kept" if low.size else ""))
+    notes += _weak_notes(problem, x, sd, obs, gof)
+    return Calibration(model, x, sd, obs, gof, problem, solver, result, notes, diag, loss,
+                       None if f_scale is None else float(f_scale))
+
+
+def _gof_without(problem: CalibrationProblem, x: np.ndarray, drop: np.ndarray, rank: int,
+                 gof: GoodnessOfFit) -> GoodnessOfFit:
+    """Goodness of fit over the positions not in ``drop`` (a robust fit's rejected positions)."""
+    from scipy import stats
+
+    d = 3 if problem.reference else 1
+    r = problem.position_residuals(x).reshape(-1, d)[~drop].ravel()
+    dof = max(len(r) - rank, 1)
+    cost = float(r @ r)
+    if problem.noise_g is None:
+        return GoodnessOfFit(gof.rms_g, gof.cost, dof, float(np.sqrt(cost / dof)), None, None)
+    chi2 = cost / problem.noise_g**2
+    return GoodnessOfFit(gof.rms_g, gof.cost, dof, gof.sigma_g, chi2, float(stats.chi2.sf(chi2, dof)))
+
+
+def _outlier_notes(diag: PositionDiagnostics, loss: str) -> list[str]:
+    """A note per outlier naming the position and the fix, or one note when too many to be positions."""
+    idx = np.flatnonzero(diag.outlier)
+    if not idx.size:
+        return []
+    if idx.size > max(2, MANY_OUTLIERS * len(diag.index)):
+        return [f"{idx.size} of {len(diag.index)} positions have residuals beyond {diag.threshold:.2f} σ "
+                f"({diag.sigma_source} noise): the noise is understated or the model misses an effect, more than "
+                "single positions are off (see the positions table; try optcal discover)"]
+    fix = ("it is down-weighted by the robust loss; re-record or remove it to be sure" if loss != "linear" else
+           "try the robust loss: --solver scipy-trf --option loss=cauchy, or re-record or remove it")
+    return [f"{diag.name(i)} is {diag.off[i] * 1e6:.4g} µg off the fit of the other positions, "
+            f"{diag.statistic[i]:.3g} σ "
+            f"({diag.sigma_source} noise {diag.sigma_g[i] * 1e6:.3g} µg, threshold {diag.threshold:.2f} σ): "
+            f"displaced or moved during the position? {fix}" for i in idx]
+
+
+def _weak_notes(problem: CalibrationProblem, x: np.ndarray, sd: np.ndarray, obs: Observability,
+                gof: GoodnessOfFit) -> list[str]:
+    """Notes on what these positions do not determine (docs/design.md §7.5)."""
+    model, n_pos = problem.model, len(problem.data)
+    notes = []
+    dof = max(len(problem.position_residuals(x)) - obs.rank, 1)  # every position, a robust fit's rejected too
+    if dof < MIN_DOF or dof < obs.rank:
+        notes.append(f"only {dof} residual degree(s) of freedom ({n_pos} positions, {obs.rank} determined "
+                     "parameters): the residuals can hardly show a bad position or a missing effect and the noise "
+                     f"estimate rests on {dof} degree(s) of freedom; record more positions (at least "
+                     f"{2 * obs.rank} for {model.name})")
+    if obs.rank < model.n_params:
+        notes.append(f"{model.n_params - obs.rank} direction(s) of the parameters are not seen by these positions "
+                     "(observability): their values are those of the presets or the start, not measurements, and "
+                     "the parameters in them have no standard error")
+    units = model.units(problem.data.units)
+    nat = natural_units(problem, x)
+    for k, name in enumerate(model.names):
+        if np.isfinite(sd[k]) and sd[k] > abs(x[k]) / 2 and sd[k] / nat[k] > WEAK_SE:
+            notes.append(f"{name} = {x[k]:.3g} ± {sd[k]:.2g} {units.get(name, '')}: not determined by these "
+                         "positions (its standard error exceeds half its value); record more varied positions or "
+                         "drop the term")
+    return notes
