@@ -67,7 +67,7 @@ def test_optcal_parameters_from_the_linear_part_choose_the_smallest_exact_model(
         np.testing.assert_allclose(x2, x, rtol=1e-15)
     x = random_linear(rng, "scale+bias+misalignment6", "g")
     lin = common.LinearPart(*common.matrix_of(get_model("scale+bias+misalignment6"), x), "g")
-    with pytest.raises(InputError, match="--model linear9 cannot hold .*S_xz, S_xy, S_yx"):
+    with pytest.raises(InputError, match="`model` linear9 cannot hold .*S_xz, S_xy, S_yx"):
         common.parameters_of(lin, "linear9")
     with pytest.raises(InputError, match="choose one of diag6, linear9"):
         common.parameters_of(lin, "nonlinear12")
