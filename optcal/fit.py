@@ -147,7 +147,8 @@ def calibrate(data: PositionsData, model: str | Model = "nonlinear12", *, solver
         sigma = gof.sigma_g * birge
         notes.append(f"chi2/dof = {gof.chi2 / gof.dof:.3g} (p = {gof.p_value:.2g}): the residuals exceed the noise "
                      f"of the position means, so the standard errors are scaled by the Birge ratio {birge:.3g}; "
-                     "the model may miss an effect (try optcal discover)")
+                     "the model may miss an effect (try optcal discover)"
+                     + ("; or the outlying position(s) named below are the cause" if diag.outlier.any() else ""))
     sd, _ = crlb(problem, x, sigma, weights=weights)
     notes += _outlier_notes(diag, loss)
     if weights is not None:
