@@ -18,7 +18,7 @@ from .gauge import RTOL, n_position_residuals, natural_units, null_space
 from .problem import CalibrationProblem
 
 __all__ = ["GoodnessOfFit", "Observability", "covariance", "crlb", "fisher", "goodness_of_fit", "natural_units",
-           "observability", "standard_errors", "loss_weights", "hat_values", "PositionDiagnostics",
+           "observability", "projected_crlb", "standard_errors", "loss_weights", "hat_values", "PositionDiagnostics",
            "position_diagnostics", "ROBUST_LOSSES"]
 
 
@@ -78,33 +78,47 @@ def fisher(problem: CalibrationProblem, x_full: np.ndarray, sigma_g: float) -> n
     return J.T @ J / sigma_g**2
 
 
-def crlb(problem: CalibrationProblem, x_full: np.ndarray | None = None, sigma_g: float | None = None,
-         rtol: float = RTOL, weights: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
-    """Cramér-Rao standard deviations of every parameter, and a mask of those that are observable.
+def projected_crlb(problem: CalibrationProblem, x_full: np.ndarray, sigma_g: float, rtol: float = RTOL,
+                   weights: np.ndarray | None = None):
+    """Cramér-Rao SDs of every parameter's observable part, the projector onto the observable subspace (in
+    natural units), the natural units and the observability (docs/design.md §7.1; studies score against it).
 
-    Noise is white, input-referred, ``sigma_g`` (g) per axis on each position's mean, so each norm
-    residual has SD sigma_g. Unobservable directions are projected out (the bound is that of the gauge
-    the presets fix); parameters with weight in them are marked not observable and their SD is NaN.
-    ``weights`` (one per position residual, e.g. a robust fit's :func:`loss_weights`) weight the Fisher
-    information, JᵀWJ/σ²: the covariance that iteratively reweighted least squares reports (docs/design.md §7.5).
+    Fisher information JᵀJ/σ² of the position residuals (gauge rows excluded) in natural units; with
+    unobservable directions it is projected, P·F·P with P = I − N N⁺ (N the null space), and
+    pseudo-inverted (rcond = rtol²), so every SD is finite: that of the parameter's component outside the
+    null directions. ``weights`` (one per position residual) weight the information, JᵀWJ/σ² (§7.5).
     """
-    x = problem.centre if x_full is None else np.asarray(x_full, float)
-    sigma = sigma_g if sigma_g is not None else problem.noise_g
-    if sigma is None:
-        raise ValueError("crlb needs the noise level: give sigma_g or data with n and sx, sy, sz")
+    x = np.asarray(x_full, float)
     obs = observability(problem, x, rtol)
     u = natural_units(problem, x)
     J = problem.jacobian_full(x)[: n_position_residuals(problem)] * u
     if weights is not None:
         J = J * np.sqrt(np.asarray(weights, float))[:, None]
-    F = J.T @ J / sigma**2
+    F = J.T @ J / sigma_g**2
+    P = np.eye(len(u))
     if obs.null_space.size:
-        P = np.eye(len(u)) - obs.null_space @ np.linalg.pinv(obs.null_space)
-        F = P @ F @ P
-        cov = np.linalg.pinv(F, rcond=rtol**2)
+        P = P - obs.null_space @ np.linalg.pinv(obs.null_space)
+        cov = np.linalg.pinv(P @ F @ P, rcond=rtol**2, hermitian=True)
     else:
         cov = np.linalg.inv(F)
-    sd = np.sqrt(np.clip(np.diag(cov), 0, None)) * u
+    return np.sqrt(np.clip(np.diag(cov), 0, None)) * u, P, u, obs
+
+
+def crlb(problem: CalibrationProblem, x_full: np.ndarray | None = None, sigma_g: float | None = None,
+         rtol: float = RTOL, weights: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """Cramér-Rao standard deviations of every parameter, and a mask of those that are observable.
+
+    Noise is white, input-referred, ``sigma_g`` (g) per axis on each position's mean, so each norm
+    residual has SD sigma_g. The bound is :func:`projected_crlb`'s (the gauge the presets fix); parameters
+    with weight in an unobservable direction are marked not observable and their SD is NaN. ``weights``
+    (one per position residual, e.g. a robust fit's :func:`loss_weights`) weight the Fisher information,
+    JᵀWJ/σ²: the covariance that iteratively reweighted least squares reports (docs/design.md §7.5).
+    """
+    x = problem.centre if x_full is None else np.asarray(x_full, float)
+    sigma = sigma_g if sigma_g is not None else problem.noise_g
+    if sigma is None:
+        raise ValueError("crlb needs the noise level: give sigma_g or data with n and sx, sy, sz")
+    sd, _, _, obs = projected_crlb(problem, x, sigma, rtol, weights)
     mask = obs.observable_mask()
     sd[~mask] = np.nan
     return sd, mask

@@ -245,3 +245,26 @@ def test_raw_recording_with_labels_names_the_bumped_interval(tmp_path):
     ticks = [t.get_text() for t in fig.axes[0].get_xticklabels()]
     assert ticks[1] == "1\np1\n5.5 s"  # position 1, label p1, its interval from 4.00 s to 6.98 s
     assert (tmp_path / "fit.svg").read_text().lstrip().startswith("<?xml")
+
+
+@pytest.mark.parametrize("name", ["nonlinear12", "seed15", "linear9"])
+def test_projected_crlb_is_the_studies_bound_bit_for_bit(name):
+    """optcal.analysis.projected_crlb gives studies.scoring.projected_crlb's SDs, projector and natural units
+    exactly on norm problems, so studies can use it without a change in any result; crlb is it with NaN for
+    parameters in an unobservable direction."""
+    from optcal.analysis import projected_crlb
+    from optcal.presets import manufacturer_presets
+    from studies.scoring import projected_crlb as studies_bound
+
+    m = get_model(name)
+    truth = {k: v for k, v in PAPER_TRUTH.items() if k in m.names}
+    rng = np.random.default_rng(3)
+    sim = simulate(m, truth, rng, scheme="24", noise_g=SIGMA)
+    p = CalibrationProblem(m, sim.data, presets=manufacturer_presets(truth, rng))
+    xt = sim.truth_vector(m)
+    ours, theirs = projected_crlb(p, xt, SIGMA), studies_bound(p, xt, SIGMA)
+    for a, b in zip(ours[:3], theirs[:3]):
+        assert np.array_equal(a, b)
+    sd, mask = crlb(p, xt, SIGMA)
+    assert np.array_equal(sd[mask], ours[0][mask]) and np.all(np.isnan(sd[~mask]))
+    assert int((~mask).sum()) == (6 if name == "seed15" else 0)
