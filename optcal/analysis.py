@@ -214,11 +214,17 @@ def hat_values(problem: CalibrationProblem, x_full: np.ndarray, weights: np.ndar
 def position_sigma(problem: CalibrationProblem, x_full: np.ndarray) -> np.ndarray | None:
     """Noise SD (g) of each position residual from the data's ``n`` and ``sx, sy, sz`` (docs/design.md §7):
     per axis s/√n/K0; for the norm residual the axes combine along the specific force's direction,
-    σ_i² = Σ_k (A_k/‖A‖)² σ_ik² (first order). None when the data lack them."""
+    σ_i² = Σ_k (A_k/‖A‖)² σ_ik² (first order); a zero SD takes its axis's median. None when the data lack them."""
     sm = problem.data.noise_of_mean()
     if sm is None:
         return None
     s = sm / problem._K0
+    # an axis whose samples did not change (quantised output) has a sample SD of 0, which is no noise level:
+    # it takes the median of that axis's other positions
+    for k in range(3):
+        pos = s[:, k] > 0
+        if pos.any() and not pos.all():
+            s[~pos, k] = np.median(s[pos, k])
     if problem.reference:
         return s.ravel()
     A = problem.specific_force(x_full)

@@ -268,3 +268,13 @@ def test_projected_crlb_is_the_studies_bound_bit_for_bit(name):
     sd, mask = crlb(p, xt, SIGMA)
     assert np.array_equal(sd[mask], ours[0][mask]) and np.all(np.isnan(sd[~mask]))
     assert int((~mask).sum()) == (6 if name == "seed15" else 0)
+
+
+def test_a_zero_sample_sd_takes_its_axis_median():
+    """A quantised axis that did not change during a position has SD 0: no noise level, not an outlier."""
+    sim = simulate(MODEL, TRUTH, np.random.default_rng(4), scheme="24", noise_g=SIGMA)
+    std = np.tile([SIGMA * np.sqrt(1000)] * 3, (24, 1))
+    std[0, 2] = 0.0
+    cal = calibrate(replace(sim.data, n_samples=np.full(24, 1000.0), std=std), MODEL)
+    assert cal.diagnostics.sigma_g[0] == pytest.approx(SIGMA, rel=1e-3)
+    assert not cal.diagnostics.outlier.any()
