@@ -61,6 +61,9 @@ def run(args) -> int:
     candidates = None if args.candidates is None else [c for c in args.candidates.split(",") if c.strip()]
     g_local = gravity_from_args(args)
     data = load_positions(args, args.data)
+    if len(data) > 1 and not (data.N.max(axis=0) - data.N.min(axis=0)).any():
+        raise InputError(f"{args.data}: all {len(data)} positions have the same outputs, so they test no term; "
+                         "record the sensor in varied orientations")
     report = discover(data, base=args.base, candidates=candidates, g_local=g_local, alpha=args.alpha,
                       bic_threshold=args.bic_threshold, noise_g=noise_g)
     if args.plot:

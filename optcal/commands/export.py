@@ -29,10 +29,11 @@ def run(args) -> int:
     from ..errors import InputError
     from ..exchange import export_text
     from ..exchange.common import write_new
-    from ._common import refuse_overwrite, refuse_same_file
+    from ._common import check_output_folder, refuse_overwrite, refuse_same_file
 
     refuse_same_file(args.output, args.calibration)
     refuse_overwrite(args.output, args.force)
+    check_output_folder(args.output)
     if args.bias_online and args.format != "kalibr":
         raise InputError("--bias-online applies to --format kalibr only")
     if not Path(args.calibration).exists():

@@ -59,14 +59,18 @@ def parse_effects(items: list[str]) -> dict[str, dict[str, float]]:
 
 
 # The SD of a position mean: a navigation-grade sensor averaged for seconds gives 1 to 100 µg; above 1 mg
-# is warned about, above 1 g (a position mean noisier than gravity itself) refused.
-NOISE_WARN_UG, NOISE_MAX_UG = 1_000.0, 1_000_000.0
+# is warned about, above 1 g (a position mean noisier than gravity itself) refused (docs/design.md §2).
+# Below 1 ng is no sensor's noise but a value in g given in µg (1e-5 for 10 µg).
+NOISE_WARN_UG, NOISE_MAX_UG, NOISE_MIN_UG = 1_000.0, 1_000_000.0, 1e-3
 
 
 def check_noise_ug(noise_ug: float, option: str = "--noise-ug") -> None:
     """A noise SD in µg: finite, not negative, not absurd; a warning when it looks like another unit."""
     if not math.isfinite(noise_ug) or noise_ug < 0:
         raise InputError(f"{option} {noise_ug:g} must be a finite SD of 0 µg or more")
+    if 0 < noise_ug < NOISE_MIN_UG:
+        raise InputError(f"{option} {noise_ug:g} µg ({noise_ug * 1e-6:g} g) is below any sensor's noise; it looks like "
+                         "a value in g: give the SD in µg (10 is typical)")
     if noise_ug > NOISE_MAX_UG:
         raise InputError(f"{option} {noise_ug:g} µg ({noise_ug * 1e-6:g} g) per position mean is noisier than "
                          "gravity itself; give the SD in µg (10 is typical)")

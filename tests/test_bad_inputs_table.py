@@ -1,0 +1,267 @@
+"""Bad inputs, one table across every command (issue #13): each row is one command line that must end with exit
+status 2, exactly one line on stderr naming the problem (the row's fragment), no traceback, and nothing written:
+the working folder holds the same files with the same bytes afterwards (so no output appeared and no input was
+changed). Rows whose fix belongs to a file another engineer owns are strict xfails naming the change."""
+
+import hashlib
+import json
+import shutil
+
+import numpy as np
+import pytest
+
+from optcal.cli import main
+from optcal.fit import calibrate
+from optcal.model import get_model
+from optcal.presets import PAPER_TRUTH
+from optcal.schemes import random_orientations
+from optcal.simulate import simulate
+
+COUNTS = {"K_x": 16301.0, "K_y": 16452.0, "K_z": 16690.0, "b_x": 0.021, "b_y": -0.013, "b_z": 0.042,
+          "S_yz": 2.0e-3, "S_zy": -1.5e-3, "S_zx": 1.0e-3}
+RENAME = "needs add_gravity_options to name the option --gravity-ms2 (dest gravity_ms2, read by gravity_from_args) " \
+         "in optcal/commands/_dataopts.py"
+
+
+def _csv(path, header, rows):
+    path.write_text(",".join(header) + "\n" + "\n".join(",".join(str(v) for v in r) for r in rows) + "\n")
+
+
+@pytest.fixture(scope="module")
+def source(tmp_path_factory):
+    """The files every row may read, made once: positions in g and in counts, calibrations fitted to them,
+    raw recordings, broken positions files, truths, another tool's file and study specs."""
+    d = tmp_path_factory.mktemp("inputs")
+    m = get_model("nonlinear12")
+    truth = {k: v for k, v in PAPER_TRUTH.items() if k in m.names}
+    sim = simulate(m, truth, np.random.default_rng(1), scheme="24", noise_g=10e-6, times=True)
+    sim.data.to_csv(d / "p.csv")
+    (d / "truth.json").write_text(json.dumps(truth))
+    (d / "empty.json").write_text("{}")
+    (d / "word.json").write_text(json.dumps({**truth, "K_x": "one"}))
+    fit = calibrate(sim.data, m)
+    from optcal.calfile import write_calibration
+
+    write_calibration(fit, d / "cal.json", units_out="g")
+    lin = get_model("linear9")
+    csim = simulate(lin, COUNTS, np.random.default_rng(2), scheme="24", noise_g=20e-6)
+    from dataclasses import replace
+
+    cdata = replace(csim.data, units="counts")
+    cdata.to_csv(d / "pc.csv")
+    write_calibration(calibrate(cdata, lin), d / "calc.json", units_out="counts")
+    v3 = json.loads((d / "cal.json").read_text())
+    (d / "v3.json").write_text(json.dumps({**v3, "format_version": 3}))
+    # raw recordings in g: a sensor at rest in random attitudes (apply) and one long rest (noise)
+    A = random_orientations(500, np.random.default_rng(3))
+    np.savetxt(d / "raw_g.csv", np.column_stack([np.arange(500) / 100.0, A]), delimiter=",", header="t,ax,ay,az",
+               comments="", fmt="%.10g")
+    rest = np.array([0.0, 0.0, 1.0]) + 1e-4 * np.random.default_rng(4).standard_normal((6000, 3))
+    np.savetxt(d / "rest.csv", np.column_stack([np.arange(6000) / 100.0, rest]), delimiter=",",
+               header="t,ax,ay,az", comments="", fmt="%.10g")
+    # broken positions files
+    text = (d / "p.csv").read_text().splitlines()
+    header, rows = text[0].split(","), [r.split(",") for r in text[1:]]
+    huge = [list(r) for r in rows]
+    huge[3][1] = "1e300"
+    _csv(d / "huge.csv", header, huge)
+    _csv(d / "zero_sd.csv", header + ["n", "sx", "sy", "sz"], [r + ["100", "0", "0", "0"] for r in rows])
+    _csv(d / "neg_sd.csv", header + ["n", "sx", "sy", "sz"], [r + ["100", "-1e-4", "1e-4", "1e-4"] for r in rows])
+    _csv(d / "dup.csv", header + ["ax"], [r + ["0.5"] for r in rows])
+    _csv(d / "ident.csv", header, [rows[0]] * len(rows))
+    nan = [list(r) for r in rows]
+    nan[2][2] = "nan"
+    _csv(d / "nan.csv", header, nan)
+    (d / "imu_tk.txt").write_text("1 0 0\n0 1 0\n0 0 1\n\n1 0 0\n0 1 0\n0 0 1\n\n0\n0\n0\n")
+    (d / "missing_key.toml").write_text('name = "x"\nruns = 2\nmodels = ["linear9"]\nschemes = ["24"]\nwhat = 1\n'
+                                        '[[solvers]]\nname = "scipy-lm"\n')
+    (d / "neg_seed.toml").write_text('name = "x"\nruns = 2\nseed = -1\nmodels = ["linear9"]\nschemes = ["24"]\n'
+                                     '[[solvers]]\nname = "scipy-lm"\n')
+    (d / "huge_runs.toml").write_text('name = "x"\nruns = 100000000\nmodels = ["linear9"]\nschemes = ["24"]\n'
+                                      '[[solvers]]\nname = "scipy-lm"\n')
+    (d / "notadir").mkdir()
+    return d
+
+
+def row(name, argv, fragment, xfail=None, run=True):
+    """One case; ``xfail`` names the change (in a file this test's author does not own) that makes it pass, and
+    ``run=False`` marks a case that today runs without end instead of failing, so it is not run."""
+    marks = () if xfail is None else pytest.mark.xfail(strict=True, reason=xfail, run=run)
+    return pytest.param(argv, fragment, id=name, marks=marks)
+
+
+SIM = ["simulate", "-o", "new.csv"]
+CAL = ["calibrate", "p.csv"]
+APPLY = ["apply", "cal.json", "raw_g.csv", "-o", "out.csv"]
+INFO = ["info"]
+DISC = ["discover", "p.csv", "--base", "linear9"]
+NAV = ["nav", "cal.json", "--truth", "truth.json"]
+NOISE = ["noise", "rest.csv"]
+CASES = [
+    # simulate: seeds, noise, dwell, tilt, gravity, temperatures, sizes, folders, outputs that are inputs
+    row("simulate-negative-seed", SIM + ["--seed", "-1"], "--seed -1 is negative"),
+    row("simulate-negative-noise", SIM + ["--noise-ug", "-5"], "--noise-ug -5"),
+    row("simulate-nan-noise", SIM + ["--noise-ug", "nan"], "--noise-ug nan"),
+    row("simulate-absurd-noise", SIM + ["--noise-ug", "1e7"], "noisier than gravity"),
+    row("simulate-noise-in-g", SIM + ["--noise-ug", "1e-5"], "looks like a value in g"),
+    row("simulate-negative-dwell", SIM + ["--dwell-s", "-10"], "--dwell-s -10"),
+    row("simulate-zero-dwell", SIM + ["--dwell-s", "0"], "--dwell-s 0"),
+    row("simulate-negative-tilt", SIM + ["--tilt-deg", "-1"], "--tilt-deg -1"),
+    row("simulate-gravity-in-ms2", SIM + ["--gravity-g", "9.81"], "looks like m/s²"),
+    row("simulate-infinite-temperature", SIM + ["--temp", "20:inf"], "°C"),
+    row("simulate-memory-exhausting-scheme", SIM + ["--scheme", "random:100000000"], "more than optcal handles"),
+    row("simulate-zero-positions", SIM + ["--scheme", "random:0"], "number of orientations"),
+    row("simulate-unknown-scheme", SIM + ["--scheme", "25"], "unknown scheme"),
+    row("simulate-missing-folder", ["simulate", "-o", "missing/x.csv"], "does not exist"),
+    row("simulate-existing-output", ["simulate", "-o", "p.csv"], "--force"),
+    row("simulate-output-is-truth", ["simulate", "--truth", "truth.json", "-o", "truth.json", "--force"],
+        "is also an input"),
+    row("simulate-two-outputs-one-file", SIM + ["--truth-out", "new.csv"], "is also an input"),
+    row("simulate-arcsec-without-reference", SIM + ["--reference-error-arcsec", "5"], "with --reference"),
+    row("simulate-unknown-effect-parameter", SIM + ["--effect", "cubic:K3_q=1"], "not a parameter of cubic"),
+    row("simulate-empty-truth", SIM + ["--truth", "empty.json"], "truth lacks parameter"),
+    row("simulate-word-in-truth", SIM + ["--truth", "word.json"], "finite numbers"),
+    row("simulate-unknown-model", SIM + ["--model", "seed99"], "unknown model"),
+    # calibrate: broken positions files, units, gravity, seeds, outputs, plots
+    row("calibrate-huge-value", ["calibrate", "huge.csv"], "position(s) 3"),
+    row("calibrate-huge-value-diag6", ["calibrate", "huge.csv", "--model", "diag6"], "position(s) 3"),
+    row("calibrate-zero-sample-sds", ["calibrate", "zero_sd.csv"], "all zero"),
+    row("calibrate-negative-sample-sd", ["calibrate", "neg_sd.csv"], "negative standard deviation"),
+    row("calibrate-duplicate-column", ["calibrate", "dup.csv"], "'ax' 2 times"),
+    row("calibrate-identical-positions", ["calibrate", "ident.csv"], "unobservable"),
+    row("calibrate-nan-cell", ["calibrate", "nan.csv"], "line 4, column 'ay'"),
+    row("calibrate-negative-seed", CAL + ["--seed", "-1"], "--seed -1"),
+    row("calibrate-gravity-looks-like-g", CAL + ["--gravity", "1.0"], "looks like g"),
+    row("calibrate-gravity-ms2-looks-like-g", CAL + ["--gravity-ms2", "1.0"], "looks like g", RENAME),
+    row("calibrate-height-without-latitude", CAL + ["--height", "100"], "without a latitude"),
+    row("calibrate-latitude-out-of-range", CAL + ["--latitude", "95"], "latitude 95"),
+    row("calibrate-output-is-input", CAL + ["-o", "p.csv", "--force"], "is also an input"),
+    row("calibrate-missing-folder", CAL + ["-o", "missing/cal.json"], "does not exist"),
+    row("calibrate-existing-output", CAL + ["-o", "cal.json"], "--force"),
+    row("calibrate-plot-without-raw", CAL + ["--plot", "fig.png"], "with --raw"),
+    row("calibrate-plot-unknown-format", ["calibrate", "raw_g.csv", "--raw", "--plot", "fig.xyz"], "suffix"),
+    row("calibrate-plot-missing-folder", ["calibrate", "raw_g.csv", "--raw", "--plot", "missing/fig.png"],
+        "does not exist"),
+    row("calibrate-counts-declared-mg", ["calibrate", "pc.csv", "--model", "linear9", "--units", "mg"],
+        "looks like counts"),
+    row("calibrate-unknown-units", CAL + ["--units", "furlongs"], "unknown units"),
+    row("calibrate-zero-budget", CAL + ["--budget", "0"], "--budget 0"),
+    row("calibrate-dwell-without-noise", CAL + ["--dwell-s", "10"], "--noise-from"),
+    row("calibrate-option-without-value", CAL + ["--option", "ftol"], "KEY=VALUE"),
+    row("calibrate-unknown-solver", CAL + ["--solver", "no-such-solver"], "no-such-solver"),
+    # apply: units against the calibration, options that do nothing, outputs
+    row("apply-counts-calibration-to-g-data", ["apply", "calc.json", "raw_g.csv", "-o", "out.csv"], "counts"),
+    row("apply-declared-units-disagree", APPLY + ["--units", "counts"], "fitted to outputs in 'g'"),
+    row("apply-output-is-calibration", ["apply", "cal.json", "raw_g.csv", "-o", "cal.json", "--force"],
+        "is also an input"),
+    row("apply-output-is-data", ["apply", "cal.json", "raw_g.csv", "-o", "raw_g.csv", "--force"],
+        "is also an input"),
+    row("apply-missing-folder", ["apply", "cal.json", "raw_g.csv", "-o", "missing/out.csv"], "does not exist"),
+    row("apply-existing-output", ["apply", "cal.json", "raw_g.csv", "-o", "p.csv"], "--force"),
+    row("apply-detector-intervals", APPLY + ["--intervals", "truth.json"], "--intervals select static intervals"),
+    row("apply-detector-window", APPLY + ["--window", "2"], "--window select static intervals"),
+    row("apply-detector-threshold", APPLY + ["--threshold-k", "3"], "--threshold-k"),
+    row("apply-height-without-latitude", APPLY + ["--height", "100"], "without a latitude"),
+    row("apply-unknown-version", ["apply", "v3.json", "raw_g.csv", "-o", "out.csv"], "format_version 3"),
+    # info
+    row("info-zero-noise", INFO + ["--noise-ug", "0"], "--noise-ug 0"),
+    row("info-negative-noise", INFO + ["--noise-ug", "-1"], "--noise-ug -1"),
+    row("info-negative-seed", INFO + ["--seed", "-1"], "--seed -1"),
+    row("info-memory-exhausting-scheme", INFO + ["--scheme", "random:100000000"], "more than optcal handles"),
+    row("info-dwell-without-noise-from", INFO + ["--dwell-s", "5"], "--noise-from"),
+    row("info-unknown-model", INFO + ["--model", "nope"], "unknown model"),
+    # discover
+    row("discover-identical-positions", ["discover", "ident.csv"], "same outputs"),
+    row("discover-zero-noise", DISC + ["--noise-ug", "0"], "--noise-ug 0"),
+    row("discover-noise-in-g", DISC + ["--noise-ug", "1e-5"], "looks like a value in g"),
+    row("discover-duplicate-column", ["discover", "dup.csv"], "'ax' 2 times"),
+    row("discover-plot-unknown-format", DISC + ["--plot", "fig.xyz"], ".png, .pdf or .svg"),
+    row("discover-plot-missing-folder", DISC + ["--plot", "missing/fig.png"], "does not exist"),
+    row("discover-plot-is-input", DISC + ["--plot", "p.csv", "--force"], "is also an input"),
+    row("discover-existing-plot", DISC + ["--plot", "p.csv"], "is also an input"),
+    row("discover-gravity-looks-like-g", DISC + ["--gravity", "1.0"], "looks like g"),
+    # nav
+    row("nav-counts-calibration-g-truth", ["nav", "calc.json", "--truth", "truth.json"], "looks like outputs in g"),
+    row("nav-empty-truth", ["nav", "cal.json", "--truth", "empty.json"], "is empty"),
+    row("nav-plot-unknown-format", NAV + ["--plot", "n.xyz"], "suffix"),
+    row("nav-plot-missing-folder", NAV + ["--plot", "missing/n.png"], "does not exist"),
+    row("nav-plot-is-input", NAV + ["--plot", "truth.json", "--force"], "is also an input"),
+    row("nav-zero-hours", NAV + ["--hours", "0"], "run length"),
+    row("nav-latitude-out-of-range", NAV + ["--latitude", "95"], "latitude 95"),
+    row("nav-bad-gyro-bias", NAV + ["--gyro-bias-dph", "1,x,2"], "--gyro-bias-dph"),
+    # noise
+    row("noise-confidence-above-one", NOISE + ["--ci", "1.5"], "--ci 1.5"),
+    row("noise-plot-is-input", NOISE + ["--plot", "rest.csv", "--force"], "is also an input"),
+    row("noise-plot-missing-folder", NOISE + ["--plot", "missing/n.png"], "does not exist"),
+    row("noise-plot-unknown-format", NOISE + ["--plot", "n.xyz"], "cannot write .xyz"),
+    row("noise-negative-tau", NOISE + ["--tau-max", "-1"], "--tau-max -1"),
+    row("noise-negative-scale", NOISE + ["--scale", "-2"], "--scale -2"),
+    row("noise-unknown-units", NOISE + ["--units", "furlongs"], "furlongs"),
+    row("noise-bad-interval", NOISE + ["--interval", "5-9"], "START:END"),
+    # export and import
+    row("export-output-is-input", ["export", "cal.json", "--format", "matrix", "-o", "cal.json", "--force"],
+        "is also an input"),
+    row("export-missing-folder", ["export", "cal.json", "--format", "matrix", "-o", "missing/m.json"],
+        "does not exist"),
+    row("export-bias-online-not-kalibr", ["export", "cal.json", "--format", "imucal", "-o", "i.json",
+                                          "--bias-online"], "kalibr only"),
+    row("export-missing-calibration", ["export", "none.json", "--format", "matrix", "-o", "m.json"],
+        "does not exist"),
+    row("export-unknown-version", ["export", "v3.json", "--format", "matrix", "-o", "m.json"], "format_version 3"),
+    row("import-imu-tk-without-units", ["import", "imu_tk.txt", "--format", "imu_tk", "-o", "i.json"], "--units"),
+    row("import-missing-folder", ["import", "imu_tk.txt", "--format", "imu_tk", "--units", "g", "-o",
+                                  "missing/i.json"], "does not exist"),
+    row("import-output-is-input", ["import", "imu_tk.txt", "--format", "imu_tk", "--units", "g", "-o",
+                                   "imu_tk.txt", "--force"], "is also an input"),
+    row("import-gravity-looks-like-g", ["import", "imu_tk.txt", "--format", "imu_tk", "--units", "g", "-o",
+                                        "i.json", "--gravity", "1.0"], "looks like g"),
+    row("import-height-without-latitude", ["import", "imu_tk.txt", "--format", "imu_tk", "--units", "g", "-o",
+                                           "i.json", "--height", "100"], "without a latitude"),
+    # solvers, study, demo
+    row("solvers-unknown", ["solvers", "no-such-solver"], "unknown solver"),
+    row("study-run-missing-spec", ["study", "run", "nothing.toml", "--out", "st"], "nothing.toml"),
+    row("study-run-unknown-key", ["study", "run", "missing_key.toml", "--out", "st"], "what"),
+    row("study-run-negative-seed", ["study", "run", "neg_seed.toml", "--out", "st"], "seed"),
+    row("study-run-memory-exhausting-runs", ["study", "run", "huge_runs.toml", "--out", "st"], "runs",
+        "needs an upper bound on runs (e.g. le=100_000 with the message naming it) in studies/spec_schema.py; today "
+        "a spec with runs = 100000000 starts running", run=False),
+    row("study-report-missing-folder", ["study", "report", "nowhere"], "nowhere"),
+    row("study-report-not-a-study", ["study", "report", "notadir"], "study.sqlite"),
+    row("study-export-missing-folder", ["study", "export", "nowhere", "-o", "ioh"], "nowhere"),
+    row("demo-negative-seed", ["demo", "--seed", "-1"], "--seed -1"),
+    row("demo-negative-noise", ["demo", "--noise-ug", "-1"], "--noise-ug -1"),
+    row("demo-zero-noise", ["demo", "--noise-ug", "0"], "--noise-ug 0"),
+    row("demo-memory-exhausting-scheme", ["demo", "--scheme", "random:100000000"], "more than optcal handles"),
+]
+
+
+def _snapshot(folder) -> dict:
+    return {p.relative_to(folder).as_posix(): (hashlib.sha256(p.read_bytes()).hexdigest() if p.is_file() else "dir")
+            for p in sorted(folder.rglob("*"))}
+
+
+def test_the_table_covers_every_command_and_is_large():
+    commands = {argv.values[0][0] for argv in CASES}
+    assert {"simulate", "calibrate", "apply", "info", "discover", "nav", "noise", "export", "import", "solvers",
+            "study", "demo"} <= commands
+    assert {c.values[0][1] for c in CASES if c.values[0][0] == "study"} == {"run", "report", "export"}
+    assert len(CASES) >= 60
+
+
+@pytest.mark.parametrize("argv, fragment", CASES)
+def test_bad_input_is_one_line_exit_2_and_writes_nothing(argv, fragment, source, tmp_path, monkeypatch, capsys):
+    work = tmp_path / "w"
+    shutil.copytree(source, work)
+    monkeypatch.chdir(work)
+    before = _snapshot(work)
+    try:
+        code = main(list(argv))
+    except SystemExit as exc:  # argparse's own errors
+        code = exc.code
+    out, err = capsys.readouterr()
+    lines = err.strip().splitlines()
+    assert code == 2, (code, out, err)
+    assert "Traceback" not in err
+    assert len(lines) == 1, err
+    assert fragment in lines[0], lines[0]
+    assert _snapshot(work) == before, "a file was written, removed or changed"
