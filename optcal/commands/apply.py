@@ -90,9 +90,16 @@ def run(args) -> int:
             f"the data are declared in {args.units!r} but {args.calibration} was fitted to outputs in "
             f"{cal.units_out!r}; convert the data or drop --units"
         )
-    with flag_names():
-        rec = read_recording(args.data, args.columns, args.rate, cal.units_out, saturation=args.saturation,
-                             need_time="t" in cal.model.needs)
+    try:
+        with flag_names():
+            rec = read_recording(args.data, args.columns, args.rate, cal.units_out, saturation=args.saturation,
+                                 need_time="t" in cal.model.needs)
+    except InputError as exc:
+        if "looks like" not in str(exc) or args.units is not None:
+            raise
+        # the data were read in the calibration's units, which the user did not choose: say so
+        raise InputError(f"{exc} (apply reads the data in {cal.units_out!r}, the units {args.calibration} was "
+                         "fitted to: with data in other units, apply a calibration fitted in those)") from None
     check_magnitude(cal, rec.N, args.data)
     has_t = "t" in rec.columns
     A = cal.apply(rec.N, temp=rec.temp, t=rec.t if has_t else None)
