@@ -82,7 +82,8 @@ class Recording:
 
 def read_recording(path, columns=None, rate: float | None = None, units: str = "g", *,
                    saturation: float | None = None, labels: str | None = None, need_time: bool = True,
-                   adc: str | None = None, time_unit: str | None = None) -> Recording:
+                   adc: str | None = None, time_unit: str | None = None,
+                   refuse_positions: bool = False) -> Recording:
     """Read a raw recording (docs/design.md §9.2). ``columns``: ``"t,ax,ay,az"`` (names or 0-based indices;
     3 entries mean ax,ay,az, 5 add temp) or ``"ax=acc_x,..."``; ``rate`` (Hz) when there is no time column;
     ``units`` of the outputs; ``saturation``: |value| at which a sample is saturated; ``adc``: the counts'
@@ -91,7 +92,8 @@ def read_recording(path, columns=None, rate: float | None = None, units: str = "
     median step, :func:`time_scale`); ``labels``: a column of section labels, ``COLUMN`` or
     ``COLUMN=L1,L2`` (kept as strings; the labels after ``=`` are for
     :func:`~optcal.recording.label_intervals`); ``need_time=False`` accepts a file without time or rate
-    (time is then the sample index and the rate NaN). Every problem is an InputError."""
+    (time is then the sample index and the rate NaN); ``refuse_positions``: a file that looks like a
+    positions file is an error that says so (calibration's path). Every problem is an InputError."""
     path = Path(path)
     if units not in UNITS:
         raise InputError(f"unknown units {units!r}; use one of {', '.join(UNITS)}")
@@ -117,7 +119,7 @@ def read_recording(path, columns=None, rate: float | None = None, units: str = "
     n = len(raw)
     if n < 2:
         raise InputError(f"{path} has {n} sample(s); a raw recording needs many samples per static pose")
-    reason = positions_file_reason(lay, n, "t" in cols)
+    reason = positions_file_reason(lay, n, "t" in cols) if refuse_positions else None
     if reason:
         raise InputError(f"{path} looks like a positions file, not a raw recording ({reason}); "
                          "read it as positions (drop `raw`)")

@@ -110,7 +110,7 @@ def positions_from_raw(path: str | Path, *, columns=None, rate: float | None = N
     Fewer intervals than ``model`` has parameters, or outputs whose magnitude does not fit ``units``, are an
     InputError."""
     rec = read_recording(path, columns, rate, units, saturation=saturation, labels=labels, adc=adc,
-                         time_unit=time_unit)
+                         time_unit=time_unit, refuse_positions=True)
     model = get_model(model)
     if intervals is not None:
         det = given_intervals(rec, *read_intervals(intervals))
