@@ -312,7 +312,7 @@ def test_plot_and_cli_raw_calibration(tmp_path, rec24, capsys):
     out = capsys.readouterr().out
     assert "24 static interval(s)" in out and "k searched" in out and "residual RMS" in out
     assert png.stat().st_size > 10_000 and png.read_bytes()[:4] == b"\x89PNG"
-    assert json.loads(cal.read_text())["units"]["output"] == "counts"
+    assert json.loads(cal.read_text())["units"]["raw"] == "counts"  # format version 2 (ced30cc) names it units.raw
 
 
 # -- local gravity --------------------------------------------------------------------------------------
