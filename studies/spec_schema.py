@@ -163,13 +163,19 @@ TruthField = Annotated[
 ]
 
 
+# A stated limit: each trial is a record in memory before it runs, so a mistyped run count (1e8) would
+# exhaust the machine's memory instead of failing. 10,000 runs is already 200 times the compare study's.
+MAX_RUNS = 10_000
+
+
 class SpecFile(_Table):
     """The spec as written: every key, its type and bounds, and the defaults that need no other key."""
 
     name: str | None = None
     description: str = ""
-    runs: int = Field(10, gt=0, description="an integer number of Monte-Carlo runs")
-    quick_runs: int | None = Field(None, gt=0, description="an integer number of runs (default min(runs, 5))")
+    runs: int = Field(10, gt=0, le=MAX_RUNS, description="an integer number of Monte-Carlo runs")
+    quick_runs: int | None = Field(None, gt=0, le=MAX_RUNS,
+                                   description="an integer number of runs (default min(runs, 5))")
     seed: int = Field(0, ge=0, description="a non-negative integer")
     models: Annotated[list[str], BeforeValidator(_as_list)] = Field(
         ["nonlinear12"], min_length=1, description="a model name or a non-empty array of them")

@@ -64,6 +64,7 @@ def test_shipped_specs_validate(name):
 
 BAD = [
     ("frobnicate = 1\n", "", "'frobnicate'"),
+    ("runs = 100000000\n", "", "key 'runs' must be above 0 and at most 10000"),
     ("", '[[solvers]]\nname = "no-such-solver"\n', "no-such-solver"),
     ("", '[[solvers]]\nname = "scipy-lm"\noptions = {bogus = 1}\n', "solvers[0].options"),
     ("", '[[solvers]]\nname = "scipy-lm"\noptions = {ftol = "abc"}\n', "ftol"),
