@@ -72,8 +72,8 @@ def _positions(data, units: str | None, raw: bool, g_local: float, model, readin
 
 
 # the keyword arguments of optcal.recording.positions_from_raw that describe a raw recording
-_READING = ("columns", "rate", "saturation", "labels", "label_values", "intervals", "threshold_k", "window_s",
-            "min_static_s", "init_s")
+_READING = ("columns", "rate", "saturation", "adc", "time_unit", "labels", "label_values", "intervals",
+            "threshold_k", "window_s", "min_static_s", "init_s")
 
 
 def calibrate(data, model="nonlinear12", *, solver: str = "scipy-lm", units: str | None = None, raw: bool = False,
@@ -87,7 +87,8 @@ def calibrate(data, model="nonlinear12", *, solver: str = "scipy-lm", units: str
     path (str or pathlib.Path) to a positions CSV (§9.1), or, with ``raw=True``, to a raw recording whose
     static intervals are found as ``optcal calibrate --raw`` finds them (§9.2). ``units``: the outputs'
     units (g, m/s2, counts, volts, mg; default g). Keyword arguments for a raw recording, as
-    :func:`optcal.recording.positions_from_raw` takes them: ``columns``, ``rate`` (Hz), ``saturation``,
+    :func:`optcal.recording.positions_from_raw` takes them: ``columns``, ``rate`` (Hz), ``saturation``, ``adc``
+    (the counts' format, e.g. "uint16"), ``time_unit`` (of the time column),
     ``labels`` (a label column) and ``label_values``, ``intervals`` (a file), ``threshold_k`` ("2:10"),
     ``window_s``, ``min_static_s`` and ``init_s`` (s). ``g_local``: local gravity in g
     (``optcal.gravity.local_gravity_g`` converts m/s² or a latitude). The rest is :func:`optcal.fit.calibrate`'s:
@@ -138,15 +139,18 @@ def apply(calibration, samples, *, temp=None, t=None) -> np.ndarray:
 
 
 def read_recording(path, columns=None, rate: float | None = None, units: str = "g", *,
-                   saturation: float | None = None, labels: str | None = None, need_time: bool = True) -> Recording:
+                   saturation: float | None = None, labels: str | None = None, need_time: bool = True,
+                   adc: str | None = None, time_unit: str | None = None) -> Recording:
     """A raw recording (docs/design.md §9.2) as a :class:`~optcal.recording.Recording`: samples ``N``
     (n, 3) in ``units``, time ``t`` (s), ``rate`` (Hz), optional ``temp`` (°C) and the ``saturated`` flags.
     ``columns``: "t,ax,ay,az", "ax,ay,az" (with ``rate``) or role=column items, names or 0-based indices
     (default: from the header); ``labels``: a column of section labels; ``need_time=False`` accepts a
-    file with neither a time column nor a rate."""
+    file with neither a time column nor a rate; ``adc``: the counts' format ("int16", "uint16", ...; default
+    from the data); ``time_unit``: the time column's unit ("s", "ms", "us", "ns"; default from its step)."""
     from .recording import read_recording as read
 
-    return read(path, columns, rate, units, saturation=saturation, labels=labels, need_time=need_time)
+    return read(path, columns, rate, units, saturation=saturation, labels=labels, need_time=need_time, adc=adc,
+                time_unit=time_unit)
 
 
 def noise(source, rate: float | None = None, *, units: str | None = None, columns=None, interval=None,
