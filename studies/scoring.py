@@ -1,41 +1,17 @@
 """Scoring a trial (docs/design.md §11.6): the Cramér-Rao bounds its estimate is scored against, the
 per-trial accuracy, and the best cost (and accuracy) so far on the evaluation grid shared by every trial.
 
-The bounds: :func:`projected_crlb` (the data alone, the error's observable part; docs/design.md §7.1) and
-:func:`crlb_with_presets` (data and presets together, §7.2). :func:`optcal.analysis.crlb` gives the same SDs
-for the observable parameters, but NaN for a parameter with weight in an unobservable direction, and returns
-neither the projector nor the natural units, which a study needs to score every parameter's observable part.
+The bounds: :func:`optcal.analysis.projected_crlb` (the data alone, the error's observable part, with the
+projector and natural units a study needs to score every parameter; docs/design.md §7.1), used here as it
+is, and :func:`crlb_with_presets` (data and presets together, §7.2).
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-from optcal.analysis import natural_units, observability
+from optcal.analysis import natural_units
 from optcal.problem import CalibrationProblem
-
-
-def projected_crlb(problem: CalibrationProblem, x_true: np.ndarray, sigma_g: float, rtol: float = 1e-3):
-    """Cramér-Rao SDs of the parameters' observable part, the projector onto it and the null directions.
-
-    With the norm cost some directions are (nearly) unobservable (docs/design.md §6.1; seed15 has three). The
-    estimate's error is split, in natural units, into its component in the observable subspace (scored
-    against these bounds) and its coefficients along the unobservable directions (reported, not scored).
-    For observable parameters the SD equals :func:`optcal.analysis.crlb`'s.
-    """
-    obs = observability(problem, x_true, rtol)
-    u = natural_units(problem, x_true)
-    J = problem.jacobian_full(x_true)[: len(problem.data)] * u  # the positions' rows, not the gauge's
-    F = J.T @ J / sigma_g**2
-    Nsp = obs.null_space
-    P = np.eye(len(u))
-    if Nsp.size:
-        P = P - Nsp @ np.linalg.pinv(Nsp)
-        cov = np.linalg.pinv(P @ F @ P, rcond=rtol**2, hermitian=True)
-    else:
-        cov = np.linalg.inv(F)
-    sd = np.sqrt(np.clip(np.diag(cov), 0, None)) * u
-    return sd, P, u, obs
 
 
 def crlb_with_presets(problem: CalibrationProblem, x_true: np.ndarray, sigma_g: float,

@@ -23,14 +23,14 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from optcal.analysis import observability
+from optcal.analysis import observability, projected_crlb
 from optcal.model import get_model
 from optcal.presets import PAPER_TRUTH, draw_truth, manufacturer_presets, manufacturer_sd
 from optcal.problem import CalibrationProblem, Counter
 from optcal.simulate import simulate
 
 from .scoring import accuracy_of as accuracy_of  # re-exported: the names studies.trial has always had
-from .scoring import anytime_on_grid, crlb_with_presets, projected_crlb
+from .scoring import anytime_on_grid, crlb_with_presets
 from .scoring import trace_on_grid as trace_on_grid
 from .spec import SolverConfig, Spec
 
