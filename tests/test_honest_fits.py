@@ -294,3 +294,20 @@ def test_a_zero_sample_sd_takes_its_axis_median():
     cal = calibrate(replace(sim.data, n_samples=np.full(24, 1000.0), std=std), MODEL)
     assert cal.diagnostics.sigma_g[0] == pytest.approx(SIGMA, rel=1e-3)
     assert not cal.diagnostics.outlier.any()
+
+
+def test_calibrate_plots_a_positions_file_and_prints_the_outlier_table(tmp_path, capsys):
+    """`optcal calibrate --plot` draws the residual per position for a positions file too, and the text
+    output shows the per-position table when a position is named as an outlier."""
+    from optcal.cli import main
+
+    sim = simulate(MODEL, TRUTH, np.random.default_rng(0), scheme="24", noise_g=SIGMA)
+    sim.data.N[7] *= 1.0015  # position 7 displaced, 1.5 mg along gravity
+    sim.data.to_csv(tmp_path / "p.csv")
+    png = tmp_path / "fit.png"
+    assert main(["calibrate", str(tmp_path / "p.csv"), "--plot", str(png)]) == 0
+    out = capsys.readouterr().out
+    assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" and f"wrote {png}" in out
+    table = out[out.index("residual µg"):]
+    flagged = [line for line in table.splitlines() if line.rstrip().endswith("OUTLIER")]
+    assert len(flagged) == 1 and flagged[0].split()[0] == "7"

@@ -582,7 +582,8 @@ def test_recording_figure_uses_no_pyplot_and_calibrate_writes_nothing_on_a_bad_p
     base = ["calibrate", rec24[0], "--raw", "--units", "counts", "--model", "linear9", "--threshold-k", "4",
             "-o", str(cal)]
     cases = {
-        "not raw": (["calibrate", rec24[0], "--plot", str(tmp_path / "p.png"), "-o", str(cal)], "use it with --raw"),
+        # a raw recording without --raw is named as such before anything is fitted, plotted or written
+        "not raw": (["calibrate", rec24[0], "--plot", str(tmp_path / "p.png"), "-o", str(cal)], "pass --raw"),
         "no such folder": ([*base, "--plot", str(tmp_path / "nowhere" / "p.png")], "does not exist"),
         "unknown format": ([*base, "--plot", str(tmp_path / "p.xyz")], "suffix naming its format"),
     }

@@ -125,8 +125,6 @@ def test_unsigned_recording_calibrates_without_flags_and_says_what_was_set_aside
     assert "22 static interval(s)" in out and out.count("dropped:") == 2
 
 
-@pytest.mark.xfail(strict=True, reason="calibrate --json prints cal.to_dict() only: optcal/commands/calibrate.py "
-                   "must add {'recording': detection_summary(detection)} for a raw DATA (not this file's to edit)")
 def test_unsigned_recording_json_says_what_was_set_aside(uint16, capsys):
     code, out, _ = _cli(["calibrate", uint16[0], "--raw", "--units", "counts", "--model", "linear9", "--json"],
                         capsys)

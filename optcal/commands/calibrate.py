@@ -33,8 +33,9 @@ def add_arguments(p):
     p.add_argument("--json", action="store_true", help="print the result as one JSON object")
     p.add_argument("-o", "--output", metavar="CALIBRATION.json", help="write the calibration file")
     p.add_argument("--force", action="store_true", help="overwrite an existing calibration file or figure")
-    p.add_argument("--plot", metavar="FILE.png", help="with --raw: the recording with intervals and residuals "
-                   "(the suffix names the format: .png, .pdf, .svg, ...)")
+    p.add_argument("--plot", metavar="FILE.png", help="the residual per position with its noise band and the "
+                   "outliers (with --raw: the recording with its intervals and residuals); the suffix names the "
+                   "format: .png, .pdf, .svg, ...")
     add_noise_from_options(p, "dwell per position for --noise-from, s (default: each position's n over the "
                            "sample rate: a raw DATA's, else --rate, else the noise recording's)",
                            "read with --units, --columns and --rate, as a raw DATA")
@@ -57,8 +58,6 @@ def run(args) -> int:
     if args.plot:  # checked before anything is fitted or written
         from ..plots import check_figure_path
 
-        if not args.raw:
-            raise InputError("--plot draws a raw recording; use it with --raw")
         refuse_same_file(args.plot, *inputs, args.output, option="--plot")
         refuse_overwrite(args.plot, args.force)
         check_figure_path(args.plot)
@@ -74,10 +73,14 @@ def run(args) -> int:
     cal = calibrate(data, args.model, solver=args.solver, options=parse_options(args.option), g_local=g_local,
                     reference=args.reference, presets=presets, seed=args.seed, budget=args.budget, noise_g=noise_g)
     figure = None
-    if args.plot:
+    if args.plot and detection is not None:
         from ..plots.recording import recording_figure
 
         figure = recording_figure(detection.recording, detection, cal.problem.residuals_full(cal.x)[0])
+    elif args.plot:
+        from ..plots.fit import fit_figure
+
+        figure = fit_figure(cal)
     if args.output:
         from ..calfile import write_calibration
 
@@ -89,8 +92,12 @@ def run(args) -> int:
         save_figure(figure, args.plot)
     if args.json:
         units = cal.model.units(data.units)  # beside "parameters", in the same order (docs/design.md §2)
-        print(json.dumps({**cal.to_dict(), "units": units, "output_units": data.units,
-                          **({"noise_from": noise} if noise else {})}, indent=2))
+        extra = {"noise_from": noise} if noise else {}
+        if detection is not None:
+            from ..recording.report import detection_summary
+
+            extra["recording"] = detection_summary(detection)
+        print(json.dumps({**cal.to_dict(), "units": units, "output_units": data.units, **extra}, indent=2))
         return 0
     if detection is not None:
         from ..recording.report import describe_detection
@@ -105,6 +112,8 @@ def run(args) -> int:
         print(describe_noise(noise))
     for note in cal.notes:
         print(f"note: {note}")
+    if any(row["outlier"] for row in cal.positions):
+        print(cal.residual_table())
     print(parameter_table(cal.model.names, cal.x, cal.stderr, units=cal.model.units(data.units)))
     for written in (args.output, args.plot):
         if written:
