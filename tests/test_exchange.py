@@ -113,7 +113,7 @@ def test_round_trip_is_the_identity_on_the_linear_part(fmt, tmp_path):
                 out.write_text(text)
                 kw = {"units": units} if fmt in ("imu_tk", "kalibr") else {}
                 doc, _ = import_calibration(out, fmt, **kw)
-                assert doc["model"] == m.name and doc["units"]["output"] == units
+                assert doc["model"] == m.name and doc["units"]["raw"] == units
                 x3 = m.from_dict(doc["parameters"])
                 np.testing.assert_allclose(x3, x, rtol=1e-12, atol=0)
                 nz = x != 0
@@ -200,7 +200,7 @@ def test_kalibr_import_reads_a_result_entry_and_a_bare_one(tmp_path):
     for i, text in enumerate((entry, "%YAML:1.0\n" + entry, bare)):
         (tmp_path / f"k{i}.yaml").write_text(text)
         doc, notes = import_calibration(tmp_path / f"k{i}.yaml", "kalibr")
-        assert doc["model"] == "linear9" and doc["units"]["output"] == "m/s2"
+        assert doc["model"] == "linear9" and doc["units"]["raw"] == "m/s2"
         assert doc["parameters"]["K_x"] == pytest.approx(1.001 * G0, rel=1e-15)
         assert doc["parameters"]["S_yz"] == pytest.approx(2e-3 / 0.999, rel=1e-14)
         assert doc["parameters"]["b_x"] == 0.0 and "no accelerometer bias" in notes[0]
@@ -277,7 +277,7 @@ def test_imucals_own_file_imported_gives_imucals_specific_force(tmp_path):
     assert main(["import", str(DATA / "example_cal.json"), "--format", "imucal", "-o", str(cal),
                  "--gravity", "9.81"]) == 0
     doc = json.loads(cal.read_text())
-    assert doc["model"] == "scale+bias+misalignment6" and doc["units"]["output"] == "counts"
+    assert doc["model"] == "scale+bias+misalignment6" and doc["units"]["raw"] == "counts"
     assert doc["g_local"] == pytest.approx(9.81 / G0, rel=1e-15)
     raw = np.genfromtxt(DATA / "annotated_session.csv", delimiter=",", names=True, dtype=None, encoding="utf-8")
     N = np.column_stack([raw["acc_x"], raw["acc_y"], raw["acc_z"]]).astype(float)

@@ -93,7 +93,7 @@ def run(args) -> int:
     try:
         with flag_names():
             rec = read_recording(args.data, args.columns, args.rate, cal.units_out, saturation=args.saturation,
-                                 need_time="t" in cal.model.needs)
+                                 need_time="t" in cal.model.needs, adc=args.adc, time_unit=args.time_unit)
     except InputError as exc:
         if "looks like" not in str(exc) or args.units is not None:
             raise

@@ -42,11 +42,7 @@ def run(args) -> int:
     g = gravity_from_args(args) if (args.gravity is not None or args.latitude is not None or args.height) else None
     doc, notes = import_calibration(args.file, args.format, units=args.units, calibrated=args.calibrated_units,
                                     model=args.model, g_local=g)
-    if "output" in doc.get("units", {}):
-        # optcal.exchange still names the units as version 1 did (input, output): the file says so, and
-        # read_calibration maps them (docs/design.md §9.3)
-        doc = {**doc, "format_version": 1}
-    raw = doc["units"].get("raw", doc["units"].get("output"))
+    raw = doc["units"]["raw"]
     # read_calibration checks the file before it replaces the output: what optcal writes, optcal can read
     write_new(args.output, json.dumps(doc, indent=2) + "\n", force=args.force, check=read_calibration)
     print(f"wrote {args.output}: {args.file} ({args.format}) as model {doc['model']}, raw outputs in "

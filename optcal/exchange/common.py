@@ -141,7 +141,7 @@ def calibration_dict(lin: LinearPart, *, fmt: str, source, g_local: float = 1.0,
     :func:`parameters_of`, no standard errors (optcal did not fit it), ``data.n_positions`` 0 (no positions
     were fitted; ``rms_residual_g`` is then 0, as the file's schema requires a number), ``solver``
     "import:FORMAT" and ``data.source`` the imported file."""
-    from ..calfile import FORMAT, FORMAT_VERSION
+    from ..calfile import FORMAT, FORMAT_VERSION, units_record
 
     m, x = parameters_of(lin, model)
     return {
@@ -151,7 +151,7 @@ def calibration_dict(lin: LinearPart, *, fmt: str, source, g_local: float = 1.0,
         "terms": list(m.terms),
         "parameters": m.to_dict(x),
         "stderr": {n: None for n in m.names},
-        "units": {"input": "g", "output": lin.units},
+        "units": units_record(m, lin.units),
         "g_local": float(g_local),
         "data": {"n_positions": 0, "rms_residual_g": 0.0, "source": str(source)},
         "solver": f"import:{fmt}",
