@@ -218,7 +218,7 @@ def check_units(data: PositionsData, units: str) -> None:
     if units != "m/s2" and looks == "m/s2":
         raise InputError(
             f"the outputs' norms are about {med:.3f}, which looks like m/s², but the units are {units!r}; "
-            "pass --units m/s2 (and --gravity for your local g if you know it)"
+            "pass --units m/s2 (and --gravity-ms2 for your local g if you know it)"
         )
     if units == "g" and not 0.5 <= med <= 2.0:
         like = f"look like {looks}" if looks else "are not in g"

@@ -19,8 +19,6 @@ from optcal.simulate import simulate
 
 COUNTS = {"K_x": 16301.0, "K_y": 16452.0, "K_z": 16690.0, "b_x": 0.021, "b_y": -0.013, "b_z": 0.042,
           "S_yz": 2.0e-3, "S_zy": -1.5e-3, "S_zx": 1.0e-3}
-RENAME = "needs add_gravity_options to name the option --gravity-ms2 (dest gravity_ms2, read by gravity_from_args) " \
-         "in optcal/commands/_dataopts.py"
 
 
 def _csv(path, header, rows):
@@ -130,14 +128,14 @@ CASES = [
     row("calibrate-identical-positions", ["calibrate", "ident.csv"], "unobservable"),
     row("calibrate-nan-cell", ["calibrate", "nan.csv"], "line 4, column 'ay'"),
     row("calibrate-negative-seed", CAL + ["--seed", "-1"], "--seed -1"),
-    row("calibrate-gravity-looks-like-g", CAL + ["--gravity", "1.0"], "looks like g"),
-    row("calibrate-gravity-ms2-looks-like-g", CAL + ["--gravity-ms2", "1.0"], "looks like g", RENAME),
+    row("calibrate-gravity-ms2-looks-like-g", CAL + ["--gravity-ms2", "1.0"], "looks like g"),
+    row("calibrate-height-zero-without-latitude", CAL + ["--height", "0"], "without a latitude"),
     row("calibrate-height-without-latitude", CAL + ["--height", "100"], "without a latitude"),
     row("calibrate-latitude-out-of-range", CAL + ["--latitude", "95"], "latitude 95"),
     row("calibrate-output-is-input", CAL + ["-o", "p.csv", "--force"], "is also an input"),
     row("calibrate-missing-folder", CAL + ["-o", "missing/cal.json"], "does not exist"),
     row("calibrate-existing-output", CAL + ["-o", "cal.json"], "--force"),
-    row("calibrate-plot-without-raw", CAL + ["--plot", "fig.png"], "with --raw"),
+    row("calibrate-plot-unknown-format-positions", CAL + ["--plot", "fig.xyz"], "suffix"),
     row("calibrate-plot-unknown-format", ["calibrate", "raw_g.csv", "--raw", "--plot", "fig.xyz"], "suffix"),
     row("calibrate-plot-missing-folder", ["calibrate", "raw_g.csv", "--raw", "--plot", "missing/fig.png"],
         "does not exist"),
@@ -178,7 +176,7 @@ CASES = [
     row("discover-plot-missing-folder", DISC + ["--plot", "missing/fig.png"], "does not exist"),
     row("discover-plot-is-input", DISC + ["--plot", "p.csv", "--force"], "is also an input"),
     row("discover-existing-plot", DISC + ["--plot", "p.csv"], "is also an input"),
-    row("discover-gravity-looks-like-g", DISC + ["--gravity", "1.0"], "looks like g"),
+    row("discover-gravity-looks-like-g", DISC + ["--gravity-ms2", "1.0"], "looks like g"),
     # nav
     row("nav-counts-calibration-g-truth", ["nav", "calc.json", "--truth", "truth.json"], "looks like outputs in g"),
     row("nav-empty-truth", ["nav", "cal.json", "--truth", "empty.json"], "is empty"),
@@ -213,7 +211,7 @@ CASES = [
     row("import-output-is-input", ["import", "imu_tk.txt", "--format", "imu_tk", "--units", "g", "-o",
                                    "imu_tk.txt", "--force"], "is also an input"),
     row("import-gravity-looks-like-g", ["import", "imu_tk.txt", "--format", "imu_tk", "--units", "g", "-o",
-                                        "i.json", "--gravity", "1.0"], "looks like g"),
+                                        "i.json", "--gravity-ms2", "1.0"], "looks like g"),
     row("import-height-without-latitude", ["import", "imu_tk.txt", "--format", "imu_tk", "--units", "g", "-o",
                                            "i.json", "--height", "100"], "without a latitude"),
     # solvers, study, demo

@@ -90,7 +90,7 @@ XSENS_G = 9.81744  # m/s², the local gravity imu_tk's test_imu_calib.cpp sets f
 XSENS_DS_GAIN = np.array([415.0, 413.0, 415.0])
 XSENS_DS_MISAL = np.array([[1.00, 0.00, -0.01], [0.01, 1.00, 0.01], [0.02, 0.01, 1.00]])
 XSENS_OFFSETS = np.array([33123.0, 33276.0, 32360.0])
-XSENS_ARGS = ["--raw", "--units", "counts", "--saturation", "65535", "--gravity", str(XSENS_G), "--json"]
+XSENS_ARGS = ["--raw", "--units", "counts", "--saturation", "65535", "--gravity-ms2", str(XSENS_G), "--json"]
 
 
 @pytest.fixture(scope="module")
@@ -141,7 +141,7 @@ def test_xsens_through_the_cli_against_the_mti_calibration(xsens_txt, capsys):
 def test_xsens_standard_gravity_scale_within_the_datasheet_rounding(xsens_txt, capsys):
     """Fitted with |g| = g0 (the default) the scale factors come out 0.11 % larger (the ratio of the two
     gravities) and fall within the sheet's rounding: −0.02, −0.10, −0.01 %."""
-    args = [a for a in XSENS_ARGS if a not in ("--gravity", str(XSENS_G))]
+    args = [a for a in XSENS_ARGS if a not in ("--gravity-ms2", str(XSENS_G))]
     code, out = _cli(["calibrate", str(xsens_txt), *args, "--model", "linear9"], capsys)
     assert code == 0 and out["g_local"] == 1.0
     np.testing.assert_allclose(_params(out, ["K_x", "K_y", "K_z"]) / G0, XSENS_DS_GAIN, rtol=1.5e-3)

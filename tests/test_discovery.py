@@ -268,7 +268,7 @@ def test_cli_json_contract(tmp_path, capsys):
         assert key in out["steps"][0]
     assert set(out["steps"][0]["parameters"]) == {"K3_x", "K3_y", "K3_z"}
     assert png.stat().st_size > 10_000
-    assert main(["discover", str(csv), "--base", "nonlinear12", "--gravity", "9.80665"]) == 0
+    assert main(["discover", str(csv), "--base", "nonlinear12", "--gravity-ms2", "9.80665"]) == 0
     text = capsys.readouterr().out
     assert "base nonlinear12" in text and "verdict" in text
 

@@ -275,7 +275,7 @@ def test_imucals_own_file_imported_gives_imucals_specific_force(tmp_path):
     gyroscope terms are reported as not imported."""
     cal = tmp_path / "imported.json"
     assert main(["import", str(DATA / "example_cal.json"), "--format", "imucal", "-o", str(cal),
-                 "--gravity", "9.81"]) == 0
+                 "--gravity-ms2", "9.81"]) == 0
     doc = json.loads(cal.read_text())
     assert doc["model"] == "scale+bias+misalignment6" and doc["units"]["raw"] == "counts"
     assert doc["g_local"] == pytest.approx(9.81 / G0, rel=1e-15)

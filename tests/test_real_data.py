@@ -99,7 +99,7 @@ def test_imucal_norm_fit_agrees_with_imucal_within_method_differences(annotated)
 def test_imucal_session_through_the_cli(tmp_path, capsys):
     argv = ["calibrate", str(IMUCAL / "annotated_session.csv"), "--raw", "--columns", "acc_x,acc_y,acc_z",
             "--rate", "204.8", "--units", "counts", "--labels", "part=" + ",".join(POSES), "--model", "diag6",
-            "--gravity", "9.81", "--json"]
+            "--gravity-ms2", "9.81", "--json"]
     assert main(argv) == 0
     out = json.loads(capsys.readouterr().out)
     ref = json.loads((IMUCAL / "example_cal.json").read_text())

@@ -36,9 +36,9 @@ READERS = {"raw": "--raw"}
 
 def add_gravity_options(p: argparse.ArgumentParser) -> None:
     g = p.add_argument_group("local gravity (default 1 g)")
-    g.add_argument("--gravity", type=float, metavar="M_PER_S2", help="local gravity in m/s²")
+    g.add_argument("--gravity-ms2", type=float, metavar="M_PER_S2", help="local gravity in m/s²")
     g.add_argument("--latitude", type=float, metavar="DEG", help="latitude for WGS84 normal gravity")
-    g.add_argument("--height", type=float, default=0.0, metavar="M", help="ellipsoidal height, m (with --latitude)")
+    g.add_argument("--height", type=float, metavar="M", help="ellipsoidal height, m (with --latitude; default 0)")
 
 
 def add_data_options(p: argparse.ArgumentParser, *, units_default: str | None = "g") -> None:
@@ -73,8 +73,11 @@ def add_data_options(p: argparse.ArgumentParser, *, units_default: str | None = 
 
 
 def gravity_from_args(args) -> float:
-    lat = getattr(args, "latitude", None)
-    return local_gravity_g(getattr(args, "gravity", None), lat, getattr(args, "height", 0.0) or 0.0)
+    lat, height = getattr(args, "latitude", None), getattr(args, "height", None)
+    if height is not None and lat is None:  # even 0: a height given alone is a mistake, not a default
+        raise InputError(f"--height {height:g} m without a latitude says nothing about local gravity; give "
+                         "--latitude too, or leave --height out")
+    return local_gravity_g(getattr(args, "gravity_ms2", None), lat, height)
 
 
 def with_flags(message: str) -> str:

@@ -122,7 +122,7 @@ def run(args) -> int:
     print(f"median |A| = {np.median(norm):.6f} g (calibration's local gravity {cal.g_local:.6f} g)")
     if rec.saturated.any():
         print(f"note: {int(rec.saturated.sum())} saturated sample(s) are flagged in column 'saturated'")
-    gave_gravity = getattr(args, "gravity", None) is not None or args.latitude is not None
+    gave_gravity = getattr(args, "gravity_ms2", None) is not None or args.latitude is not None
     if gave_gravity and abs(g - cal.g_local) > 1e-6:
         print(f"note: the local gravity given ({g:.6f} g) differs from the calibration's ({cal.g_local:.6f} g); "
               "the output is specific force and does not depend on it")

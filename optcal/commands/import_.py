@@ -39,7 +39,8 @@ def run(args) -> int:
     refuse_same_file(args.output, args.file)
     refuse_overwrite(args.output, args.force)
     check_output_folder(args.output)
-    g = gravity_from_args(args) if (args.gravity is not None or args.latitude is not None or args.height) else None
+    g = gravity_from_args(args) if (args.gravity_ms2 is not None or args.latitude is not None
+                                    or args.height is not None) else None
     doc, notes = import_calibration(args.file, args.format, units=args.units, calibrated=args.calibrated_units,
                                     model=args.model, g_local=g)
     raw = doc["units"]["raw"]
