@@ -17,8 +17,8 @@ import numpy as np
 from .gauge import RTOL, n_position_residuals, natural_units, null_space
 from .problem import CalibrationProblem
 
-__all__ = ["GoodnessOfFit", "Observability", "covariance", "crlb", "fisher", "goodness_of_fit", "natural_units",
-           "observability", "projected_crlb", "standard_errors", "loss_weights", "hat_values", "PositionDiagnostics",
+__all__ = ["GoodnessOfFit", "Observability", "crlb", "goodness_of_fit", "natural_units",
+           "observability", "projected_crlb", "loss_weights", "hat_values", "PositionDiagnostics",
            "position_diagnostics", "ROBUST_LOSSES"]
 
 
@@ -73,12 +73,8 @@ def observability(problem: CalibrationProblem, x_full: np.ndarray | None = None,
     return Observability(problem.model.names, rank, rel, null, rtol)
 
 
-def fisher(problem: CalibrationProblem, x_full: np.ndarray, sigma_g: float) -> np.ndarray:
-    J = problem.jacobian_full(x_full)[: n_position_residuals(problem)]
-    return J.T @ J / sigma_g**2
 
-
-def projected_crlb(problem: CalibrationProblem, x_full: np.ndarray, sigma_g: float, rtol: float = RTOL,
+def projected_crlb(problem: CalibrationProblem, x_full: np.ndarray, noise_g: float, rtol: float = RTOL,
                    weights: np.ndarray | None = None):
     """Cramér-Rao SDs of every parameter's observable part, the projector onto the observable subspace (in
     natural units), the natural units and the observability (docs/design.md §7.1; studies score against it).
@@ -94,7 +90,7 @@ def projected_crlb(problem: CalibrationProblem, x_full: np.ndarray, sigma_g: flo
     J = problem.jacobian_full(x)[: n_position_residuals(problem)] * u
     if weights is not None:
         J = J * np.sqrt(np.asarray(weights, float))[:, None]
-    F = J.T @ J / sigma_g**2
+    F = J.T @ J / noise_g**2
     P = np.eye(len(u))
     if obs.null_space.size:
         P = P - obs.null_space @ np.linalg.pinv(obs.null_space)
@@ -104,32 +100,25 @@ def projected_crlb(problem: CalibrationProblem, x_full: np.ndarray, sigma_g: flo
     return np.sqrt(np.clip(np.diag(cov), 0, None)) * u, P, u, obs
 
 
-def crlb(problem: CalibrationProblem, x_full: np.ndarray | None = None, sigma_g: float | None = None,
+def crlb(problem: CalibrationProblem, x_full: np.ndarray | None = None, noise_g: float | None = None,
          rtol: float = RTOL, weights: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
     """Cramér-Rao standard deviations of every parameter, and a mask of those that are observable.
 
-    Noise is white, input-referred, ``sigma_g`` (g) per axis on each position's mean, so each norm
-    residual has SD sigma_g. The bound is :func:`projected_crlb`'s (the gauge the presets fix); parameters
+    Noise is white, input-referred, ``noise_g`` (g) per axis on each position's mean, so each norm
+    residual has SD noise_g. The bound is :func:`projected_crlb`'s (the gauge the presets fix); parameters
     with weight in an unobservable direction are marked not observable and their SD is NaN. ``weights``
     (one per position residual, e.g. a robust fit's :func:`loss_weights`) weight the Fisher information,
     JᵀWJ/σ²: the covariance that iteratively reweighted least squares reports (docs/design.md §7.5).
     """
     x = problem.centre if x_full is None else np.asarray(x_full, float)
-    sigma = sigma_g if sigma_g is not None else problem.noise_g
+    sigma = noise_g if noise_g is not None else problem.noise_g
     if sigma is None:
-        raise ValueError("crlb needs the noise level: give sigma_g or data with n and sx, sy, sz")
+        raise ValueError("crlb needs the noise level: give noise_g or data with n and sx, sy, sz")
     sd, _, _, obs = projected_crlb(problem, x, sigma, rtol, weights)
     mask = obs.observable_mask()
     sd[~mask] = np.nan
     return sd, mask
 
-
-def covariance(problem: CalibrationProblem, x_full: np.ndarray, sigma_g: float) -> np.ndarray:
-    """Parameter covariance σ²(JᵀJ)⁻¹ (pseudo-inverse over observable directions)."""
-    u = natural_units(problem, x_full)
-    J = problem.jacobian_full(x_full)[: n_position_residuals(problem)] * u
-    cov = np.linalg.pinv(J.T @ J, rcond=1e-12) * sigma_g**2
-    return cov * np.outer(u, u)
 
 
 @dataclass(frozen=True)
@@ -137,15 +126,15 @@ class GoodnessOfFit:
     rms_g: float
     cost: float
     dof: int
-    sigma_g: float  # noise used (given, or estimated from the residuals)
+    noise_g: float  # noise used (given, or estimated from the residuals)
     chi2: float | None
     p_value: float | None
 
     def to_dict(self) -> dict:
-        return {k: getattr(self, k) for k in ("rms_g", "cost", "dof", "sigma_g", "chi2", "p_value")}
+        return {k: getattr(self, k) for k in ("rms_g", "cost", "dof", "noise_g", "chi2", "p_value")}
 
 
-def goodness_of_fit(problem: CalibrationProblem, x_full: np.ndarray, sigma_g: float | None = None) -> GoodnessOfFit:
+def goodness_of_fit(problem: CalibrationProblem, x_full: np.ndarray, noise_g: float | None = None) -> GoodnessOfFit:
     """Residual RMS, and χ² with its p-value when the noise is known."""
     from scipy import stats  # here, not at module level: importing optcal stays light
 
@@ -153,19 +142,11 @@ def goodness_of_fit(problem: CalibrationProblem, x_full: np.ndarray, sigma_g: fl
     obs = observability(problem, x_full)
     dof = max(len(r) - obs.rank, 1)
     cost = float(r @ r)
-    sigma = sigma_g if sigma_g is not None else problem.noise_g
+    sigma = noise_g if noise_g is not None else problem.noise_g
     if sigma is None:
         return GoodnessOfFit(float(np.sqrt(np.mean(r**2))), cost, dof, float(np.sqrt(cost / dof)), None, None)
     chi2 = cost / sigma**2
     return GoodnessOfFit(float(np.sqrt(np.mean(r**2))), cost, dof, float(sigma), chi2, float(stats.chi2.sf(chi2, dof)))
-
-
-def standard_errors(problem: CalibrationProblem, x_full: np.ndarray, sigma_g: float | None = None) -> np.ndarray:
-    """Standard errors of the fitted parameters: σ̂·sqrt(diag((JᵀJ)⁺)); NaN for unobservable ones."""
-    gof = goodness_of_fit(problem, x_full, sigma_g)
-    sigma = gof.sigma_g if sigma_g is None and problem.noise_g is None else (sigma_g or problem.noise_g)
-    sd, _ = crlb(problem, x_full, sigma)
-    return sd
 
 
 # -- per-position residuals, outliers and robust weights (docs/design.md §7.5) -----------------------------
@@ -240,7 +221,7 @@ class PositionDiagnostics:
     position: np.ndarray  # (n,) the data's position numbers
     labels: list  # (n,) str or None
     residual_g: np.ndarray  # (n,) signed norm residual, or the 3-axis misfit's length with a reference
-    sigma_g: np.ndarray  # (n,) noise SD of that residual, or the scale used when no noise is known
+    noise_g: np.ndarray  # (n,) noise SD of that residual, or the scale used when no noise is known
     leverage: np.ndarray  # (n,) hat value (largest of the three axes with a reference)
     statistic: np.ndarray  # (n,) |residual| / (σ·√(1−h)), in σ; NaN where h ≈ 1
     p_value: np.ndarray  # (n,) two-sided, NaN where untested
@@ -261,7 +242,7 @@ class PositionDiagnostics:
                  "leverage": num(h, 4), "statistic_sigma": num(t, 3), "p_value": num(pv, 8),
                  "weight": num(w, 4), "outlier": bool(o), "off_ug": num(f * 1e6, 3)}
                 for i, p, lab, r, s, h, t, pv, w, o, f in zip(
-                    self.index, self.position, self.labels, self.residual_g, self.sigma_g, self.leverage,
+                    self.index, self.position, self.labels, self.residual_g, self.noise_g, self.leverage,
                     self.statistic, self.p_value, self.weight, self.outlier, self.off)]
 
     def name(self, i: int) -> str:
@@ -340,12 +321,12 @@ def _scan(r, H, sigma, d, dof, alpha1, sequential):
     return D, np.sqrt(q), pv, off, sig
 
 
-def position_diagnostics(problem: CalibrationProblem, x_full: np.ndarray, sigma_g: float | None = None,
+def position_diagnostics(problem: CalibrationProblem, x_full: np.ndarray, noise_g: float | None = None,
                          weights: np.ndarray | None = None, f_scale: float | None = None,
                          alpha: float = OUTLIER_ALPHA) -> PositionDiagnostics:
     """Each position's residual against its noise, and which positions are outliers.
 
-    The noise σ_i is ``sigma_g`` when given (stated), else the data's per-position noise (measured,
+    The noise σ_i is ``noise_g`` when given (stated), else the data's per-position noise (measured,
     :func:`position_sigma`), else, for a robust fit, its ``f_scale``, else it is estimated from the residuals
     of the other positions (leave-one-out). A residual r has SD σ·√(1−h) (h its leverage, :func:`hat_values`),
     so a position's statistic is |r|/(σ√(1−h)), tested against the normal (χ² with 3 degrees of freedom with a
@@ -361,8 +342,8 @@ def position_diagnostics(problem: CalibrationProblem, x_full: np.ndarray, sigma_
     w = np.ones(len(r)) if weights is None else np.asarray(weights, float)
     H, dof = _hat_matrix(problem, x, weights)
     alpha1 = 1.0 - (1.0 - alpha) ** (1.0 / n)
-    if sigma_g is not None:
-        sig, source = np.full(len(r), float(sigma_g)), "stated"
+    if noise_g is not None:
+        sig, source = np.full(len(r), float(noise_g)), "stated"
     elif (ps := position_sigma(problem, x)) is not None:
         sig, source = ps, "measured"
     elif weights is not None and f_scale is not None:

@@ -137,14 +137,14 @@ def calibrate(data: PositionsData, model: str | Model = "nonlinear12", *, solver
     if weights is not None and diag.outlier.any():
         # χ² and the Birge ratio of a robust fit come from the positions it did not reject
         gof = _gof_without(problem, x, diag.outlier, obs.rank, gof)
-    sigma, notes = gof.sigma_g, []
+    sigma, notes = gof.noise_g, []
     if gof.p_value is not None and gof.p_value < MISFIT_P:
         # The residuals are larger than the noise of the position means (the within-interval scatter of a
         # recording, or the given noise): the model misses an effect, or the positions were not static.
         # Bounds from that noise would be too small; scale them by the Birge ratio sqrt(χ²/dof), which
         # is the residual-based noise estimate (Birge 1932; the usual practice in metrology).
         birge = float(np.sqrt(gof.chi2 / gof.dof))
-        sigma = gof.sigma_g * birge
+        sigma = gof.noise_g * birge
         notes.append(f"chi2/dof = {gof.chi2 / gof.dof:.3g} (p = {gof.p_value:.2g}): the residuals exceed the noise "
                      f"of the position means, so the standard errors are scaled by the Birge ratio {birge:.3g}; "
                      "the model may miss an effect (try optcal discover)"
@@ -174,7 +174,7 @@ def _gof_without(problem: CalibrationProblem, x: np.ndarray, drop: np.ndarray, r
     if problem.noise_g is None:
         return GoodnessOfFit(gof.rms_g, gof.cost, dof, float(np.sqrt(cost / dof)), None, None)
     chi2 = cost / problem.noise_g**2
-    return GoodnessOfFit(gof.rms_g, gof.cost, dof, gof.sigma_g, chi2, float(stats.chi2.sf(chi2, dof)))
+    return GoodnessOfFit(gof.rms_g, gof.cost, dof, gof.noise_g, chi2, float(stats.chi2.sf(chi2, dof)))
 
 
 def _outlier_notes(diag: PositionDiagnostics, loss: str) -> list[str]:
@@ -190,7 +190,7 @@ def _outlier_notes(diag: PositionDiagnostics, loss: str) -> list[str]:
            "try the robust loss: --solver scipy-trf --option loss=cauchy, or re-record or remove it")
     return [f"{diag.name(i)} is {diag.off[i] * 1e6:.4g} µg off the fit of the other positions, "
             f"{diag.statistic[i]:.3g} σ "
-            f"({diag.sigma_source} noise {diag.sigma_g[i] * 1e6:.3g} µg, threshold {diag.threshold:.2f} σ): "
+            f"({diag.sigma_source} noise {diag.noise_g[i] * 1e6:.3g} µg, threshold {diag.threshold:.2f} σ): "
             f"displaced or moved during the position? {fix}" for i in idx]
 
 

@@ -14,7 +14,7 @@ from optcal.analysis import natural_units
 from optcal.problem import CalibrationProblem
 
 
-def crlb_with_presets(problem: CalibrationProblem, x_true: np.ndarray, sigma_g: float,
+def crlb_with_presets(problem: CalibrationProblem, x_true: np.ndarray, noise_g: float,
                       prior_sd: np.ndarray) -> np.ndarray:
     """Cramér-Rao SDs when the presets count as one more measurement of every parameter.
 
@@ -26,7 +26,7 @@ def crlb_with_presets(problem: CalibrationProblem, x_true: np.ndarray, sigma_g: 
     """
     u = natural_units(problem, x_true)
     J = problem.jacobian_full(x_true)[: len(problem.data)] * u
-    F = J.T @ J / sigma_g**2 + np.diag((u / prior_sd) ** 2)
+    F = J.T @ J / noise_g**2 + np.diag((u / prior_sd) ** 2)
     return np.sqrt(np.clip(np.diag(np.linalg.inv(F)), 0, None)) * u
 
 

@@ -120,8 +120,8 @@ def test_labels_and_measured_noise_per_position():
     cal = calibrate(data, MODEL)
     d = cal.diagnostics
     assert d.sigma_source == "measured"
-    assert d.sigma_g[0] == pytest.approx(2 * SIGMA, rel=1e-3)  # position 0 is +z
-    assert d.sigma_g[2] == pytest.approx(SIGMA, rel=1e-3)  # position 2 is +y
+    assert d.noise_g[0] == pytest.approx(2 * SIGMA, rel=1e-3)  # position 0 is +z
+    assert d.noise_g[2] == pytest.approx(SIGMA, rel=1e-3)  # position 2 is +y
     assert any(n.startswith(f"position {BAD} (label p{BAD}) is ") for n in cal.notes)
 
 
@@ -292,7 +292,7 @@ def test_a_zero_sample_sd_takes_its_axis_median():
     std = np.tile([SIGMA * np.sqrt(1000)] * 3, (24, 1))
     std[0, 2] = 0.0
     cal = calibrate(replace(sim.data, n_samples=np.full(24, 1000.0), std=std), MODEL)
-    assert cal.diagnostics.sigma_g[0] == pytest.approx(SIGMA, rel=1e-3)
+    assert cal.diagnostics.noise_g[0] == pytest.approx(SIGMA, rel=1e-3)
     assert not cal.diagnostics.outlier.any()
 
 

@@ -37,7 +37,7 @@ def fit_figure(cal, path=None) -> Figure:
     diag = cal.diagnostics
     idx = np.asarray(diag.index)
     r = diag.residual_g * 1e6
-    sig = diag.sigma_g * 1e6
+    sig = diag.noise_g * 1e6
     band = diag.threshold * sig * np.sqrt(np.clip(1.0 - diag.leverage, 0.0, 1.0))
     fig = Figure(figsize=(max(7.0, 0.32 * len(idx) + 3.0), 4.2), layout="constrained")
     ax = fig.subplots()
