@@ -7,11 +7,16 @@ HELP = "write a calibration's scale, bias and misalignment for another tool: imu
 FORMATS = ("imucal", "imu_tk", "kalibr", "matrix")  # optcal.exchange.FORMATS, kept here so --help stays light
 
 
-def add_arguments(p):
-    p.add_argument("calibration", metavar="CALIBRATION.json", help="optcal calibration file (optcal calibrate -o)")
+def add_format_option(p) -> None:
+    """``--format``, the same for export and import."""
     p.add_argument("--format", required=True, choices=FORMATS,
                    help="imucal (Ferraris JSON), imu_tk (T, K, B text), kalibr (imu yaml, scale-misalignment) or "
                    "matrix (a = C·raw + d, JSON); docs/exchange.md writes each conversion out")
+
+
+def add_arguments(p):
+    p.add_argument("calibration", metavar="CALIBRATION.json", help="optcal calibration file (optcal calibrate -o)")
+    add_format_option(p)
     p.add_argument("-o", "--output", required=True, metavar="FILE", help="the file to write")
     p.add_argument("--force", action="store_true", help="overwrite an existing output file")
     p.add_argument("--calibrated-units", choices=("g", "m/s2"),

@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from ._dataopts import add_gravity_options
-from .export import FORMATS
+from .export import FORMATS, add_format_option  # noqa: F401 - FORMATS: tests check the copy
 
 NAME = "import"
 HELP = "read an imucal, imu_tk, kalibr or matrix calibration into an optcal calibration file"
@@ -12,9 +12,7 @@ UNITS = ("g", "m/s2", "counts", "volts", "mg")  # optcal.data.UNITS, kept here s
 
 def add_arguments(p):
     p.add_argument("file", metavar="FILE", help="the other tool's calibration file")
-    p.add_argument("--format", required=True, choices=FORMATS,
-                   help="imucal (Ferraris JSON), imu_tk (T, K, B text), kalibr (imu yaml, scale-misalignment) or "
-                   "matrix (a = C·raw + d, JSON); docs/exchange.md writes each conversion out")
+    add_format_option(p)
     p.add_argument("-o", "--output", required=True, metavar="CALIBRATION.json", help="the optcal calibration file")
     p.add_argument("--force", action="store_true", help="overwrite an existing output file")
     p.add_argument("--units", choices=UNITS,
