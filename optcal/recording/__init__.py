@@ -20,10 +20,7 @@ solvers. Errors name the functions' parameters in backquotes (`` `rate` ``); the
 option names there (optcal/commands/_dataopts.py).
 """
 
-import sys
-import types
 
-from . import reading
 from .detection import (
     DEFAULT_KS,
     NO_REST_RATIO,
@@ -63,19 +60,3 @@ def __getattr__(name: str):
 
 def __dir__() -> list[str]:
     return sorted(set(globals()) | set(__all__))
-
-
-class _Package(types.ModuleType):
-    """``optcal.recording._arrow_csv`` is the reader's cached ``pyarrow.csv`` (``reading._arrow_csv``), read
-    and set through the package as when this was one module (tests/test_startup.py sets it there)."""
-
-    @property
-    def _arrow_csv(self):
-        return reading._arrow_csv
-
-    @_arrow_csv.setter
-    def _arrow_csv(self, value):
-        reading._arrow_csv = value
-
-
-sys.modules[__name__].__class__ = _Package
