@@ -1,7 +1,7 @@
 """Bad inputs, one table across every command (issue #13): each row is one command line that must end with exit
 status 2, exactly one line on stderr naming the problem (the row's fragment), no traceback, and nothing written:
 the working folder holds the same files with the same bytes afterwards (so no output appeared and no input was
-changed). Rows whose fix belongs to a file another engineer owns are strict xfails naming the change."""
+changed). A row for a case not yet handled is a strict xfail naming the change that would fix it (none today)."""
 
 import hashlib
 import json
@@ -82,7 +82,7 @@ def source(tmp_path_factory):
 
 
 def row(name, argv, fragment, xfail=None):
-    """One case; ``xfail`` names the change (in a file this test's author does not own) that makes it pass."""
+    """One case; ``xfail`` names the change that would make it pass (a strict xfail until then)."""
     marks = () if xfail is None else pytest.mark.xfail(strict=True, reason=xfail)
     return pytest.param(argv, fragment, id=name, marks=marks)
 
