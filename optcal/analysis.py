@@ -337,7 +337,7 @@ def position_diagnostics(problem: CalibrationProblem, x_full: np.ndarray, noise_
     """
     x = np.asarray(x_full, float)
     r = problem.position_residuals(x)
-    d = 3 if problem.reference else 1
+    d = problem.rows_per_position
     n = len(problem.data)
     w = np.ones(len(r)) if weights is None else np.asarray(weights, float)
     H, dof = _hat_matrix(problem, x, weights)
@@ -379,7 +379,7 @@ def noise_scale(problem: CalibrationProblem, x_full: np.ndarray, alpha: float = 
     ``f_scale`` when no noise is known (docs/design.md §7.5)."""
     x = np.asarray(x_full, float)
     r = problem.position_residuals(x)
-    d = 3 if problem.reference else 1
+    d = problem.rows_per_position
     H, dof = _hat_matrix(problem, x)
     D, _, _, off, _ = _scan(r, H, None, d, dof, 1.0 - (1.0 - alpha) ** (1.0 / len(problem.data)), True)
     keep = np.ones(len(r), bool)

@@ -24,6 +24,13 @@ OPTIONAL = ("position", "t", "temp", "n", "sx", "sy", "sz", "ref_x", "ref_y", "r
 G0 = 9.80665
 
 
+
+def residuals_per_position(reference: bool) -> int:
+    """Residuals each position contributes (docs/design.md §5): one, ‖A‖ − g, in the field; three, A − ref
+    per axis, against a turntable's reference."""
+    return 3 if reference else 1
+
+
 @dataclass(frozen=True)
 class PositionsData:
     """Static-position means of a triaxial accelerometer, in the sensor's output units."""

@@ -167,7 +167,7 @@ def _gof_without(problem: CalibrationProblem, x: np.ndarray, drop: np.ndarray, r
     """Goodness of fit over the positions not in ``drop`` (a robust fit's rejected positions)."""
     from scipy import stats
 
-    d = 3 if problem.reference else 1
+    d = problem.rows_per_position
     r = problem.position_residuals(x).reshape(-1, d)[~drop].ravel()
     dof = max(len(r) - rank, 1)
     cost = float(r @ r)

@@ -39,7 +39,7 @@ def natural_units(problem, x_full: np.ndarray) -> np.ndarray:
 
 def n_position_residuals(problem) -> int:
     """Number of data residuals (gauge rows excluded)."""
-    return len(problem.data) * (3 if problem.reference else 1)
+    return problem.n_position_residuals
 
 
 def sparse_basis(V: np.ndarray) -> np.ndarray:

@@ -22,7 +22,7 @@ import numpy as np
 
 from . import oracle
 from .budget import Budget, Counter
-from .data import PositionsData
+from .data import PositionsData, residuals_per_position
 from .errors import InputError
 from .gauge import gauge_rows
 from .linfit import linear_start
@@ -96,7 +96,7 @@ class CalibrationProblem:
                 "add them or drop the terms that need them"
             )
         _check_magnitudes(data)
-        m = len(data) * (3 if reference else 1)
+        m = len(data) * residuals_per_position(reference)
         if check and m < self.model.n_params:
             raise InputError(
                 f"{len(data)} positions give {m} residuals, fewer than the {self.model.n_params} parameters of "
@@ -273,7 +273,7 @@ class CalibrationProblem:
 
     def position_residuals(self, x_full) -> np.ndarray:
         """Residuals of the positions alone (n or 3n), in g, without gauge rows."""
-        return self.residuals_full(x_full)[0][: len(self.data) * (3 if self.reference else 1)]
+        return self.residuals_full(x_full)[0][: self.n_position_residuals]
 
     def specific_force(self, x_full) -> np.ndarray:
         """Calibrated specific force (n, 3) in g at each position, for one full parameter vector."""
@@ -314,8 +314,18 @@ class CalibrationProblem:
         return R, f
 
     @property
+    def rows_per_position(self) -> int:
+        """Residuals per position: 3 against a turntable's reference, else 1 (:func:`residuals_per_position`)."""
+        return residuals_per_position(self.reference)
+
+    @property
+    def n_position_residuals(self) -> int:
+        """Residuals of the positions (gauge rows excluded)."""
+        return len(self.data) * self.rows_per_position
+
+    @property
     def n_residuals(self) -> int:
-        return len(self.data) * (3 if self.reference else 1) + (0 if self._gauge is None else len(self._gauge))
+        return self.n_position_residuals + (0 if self._gauge is None else len(self._gauge))
 
     def residuals_batch(self, X) -> np.ndarray:
         """Residuals (S, m) of a population (S, n); counts S evaluations."""

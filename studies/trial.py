@@ -294,7 +294,7 @@ def _score(t: Trial, w: World, x_est, res, problem, sigma) -> dict:
     null_coef = (np.linalg.pinv(null) @ (e / u)) if null.size else np.zeros(0)
     rank = obs.rank if not cfg.reference else observability(problem, x_true).rank
     # The positions' residuals only: the gauge rows (seed15) hold unobservable directions, not data.
-    dof = max(len(problem.data) * (3 if cfg.reference else 1) - rank, 1)
+    dof = max(problem.n_position_residuals - rank, 1)
     chi2 = float(res.fun) / sigma**2
     converged = chi2 <= converged_threshold(dof)
 
