@@ -1,9 +1,9 @@
 """Positions data sets and the positions CSV of docs/design.md §9.1.
 
 One row per static position: ``position``, the mean raw output ``ax, ay, az``, and optionally ``t`` (s),
-``temp`` (°C), ``n`` (samples averaged), ``sx, sy, sz`` (sample standard deviation per axis) and, for
-turntable data, ``ref_x, ref_y, ref_z`` (reference specific force in g, body frame). Extra columns are
-kept and ignored.
+``temp`` (°C), ``n`` (samples averaged), ``sx, sy, sz`` (sample standard deviation per axis), ``se_x, se_y,
+se_z`` (standard error of the mean per axis, correlated noise included, output units) and, for turntable data,
+``ref_x, ref_y, ref_z`` (reference specific force in g, body frame). Extra columns are kept and ignored.
 """
 
 from __future__ import annotations
@@ -20,7 +20,7 @@ import numpy as np
 from .errors import InputError
 
 REQUIRED = ("ax", "ay", "az")
-OPTIONAL = ("position", "t", "temp", "n", "sx", "sy", "sz", "ref_x", "ref_y", "ref_z")
+OPTIONAL = ("position", "t", "temp", "n", "sx", "sy", "sz", "se_x", "se_y", "se_z", "ref_x", "ref_y", "ref_z")
 G0 = 9.80665
 
 
@@ -41,6 +41,9 @@ class PositionsData:
     temp: np.ndarray | None = None
     n_samples: np.ndarray | None = None
     std: np.ndarray | None = None  # (n, 3) per-axis sample SD of the samples averaged
+    # (n, 3) per-axis standard error of each mean, correlated noise included (output units); when None, the
+    # white-noise value std/√n stands in (noise_of_mean)
+    sem: np.ndarray | None = None
     ref: np.ndarray | None = None  # (n, 3) reference specific force in g (turntable)
     units: str = "g"
     extra: dict = field(default_factory=dict)
@@ -71,12 +74,17 @@ class PositionsData:
             cols.add("n")
         if self.std is not None:
             cols |= {"sx", "sy", "sz"}
+        if self.sem is not None:
+            cols |= {"se_x", "se_y", "se_z"}
         if self.ref is not None:
             cols |= {"ref_x", "ref_y", "ref_z"}
         return cols
 
     def noise_of_mean(self) -> np.ndarray | None:
-        """Standard error of each position's mean per axis, (n, 3), when ``n`` and ``s*`` are known."""
+        """Standard error of each position's mean per axis, (n, 3): ``sem`` when known (correlated noise
+        included), else the white-noise value std/√n when ``n`` and ``s*`` are known, else None."""
+        if self.sem is not None:
+            return self.sem
         if self.std is None or self.n_samples is None:
             return None
         return self.std / np.sqrt(self.n_samples)[:, None]
@@ -84,7 +92,7 @@ class PositionsData:
     def subset(self, idx) -> PositionsData:
         idx = np.asarray(idx)
         pick = {k: (None if getattr(self, k) is None else np.asarray(getattr(self, k))[idx])
-                for k in ("position", "t", "temp", "n_samples", "std", "ref")}
+                for k in ("position", "t", "temp", "n_samples", "std", "sem", "ref")}
         return replace(self, N=self.N[idx], **pick)
 
     # -- CSV -------------------------------------------------------------------------------
@@ -99,6 +107,8 @@ class PositionsData:
             cols.append(("n", self.n_samples))
         if self.std is not None:
             cols += [(f"s{a}", self.std[:, i]) for i, a in enumerate("xyz")]
+        if self.sem is not None:
+            cols += [(f"se_{a}", self.sem[:, i]) for i, a in enumerate("xyz")]
         if self.ref is not None:
             cols += [(f"ref_{a}", self.ref[:, i]) for i, a in enumerate("xyz")]
         buf = io.StringIO()
@@ -167,10 +177,14 @@ def read_positions(path: str | Path, units: str = "g") -> PositionsData:
         cols[c] = vals
     N = np.stack([cols[c] for c in REQUIRED], 1)
     std = np.stack([cols[c] for c in ("sx", "sy", "sz")], 1) if all(c in cols for c in ("sx", "sy", "sz")) else None
+    sem = (np.stack([cols[c] for c in ("se_x", "se_y", "se_z")], 1)
+           if all(c in cols for c in ("se_x", "se_y", "se_z")) else None)
     ref = (np.stack([cols[c] for c in ("ref_x", "ref_y", "ref_z")], 1)
            if all(c in cols for c in ("ref_x", "ref_y", "ref_z")) else None)
     if std is not None and np.any(std < 0):
         raise InputError(f"{path}: negative standard deviation in sx/sy/sz")
+    if sem is not None and np.any(sem < 0):
+        raise InputError(f"{path}: negative standard error in se_x/se_y/se_z")
     if "n" in cols and np.any(cols["n"] < 1):
         raise InputError(f"{path}: column 'n' (samples averaged) must be at least 1")
     if "t" in cols and np.any(np.diff(cols["t"]) < 0):
@@ -184,6 +198,7 @@ def read_positions(path: str | Path, units: str = "g") -> PositionsData:
         temp=cols.get("temp"),
         n_samples=cols.get("n"),
         std=std,
+        sem=sem,
         ref=ref,
         units=units,
         extra=extra,
