@@ -37,10 +37,14 @@ import numpy as np
 from optcal.errors import InputError
 from optcal.linfit import ellipsoid_to_params
 
-try:  # optional at import time: the registry lists the solver as unavailable without cvxpy
-    import cvxpy as cp
-except ImportError:  # pragma: no cover
-    cp = None
+
+def _cvxpy():
+    """cvxpy, imported at the first convex fit: it takes most of a second to import, and the registry
+    imports this module whenever any solver is looked up (the solver is listed as unavailable without it)."""
+    import cvxpy
+
+    return cvxpy
+
 
 LINEAR = ("scale", "bias", "misalignment", "misalignment6")
 _ANGLES = {"S_xz": (0, 1), "S_xy": (0, 2), "S_yz": (1, 0), "S_yx": (1, 2), "S_zy": (2, 0), "S_zx": (2, 1)}
@@ -56,7 +60,7 @@ def _design(P: np.ndarray) -> np.ndarray:
 
 
 def _solver_name(choice: str) -> str:
-    installed = cp.installed_solvers()
+    installed = _cvxpy().installed_solvers()
     if choice != "auto":
         if choice not in installed:
             raise InputError(f"solver ellipsoid: cvxpy has no {choice} installed; installed: {', '.join(installed)}")
@@ -131,6 +135,7 @@ def _conic(n: int, misalignment: bool):
     The objective ‖D·v‖²/n is the algebraic residual hᵀ𝐌h of every point (divided by n so that it is
     O(1) whatever the number of positions), with v = (Q11, Q22, Q33, Q12, Q13, Q23, q, c), or
     (Q11, Q22, Q33, q, c) for a diagonal Q."""
+    cp = _cvxpy()
     if misalignment:
         Q = cp.Variable((3, 3), symmetric=True)
         cons = [Q >> 0]
@@ -160,7 +165,7 @@ def fit_ellipsoid(N: np.ndarray, g_local: float = 1.0, *, misalignment: bool = T
         {"eps": 1e-10, "max_iters": 100000}
     try:
         prob.solve(solver=name, **kwargs)
-    except cp.error.SolverError as exc:
+    except _cvxpy().error.SolverError as exc:
         raise InputError(f"the convex ellipsoid fit failed in {name} ({exc}); check the data") from None
     if prob.status not in ("optimal", "optimal_inaccurate") or Q.value is None:
         raise InputError(f"the convex ellipsoid fit found no solution ({name}: {prob.status}); check the data")
@@ -199,13 +204,20 @@ def fit_problem(problem, solver: str = "auto", polish: bool = True) -> dict:
 def ellipsoid_start(problem) -> np.ndarray:
     """Starting point (in ``problem``'s coordinates) for the local methods when neither x0 nor presets are
     given: the convex fit's ``linear9`` part, other terms zero. A restricted view keeps its own start (the
-    values it holds), turntable data and data the fit refuses keep the problem's closed-form start."""
-    if problem.reference or problem.n < problem.model.n_params or cp is None:
+    values it holds), turntable data and data the fit refuses keep the problem's closed-form start.
+
+    The conic solver is not needed for it: the convex fit either polishes to the trace-only KKT solution
+    (the cone Q ⪰ 0 inactive) or refuses (an optimum on the cone's boundary has a singular Q), so the KKT
+    solution, when :func:`_to_params` accepts it, is :func:`fit_ellipsoid`'s result to the bit, without
+    importing cvxpy (most of a second) in every process that runs a local method."""
+    if problem.reference or problem.n < problem.model.n_params:
         return problem.x0
     key = (problem.model.terms, problem.g_local, problem.data.N.tobytes())
     if key not in _START_CACHE:
         try:
-            _START_CACHE[key] = fit_to_vector(problem.model, fit_problem(problem))
+            misalignment = "misalignment" in problem.model.groups()
+            mu, s, _, D, keep = _prepare(problem.data.N, misalignment)
+            _START_CACHE[key] = fit_to_vector(problem.model, _to_params(_kkt(D), keep, mu, s, problem.g_local))
         except InputError:
             _START_CACHE[key] = None
         while len(_START_CACHE) > 32:

@@ -19,7 +19,6 @@ one-fish-at-a-time algorithm would not evaluate), at the price of up to ``try_nu
 from __future__ import annotations
 
 import numpy as np
-from scipy.spatial.distance import cdist
 
 from ._unitbox import clip_unit, nan_to_inf, row_norms, uniform_pm1
 
@@ -127,6 +126,8 @@ def afsa_generation(ev: Evaluator, X: np.ndarray, f: np.ndarray, visual: float, 
     it is better than the fish and nf/N < δ. For follow, nf counts the neighbours *of the best
     neighbour* Xb (Li's original reads the crowding around the partner that is followed).
     """
+    from scipy.spatial.distance import cdist  # here: scipy.spatial costs a quarter second to import
+
     N = len(X)
     dist = cdist(X, X)
     nbr = (dist > 0) & (dist < visual)
