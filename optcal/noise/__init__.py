@@ -2,7 +2,8 @@
 
 The package: :mod:`~optcal.noise.allan` reads the stretch and computes σ(τ), :mod:`~optcal.noise.fit` fits the
 three terms and their intervals, :mod:`~optcal.noise.report` holds the result and writes the table, the JSON
-and Kalibr's yaml; the figure is :mod:`optcal.plots.noise`. Every name is importable from ``optcal.noise``.
+and Kalibr's yaml, :mod:`~optcal.noise.colored` draws noise of given N, B and K for simulations; the figure is
+:mod:`optcal.plots.noise`. Every name is importable from ``optcal.noise``.
 
 The overlapping Allan deviation σ(τ) of each axis is computed with allantools (``allantools.oadev`` on the
 samples as frequency data, at octave-spaced τ = m/f_s, m = 1, 2, 4, … up to a quarter of the stretch). Three
@@ -66,6 +67,7 @@ from .allan import (
     noise_from_recording,
     octave_m,
 )
+from .colored import colored_noise
 from .fit import (
     DEFAULT_CI,
     FLICKER_FACTOR,
@@ -88,6 +90,7 @@ __all__ = [
     "AXES", "DEFAULT_CI", "FLICKER_FACTOR", "G0", "MAX_STATIC_G", "METHOD", "MIN_AVERAGES", "MIN_TAUS",
     "MIN_TERM_EDF", "NONSTATIC_RATIO", "RAMP_SLOPE", "RW_TAU_S", "SLOPE_TOL", "UNIT_SCALE", "WHITE_TAU_S",
     "AxisNoise", "Coefficient", "Fit", "NoiseReport", "WhiteNoise", "analyse", "analyse_axis", "chi2_interval",
+    "colored_noise",
     "fit_terms", "greenhall_edf", "load_white_noise", "noise_from_recording", "noise_type", "octave_m",
     "read_terms",
 ]
