@@ -4,6 +4,7 @@ turntable reference). Every random draw comes from the ``numpy.random.Generator`
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass
 
 import numpy as np
@@ -11,6 +12,7 @@ import numpy as np
 from .data import PositionsData
 from .errors import InputError
 from .model import Context, Model, get_model
+from .presets import draw_truth
 from .schemes import scheme as scheme_directions
 from .schemes import tilt
 
@@ -30,8 +32,8 @@ class Simulation:
 
 def simulate(
     model: Model | str,
-    truth: dict[str, float],
-    rng: np.random.Generator,
+    truth: dict[str, float] | None,
+    rng: np.random.Generator | int,
     *,
     scheme: str | int = "24",
     noise_g: float = 10e-6,
@@ -49,6 +51,11 @@ def simulate(
 ) -> Simulation:
     """Simulate position means.
 
+    ``truth`` holds the model's parameters in their units (docs/design.md §3.1); None draws one from ``rng``
+    as ``optcal simulate`` does without ``--truth`` (:func:`optcal.presets.draw_truth`, before the data's
+    draws). ``rng`` is a ``numpy.random.Generator`` or an integer seed for one; the drawn truth is the
+    result's ``truth``.
+
     Noise is white and input-referred (in g): either ``noise_g``, the SD of each position's mean per axis,
     or ``noise_density`` in g/√Hz with ``dwell_s`` and ``rate_hz`` (per-sample SD = density·√rate, so the
     SD of a mean over the dwell is density/√dwell). ``effects`` adds terms the fitted model lacks,
@@ -65,7 +72,17 @@ def simulate(
             raise InputError(f"simulate: {name} = {value!r} must be a positive finite number")
     if noise_density is not None and not (np.isfinite(noise_density) and noise_density >= 0):
         raise InputError(f"simulate: noise_density = {noise_density!r} must be a finite number of 0 or more (g/√Hz)")
+    if isinstance(rng, int | np.integer) and not isinstance(rng, bool):
+        rng = np.random.default_rng(int(rng))
+    if not isinstance(rng, np.random.Generator):
+        raise InputError(f"simulate: `rng` must be a numpy.random.Generator or an integer seed, not "
+                         f"{type(rng).__name__}")
     model = get_model(model)
+    if truth is None:
+        truth = draw_truth(model, rng)
+    elif not isinstance(truth, Mapping):
+        raise InputError(f"simulate: `truth` must be a mapping of parameter names to values (or None to draw "
+                         f"one), not {type(truth).__name__}")
     gen = model
     values = dict(truth)
     for term, params in (effects or {}).items():

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import logging
 import os
+import sys
 from pathlib import Path
 
 COLD_NOTE = ("optcal: compiling the evaluation kernels (the first use after an install: about half a minute; "
@@ -20,9 +21,13 @@ def is_cold() -> bool:
     """True when numba has no cached machine code of the kernel yet (the next evaluation compiles it).
 
     Looks where numba's cache locators put the index files, without importing numba: ``__pycache__``
-    beside the source, ``$NUMBA_CACHE_DIR``, and the user-wide cache (for a read-only install)."""
+    beside the source, ``$NUMBA_CACHE_DIR``, and the user-wide cache (for a read-only install). Any entry
+    point of the kernel cached for this Python counts: a command that evaluates only batches and Jacobians
+    (a plain least-squares fit) caches those and never the single-candidate ``cost_one`` that the warm-up
+    also compiles; that entry point compiles alone when first needed (issue #22: after a plain
+    ``pip install -e .`` every command warned, whatever it had compiled before)."""
     here = Path(__file__).parent
-    pattern = "evaluate.cost_one-*.nbi"
+    pattern = f"evaluate.*.py{sys.version_info.major}{sys.version_info.minor}.nbi"
     if any((here / "__pycache__").glob(pattern)):
         return False
     for root in (os.environ.get("NUMBA_CACHE_DIR"), Path.home() / ".cache" / "numba"):
