@@ -310,3 +310,47 @@ def test_too_few_intervals_says_why_and_what_to_change(tmp_path, capsys):
     code, out, err = _cli(["calibrate", path, "--raw", "--units", "counts", "--model", "linear9", "--min-static",
                            "0.6"], capsys)
     assert code == 0 and "24 static interval(s)" in out
+
+
+# -- 6. gyroscope columns (issue #23: the gyroscope is calibrated from the same recording) ------------------
+def test_gyroscope_columns_by_name_and_by_position(tmp_path):
+    """gx, gy, gz are read by their names (gyro_x, wx, ...) or as columns 4-6 of a header-less 7-column file
+    (t ax ay az gx gy gz), kept in the file's units as ``Recording.W``; a gyroscope axis held at its extreme is
+    ``gyro_saturated`` (the accelerometer's ``saturated`` is not touched); 3, 4 and 5 columns mean what they did."""
+    rng = np.random.default_rng(23)
+    n = 3000
+    t = np.arange(n) / 100.0
+    N = np.round(rng.standard_normal((n, 3)) * 30 + [0, 0, 16000])
+    W = np.round(rng.standard_normal((n, 3)) * 5)
+    W[100:120, 1] = 32767  # a turn too fast for the gyroscope: 20 samples on the rail of the y axis
+    named = write(tmp_path / "imu.csv", None, np.column_stack([t, N, W]),
+                  header="time,acc_x,acc_y,acc_z,gyro_x,gyro_y,gyro_z", fmt="%.6g")
+    rec = read_recording(named, units="counts")
+    assert rec.columns == {"t": "time", "ax": "acc_x", "ay": "acc_y", "az": "acc_z", "gx": "gyro_x",
+                           "gy": "gyro_y", "gz": "gyro_z"}
+    np.testing.assert_array_equal(rec.W, W)
+    np.testing.assert_array_equal(rec.N, N)
+    assert int(rec.gyro_saturated.sum()) == 20 and rec.gyro_saturated[100:120].all()
+    assert rec.reading["gyro_adc"] == "int16" and rec.reading["gyro_stuck"] == {"gy": [32767.0]}
+    assert not rec.saturated.any()
+    rad = np.column_stack([t, N / 16000.0, W * 1e-3])
+    headerless = tmp_path / "imu.txt"
+    np.savetxt(headerless, rad, fmt="%.6f")
+    rec = read_recording(headerless)
+    assert rec.columns == {"t": 0, "ax": 1, "ay": 2, "az": 3, "gx": 4, "gy": 5, "gz": 6}
+    np.testing.assert_allclose(rec.W, W * 1e-3, atol=1e-9)
+    assert int(rec.gyro_saturated.sum()) == 20 and "gyro_adc" not in rec.reading  # not counts: no ADC rails
+    for k, roles in ((3, ("ax", "ay", "az")), (4, ("t", "ax", "ay", "az")), (5, ("t", "ax", "ay", "az", "temp"))):
+        p = tmp_path / f"c{k}.txt"
+        table = {3: rad[:, 1:4], 4: rad[:, :4], 5: np.column_stack([rad[:, :4], np.full(n, 21.5)])}[k]
+        np.savetxt(p, table, fmt="%.6f")
+        rec = read_recording(p, rate=100.0)
+        assert tuple(rec.columns) == roles and rec.W is None and rec.gyro_saturated is None
+    assert read_recording(named, units="counts", columns="time,acc_x,acc_y,acc_z").W is None
+    rec = read_recording(named, units="counts", columns="ax=acc_x,ay=acc_y,az=acc_z,gx=5,gy=4,gz=6,t=0")
+    np.testing.assert_array_equal(rec.W, W[:, [1, 0, 2]])
+    with pytest.raises(InputError, match="^`columns` names gx, gy but not gz; a gyroscope needs gx, gy and gz$"):
+        read_recording(named, units="counts", columns="t=0,ax=1,ay=2,az=3,gx=4,gy=5")
+    partial = write(tmp_path / "partial.csv", None, np.column_stack([t, N, W[:, :2]]),
+                    header="time,acc_x,acc_y,acc_z,gyro_x,gyro_y", fmt="%.6g")
+    assert read_recording(partial, units="counts").W is None  # two named axes are no gyroscope

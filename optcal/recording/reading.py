@@ -71,6 +71,10 @@ class Recording:
     labels: np.ndarray | None = None  # (n,) str, from a label column
     meta: dict = field(default_factory=dict)  # key,value lines before the data
     reading: dict = field(default_factory=dict)  # what the reader found: format, time unit, ADC, rails
+    # (n, 3) angular rate from the gyroscope's columns gx, gy, gz, in the file's units (rad/s, °/s or counts:
+    # not converted), or None; and (n,) bool, a sample at a rail of the gyroscope (gyro_saturation_of)
+    W: np.ndarray | None = None
+    gyro_saturated: np.ndarray | None = None
 
     def __len__(self) -> int:
         return len(self.N)
@@ -158,11 +162,16 @@ def read_recording(path, columns=None, rate: float | None = None, units: str = "
     lab = None
     if labels is not None:
         lab = _read_labels(path, lay, labels.split("=", 1)[0], n)
+    W = gyro_sat = None
+    if "gx" in data:
+        W = np.column_stack([data["gx"], data["gy"], data["gz"]])
+        gyro_sat, gyro_how = gyro_saturation_of(W, units, fmt)
+        how.update(gyro_how)
     names = {r: (lay.header[j] if lay.header else j) for r, j in cols.items()}
     how.update(format="MAT file" if table is not None else "text", compression=compression(path),
                delimiter=None if table is not None else (lay.delimiter or "whitespace"), decimal=lay.decimal,
                time_unit=unit)
-    return Recording(t, N, data.get("temp"), units, float(fs), sat, str(path), names, lab, lay.meta, how)
+    return Recording(t, N, data.get("temp"), units, float(fs), sat, str(path), names, lab, lay.meta, how, W, gyro_sat)
 
 
 def time_scale(step: float, rate: float | None, path) -> str:
@@ -229,7 +238,7 @@ def stuck_runs(x: np.ndarray) -> list[float]:
 
 
 def saturation_of(N: np.ndarray, units: str, saturation: float | None,
-                  fmt: tuple[bool, int] | None) -> tuple[np.ndarray, dict]:
+                  fmt: tuple[bool, int] | None, axes=("ax", "ay", "az")) -> tuple[np.ndarray, dict]:
     """Which samples are saturated, and how that was decided (a dict for the report). ``saturation``
     given: |output| at or beyond it. Otherwise a sample at an ADC rail (of ``fmt``, or for counts of the
     format :func:`infer_adc` reads from the data) or at a value an axis sticks to at its extreme
@@ -250,8 +259,19 @@ def saturation_of(N: np.ndarray, units: str, saturation: float | None,
         if vals:
             sat[:, j] |= np.isin(N[:, j], vals)
     if any(stuck):
-        how["stuck"] = {a: v for a, v in zip(("ax", "ay", "az"), stuck) if v}
+        how["stuck"] = {a: v for a, v in zip(axes, stuck) if v}
     return sat.any(axis=1), how
+
+
+def gyro_saturation_of(W: np.ndarray, units: str, fmt: tuple[bool, int] | None) -> tuple[np.ndarray, dict]:
+    """Which samples of the angular rate ``W`` (n, 3) are at a rail of the gyroscope, and how that was
+    decided (``gyro_`` keys for the report). The rate's units are not known, so the rails are found as the
+    accelerometer's are without a declared saturation: an ADC's when the accelerometer is read in counts
+    and the rates are whole numbers too (the ``adc`` format, else the one :func:`infer_adc` reads from the
+    rates), and in any units an axis's extreme held for :data:`RAIL_RUN` samples (:func:`stuck_runs`)."""
+    integer = units == "counts" and bool(np.all(W == np.round(W)))
+    sat, how = saturation_of(W, "counts" if integer else "g", None, fmt if integer else None, ("gx", "gy", "gz"))
+    return sat, {f"gyro_{k}": v for k, v in how.items()}
 
 
 def _text(path: Path):

@@ -23,15 +23,22 @@ import numpy as np
 
 from ..errors import InputError
 
-ROLES = ("t", "ax", "ay", "az", "temp")
+ROLES = ("t", "ax", "ay", "az", "gx", "gy", "gz", "temp")
+GYRO = ("gx", "gy", "gz")  # angular rate, in the file's units (rad/s, °/s or counts): optional, all three or none
+# header names of the gyroscope's axes: gx, gyr_x, gyro_x, wx, omega_x, ... (and gy, gz alike)
+GYRO_STEMS = ("g", "gyr_", "gyro_", "gyr", "gyro", "gyroscope_", "w", "w_", "omega_", "angvel_", "ang_vel_", "rate_")
 ALIASES = {
     "t": ("t", "time", "timestamp", "time_s", "t_s", "seconds"),
     "ax": ("ax", "acc_x", "accx", "a_x", "accel_x", "acc_x_raw"),
     "ay": ("ay", "acc_y", "accy", "a_y", "accel_y", "acc_y_raw"),
     "az": ("az", "acc_z", "accz", "a_z", "accel_z", "acc_z_raw"),
+    **{g: tuple(stem + g[1] for stem in GYRO_STEMS) + (f"gyr_{g[1]}_raw", f"gyro_{g[1]}_raw") for g in GYRO},
     "temp": ("temp", "temperature", "temp_c", "t_degc"),
 }
-POSITIONAL = {3: ("ax", "ay", "az"), 4: ("t", "ax", "ay", "az"), 5: ("t", "ax", "ay", "az", "temp")}
+# columns by position when a file has no header (or `columns` lists bare columns): 3, 4 and 5 as always; 7 is
+# an IMU's row, time, the accelerometer's three axes and the gyroscope's three
+POSITIONAL = {3: ("ax", "ay", "az"), 4: ("t", "ax", "ay", "az"), 5: ("t", "ax", "ay", "az", "temp"),
+              7: ("t", "ax", "ay", "az", "gx", "gy", "gz")}
 RATE_KEYS = ("fs", "rate", "sample rate", "sampling rate", "sample_rate", "sampling_rate", "fs_hz", "rate_hz")
 SNIFF_LINES = 200
 COMPRESSED = {".gz": gzip.open, ".bz2": bz2.open, ".xz": lzma.open}
@@ -244,6 +251,8 @@ def role_columns(spec, lay: Layout, path: Path) -> dict[str, int]:
             low = [h.lower() for h in lay.header]
             found = {r: low.index(a) for r in ROLES for a in ALIASES[r] if a in low}
             out = {r: found[r] for r in ROLES if r in found}
+            if not all(r in out for r in GYRO):  # a gyroscope is three named axes, or none
+                out = {r: j for r, j in out.items() if r not in GYRO}
             if all(r in out for r in ("ax", "ay", "az")):
                 return out
             raise InputError(
@@ -268,12 +277,16 @@ def role_columns(spec, lay: Layout, path: Path) -> dict[str, int]:
         out = {r: resolve_column(str(c), lay, path) for r, c in zip(POSITIONAL[len(items)], items)}
     else:
         raise InputError(
-            f"`columns` {spec!r}: give 3 (ax,ay,az), 4 (t,ax,ay,az) or 5 (t,ax,ay,az,temp) columns, "
-            "or role=column items"
+            f"`columns` {spec!r}: give 3 (ax,ay,az), 4 (t,ax,ay,az), 5 (t,ax,ay,az,temp) or 7 "
+            "(t,ax,ay,az,gx,gy,gz) columns, or role=column items"
         )
     missing = [r for r in ("ax", "ay", "az") if r not in out]
     if missing:
         raise InputError(f"`columns` lacks {', '.join(missing)}")
+    gyro = [r for r in GYRO if r in out]
+    if gyro and len(gyro) < 3:
+        raise InputError(f"`columns` names {', '.join(gyro)} but not {', '.join(r for r in GYRO if r not in out)}; "
+                         "a gyroscope needs gx, gy and gz")
     for r, j in out.items():
         if not lay.numeric[j]:
             name = lay.header[j] if lay.header else j
