@@ -25,7 +25,13 @@ from .errors import InputError
 
 
 class ArgumentParser(argparse.ArgumentParser):
-    """argparse with one-line errors (status 2) instead of usage dumps."""
+    """argparse with one-line errors (status 2) instead of usage dumps, and without abbreviations: argparse
+    would take ``--noise 10`` as ``--noise-ug 10``, a unit the user never wrote. Sub-parsers are made of this
+    class too (``parser_class``; a sub-parser's own sub-commands, ``optcal study run``, inherit it)."""
+
+    def __init__(self, *args, **kwargs):
+        kwargs.setdefault("allow_abbrev", False)
+        super().__init__(*args, **kwargs)
 
     def error(self, message):
         self.exit(2, f"{self.prog}: error: {message} (see {self.prog} --help)\n")

@@ -143,3 +143,32 @@ def test_library_errors_name_parameters_and_the_cli_names_its_options(tmp_path, 
     assert "--workers must be at least 1" in err and "`" not in err
     # a backquoted word that is not one of the command's options stays as it is
     assert cli.with_flags("`workers` and `nothing`", {"workers": "--workers"}) == "--workers and `nothing`"
+
+
+def _parsers(parser, where="optcal"):
+    """(where, parser) of the top-level parser and every sub-command's, sub-commands of sub-commands included."""
+    out = [(where, parser)]
+    for action in _subparsers(parser):
+        for name, sub in action.choices.items():
+            out += _parsers(sub, f"{where} {name}")
+    return out
+
+
+def test_no_parser_takes_an_abbreviated_option():
+    parsers = _parsers(cli.build_parser())
+    assert {"optcal", "optcal calibrate", "optcal study run"} <= {w for w, _ in parsers}
+    assert [w for w, p in parsers if p.allow_abbrev] == []
+
+
+@pytest.mark.parametrize("argv, unknown", [
+    (["info", "--noise", "10"], "--noise 10"),  # argparse would read --noise-ug 10: µg the user never wrote
+    (["simulate", "-o", "x.csv", "--dwell", "5"], "--dwell 5"),
+    (["study", "run", "ci", "--work", "2"], "--work 2"),
+    (["--verb", "info"], "--verb"),
+])
+def test_an_abbreviated_option_is_refused_in_one_line(argv, unknown, capsys):
+    with pytest.raises(SystemExit) as exc:
+        cli.main(argv)
+    err = capsys.readouterr().err
+    assert exc.value.code == 2 and err.count("\n") == 1, err
+    assert f"unrecognized arguments: {unknown}" in err
