@@ -3,51 +3,65 @@
 Group x turns about the horizontal x axis: A = (0, sin θ, cos θ); group y: A = (cos θ, 0, sin θ);
 group z: A = (sin θ, cos θ, 0). The 24-position scheme uses 45° steps (2020 paper §3.3, 2015 paper §7.1),
 the 36-position scheme 30° steps (2020 paper §5.1). Each returns unit vectors of shape (n, 3); multiply by
-g_local (in g) for specific force.
+g_local (in g) for specific force. Planned schemes (docs/planning.md) are named ``plan:D12`` (criterion D, A
+or E, N positions, model nonlinear12; ``plan:D12:linear9`` for another model) and resolved here without any
+solver: the planner's exchange algorithm and refinement (:func:`optcal.plan.design.plan`), deterministic
+(seed 0), computed once per process. A path to a CSV scheme file (``optcal plan -o``) is read as a scheme.
+The direction primitives live in :mod:`optcal.plan.sphere` (below both this module and the planner).
 """
 
 from __future__ import annotations
 
+from functools import lru_cache
+
 import numpy as np
 
 from .errors import InputError
+from .plan.sphere import random_orientations, rotation_groups, six_position, tilt
 
-
-def rotation_groups(step_deg: float) -> np.ndarray:
-    theta = np.deg2rad(np.arange(0.0, 360.0, step_deg))
-    s, c, z = np.sin(theta), np.cos(theta), np.zeros_like(theta)
-    return np.concatenate([np.stack([z, s, c], 1), np.stack([c, z, s], 1), np.stack([s, c, z], 1)])
-
-
-def six_position() -> np.ndarray:
-    return np.array([[1, 0, 0], [-1, 0, 0], [0, 1, 0], [0, -1, 0], [0, 0, 1], [0, 0, -1]], float)
-
-
-def random_orientations(n: int, rng: np.random.Generator) -> np.ndarray:
-    v = rng.standard_normal((n, 3))
-    return v / np.linalg.norm(v, axis=1, keepdims=True)
-
-
-def tilt(directions: np.ndarray, sigma_deg: float, rng: np.random.Generator) -> np.ndarray:
-    """Imperfect placement: rotate each direction by a small random rotation (σ per axis, degrees)."""
-    if sigma_deg <= 0:
-        return directions
-    phi = np.deg2rad(sigma_deg) * rng.standard_normal(directions.shape)
-    # Rodrigues' formula, vectorised over positions
-    angle = np.linalg.norm(phi, axis=1, keepdims=True)
-    k = np.divide(phi, angle, out=np.zeros_like(phi), where=angle > 0)
-    v = directions
-    return (v * np.cos(angle) + np.cross(k, v) * np.sin(angle)
-            + k * np.sum(k * v, axis=1, keepdims=True) * (1 - np.cos(angle)))
+__all__ = ["rotation_groups", "six_position", "random_orientations", "tilt", "scheme", "planned",
+           "MAX_RANDOM_POSITIONS"]
 
 
 # A calibration uses tens of positions; a million already takes 100 MB per array of outputs and samples.
 MAX_RANDOM_POSITIONS = 1_000_000
 
 
+PLAN_MAX_POSITIONS = 200
+
+
+@lru_cache(maxsize=32)
+def _planned(kind: str, n: int, model: str) -> np.ndarray:
+    from .plan.design import make_criterion, plan
+
+    return plan(make_criterion(model, kind), n, rng=np.random.default_rng(0)).directions
+
+
+def planned(spec: str) -> np.ndarray:
+    """The directions of ``plan:<D|A|E><N>[:<model>]`` (hand-held, nominal parameters, seed 0)."""
+    parts = spec.split(":")
+    body = parts[1] if len(parts) > 1 else ""
+    model = parts[2] if len(parts) > 2 else "nonlinear12"
+    kind, digits = body[:1], body[1:]
+    if len(parts) > 3 or kind not in ("D", "A", "E") or not digits.isdigit():
+        raise InputError(f"scheme {spec!r}: a planned scheme is plan:<D|A|E><N>[:<model>], e.g. plan:D12 or "
+                         "plan:A18:seed15")
+    n = int(digits)
+    if n > PLAN_MAX_POSITIONS:
+        raise InputError(f"scheme {spec!r}: plan at most {PLAN_MAX_POSITIONS} positions by name; use optcal plan "
+                         "for more")
+    return _planned(kind, n, model).copy()
+
+
 def scheme(spec: str | int, rng: np.random.Generator | None = None) -> np.ndarray:
-    """Directions for a scheme given as ``6``, ``24``, ``36`` or ``random:N``."""
+    """Directions for a scheme given as ``6``, ``24``, ``36``, ``random:N``, ``plan:D12`` or a scheme file."""
     spec = str(spec).strip()
+    if spec.startswith("plan:"):
+        return planned(spec)
+    if spec.lower().endswith(".csv"):
+        from .plan.schemefile import read_scheme
+
+        return read_scheme(spec)
     if spec == "6":
         return six_position()
     if spec == "24":
@@ -65,4 +79,5 @@ def scheme(spec: str | int, rng: np.random.Generator | None = None) -> np.ndarra
             raise InputError(f"scheme {spec!r}: {n:,} orientations is more than optcal handles "
                              f"({MAX_RANDOM_POSITIONS:,}); a calibration needs tens, e.g. random:30")
         return random_orientations(n, rng if rng is not None else np.random.default_rng(0))
-    raise InputError(f"unknown scheme {spec!r}; use 6, 24, 36 or random:N")
+    raise InputError(f"unknown scheme {spec!r}; use 6, 24, 36, random:N, plan:D12 (planned) or a scheme file "
+                     "(.csv, from optcal plan -o)")

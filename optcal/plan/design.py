@@ -71,14 +71,14 @@ def exchange(crit: Criterion, cands: np.ndarray, n: int, rng: np.random.Generato
     return best_idx, float(best_val)
 
 
-def _tangent_frame(d: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def tangent_frame(d: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     helper = np.where(np.abs(d[:, [0]]) < 0.9, np.array([[1.0, 0, 0]]), np.array([[0, 1.0, 0]]))
     e1 = np.cross(d, helper)
     e1 /= np.linalg.norm(e1, axis=1, keepdims=True)
     return e1, np.cross(d, e1)
 
 
-def _moved(d0, e1, e2, T):
+def moved(d0, e1, e2, T):
     """Directions (S, N, 3) from offsets T (S, 2N)."""
     T = T.reshape(len(T), -1, 2)
     v = d0[None] + T[..., :1] * e1[None] + T[..., 1:] * e2[None]
@@ -93,12 +93,12 @@ def refine(crit: Criterion, directions: np.ndarray, rounds: int = 3, maxiter: in
     m = 2 * len(d)
     eye = np.eye(m) * FD_STEP
     for _ in range(rounds):  # the tangent frames are re-centred after each round
-        e1, e2 = _tangent_frame(d)
+        e1, e2 = tangent_frame(d)
 
         def f_and_g(t, e1=e1, e2=e2, d=d):
             T = np.vstack([t, t + eye, t - eye])
             with np.errstate(divide="ignore"):  # the logarithm: criteria are variances of order σ²
-                v = np.log(crit(_moved(d, e1, e2, T), smooth=True))
+                v = np.log(crit(moved(d, e1, e2, T), smooth=True))
             g = (v[1:m + 1] - v[m + 1:]) / (2 * FD_STEP)
             return float(v[0]), (g if np.all(np.isfinite(g)) else np.zeros(m))
 
@@ -109,7 +109,7 @@ def refine(crit: Criterion, directions: np.ndarray, rounds: int = 3, maxiter: in
                        options={"maxiter": maxiter, "ftol": 1e-13, "gtol": 1e-10})
         if not res.fun < v0:
             break
-        d = _moved(d, e1, e2, res.x[None])[0]
+        d = moved(d, e1, e2, res.x[None])[0]
         if v0 - res.fun < 1e-9:
             break
     return d, float(crit(d[None])[0])

@@ -23,15 +23,7 @@ from ..errors import InputError
 from ..gauge import RTOL, natural_units, null_space
 from ..model import Model, get_model
 from ..problem import CalibrationProblem
-
-
-def fibonacci_sphere(n: int) -> np.ndarray:
-    """n nearly evenly spread unit vectors (the golden-angle spiral, equal area per point)."""
-    k = np.arange(n) + 0.5
-    z = 1.0 - 2.0 * k / n
-    r = np.sqrt(np.clip(1.0 - z * z, 0.0, None))
-    phi = np.pi * (3.0 - np.sqrt(5.0)) * k
-    return np.stack([r * np.cos(phi), r * np.sin(phi), z], axis=1)
+from .sphere import fibonacci_sphere
 
 
 @dataclass(frozen=True)

@@ -13,8 +13,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..errors import InputError
-from ..schemes import rotation_groups
-from .fisher import fibonacci_sphere
+from .sphere import fibonacci_sphere, rotation_groups
 
 FIXTURES = ("free", "faces", "faces:STEP", "head:STEP")
 _CYCLIC = {0: (1, 2), 1: (2, 0), 2: (0, 1)}  # k -> (i, j)

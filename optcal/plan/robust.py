@@ -15,8 +15,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import InputError
-from ..schemes import tilt
 from .criteria import Criterion
+from .sphere import tilt
 
 FRAGILE = 0.10
 DRAWS = 200

@@ -19,7 +19,7 @@ from ..data import PositionsData
 from ..errors import InputError
 from ..problem import CalibrationProblem
 from .criteria import Criterion
-from .design import RIDGE, _moved, _tangent_frame
+from .design import RIDGE, moved, tangent_frame
 from .fixtures import candidates
 
 
@@ -73,12 +73,12 @@ def next_best(crit: Criterion, recorded: np.ndarray, fixture: str = "free", grid
     if refine and continuous:
         from scipy.optimize import minimize
 
-        e1, e2 = _tangent_frame(best[None])
+        e1, e2 = tangent_frame(best[None])
         step = 1e-6 * np.eye(2)
 
         def f(t):
             T = np.vstack([t, t + step, t - step])
-            dd = _moved(best[None], e1, e2, T)[:, 0]
+            dd = moved(best[None], e1, e2, T)[:, 0]
             Rn = crit.info.projected_rows(dd)
             with np.errstate(divide="ignore"):
                 v = np.log(crit.of_information(F0 + ridge + Rn[:, :, None] * Rn[:, None, :], smooth=True))
@@ -87,7 +87,7 @@ def next_best(crit: Criterion, recorded: np.ndarray, fixture: str = "free", grid
 
         res = minimize(f, np.zeros(2), jac=True, method="L-BFGS-B", bounds=[(-0.5, 0.5)] * 2)
         if np.isfinite(res.fun) and np.exp(res.fun) < val:
-            best, val = _moved(best[None], e1, e2, res.x[None])[0, 0], float(np.exp(res.fun))
+            best, val = moved(best[None], e1, e2, res.x[None])[0, 0], float(np.exp(res.fun))
     return best, val
 
 
