@@ -12,6 +12,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from . import determination
 from .analysis import (
     GoodnessOfFit,
     Observability,
@@ -34,7 +35,7 @@ MISFIT_P = 1e-3
 # Weak fits (docs/design.md §7.5): fewer residual degrees of freedom than this, or than the parameters, are
 # noted; a parameter is "not determined" when its standard error exceeds half its value and this many natural
 # units (1 mrad, 1 mg, 0.1 % of the scale factor), so a small, well-measured term near zero is not reported.
-MIN_DOF = 3
+MIN_DOF = determination.MIN_DOF
 WEAK_SE = 1e-3
 # More outliers than this fraction of the positions point at the noise level or the model, not at positions.
 MANY_OUTLIERS = 0.2
@@ -64,6 +65,8 @@ class Calibration:
     diagnostics: PositionDiagnostics | None = None  # per-position residuals and outliers (§7.5)
     loss: str = "linear"
     f_scale_g: float | None = None
+    forced: list = field(default_factory=list)  # the reasons a `force_weak` fit would have been refused for
+    requested_model: str | None = None  # the default model when a smaller one was fitted instead (fallback)
 
     @property
     def parameters(self) -> dict[str, float]:
@@ -104,25 +107,45 @@ class Calibration:
             "loss": self.loss, "f_scale_g": self.f_scale_g,
             "positions": self.positions,
             "notes": list(self.notes),
+            "forced": list(self.forced),
             "nfev": r.nfev, "nit": r.nit, "runtime_s": r.runtime_s, "success": r.success, "message": r.message,
         }
 
 
-def calibrate(data: PositionsData, model: str | Model = "nonlinear12", *, solver: str = "scipy-lm",
+def calibrate(data: PositionsData, model: str | Model | None = None, *, solver: str = "scipy-lm",
               options: dict | None = None, g_local: float = 1.0, reference: bool = False,
               presets: Presets | None = None, seed: int | None = 0, budget=None, x0=None,
-              noise_g: float | None = None) -> Calibration:
-    """Fit ``model`` to ``data`` with the named solver and report parameters with standard errors."""
-    model = get_model(model)
-    problem = CalibrationProblem(model, data, g_local=g_local, reference=reference, presets=presets,
-                                 noise_g=noise_g)
-    obs = observability(problem)
-    if obs.rank < model.n_params and presets is None and not model.name == "seed15":
-        dirs = "; ".join(" ".join(f"{w['weight']:+.2f}·{w['name']}" for w in d) for d in obs.unobservable)
-        raise InputError(
-            f"these positions leave model {model.name} unobservable (rank {obs.rank} of {model.n_params}; "
-            f"directions: {dirs}); use more varied positions or a smaller model"
-        )
+              noise_g: float | None = None, force_weak: bool = False) -> Calibration:
+    """Fit ``model`` to ``data`` with the named solver and report parameters with standard errors.
+
+    A calibration is returned only when the data determine it (:mod:`optcal.determination`, docs/design.md
+    §7.5): too few positions for the model, an unobservable direction, fewer than 3 residual degrees of
+    freedom, an exact fit and physically implausible parameters are an :class:`InputError` of one line with
+    the reason and the way out. ``model`` None is the default, ``nonlinear12``: when the positions do not
+    determine it, the richest model of nonlinear12 → linear9 → diag6 that they do determine is fitted, and
+    the first note says so. ``force_weak`` fits and returns a weak calibration anyway; its ``forced`` lists
+    the reasons it would have been refused for (the calibration file records them)."""
+    requested = get_model(determination.DEFAULT_MODEL if model is None else model)
+    first, fallback = None, None
+    for name in determination.chain(model):
+        m = get_model(name)
+        problem = CalibrationProblem(m, data, g_local=g_local, reference=reference, presets=presets,
+                                     noise_g=noise_g, check=False)
+        obs = observability(problem)
+        refused = determination.structure(problem, obs, gauge=presets is not None or m.name == "seed15")
+        if not refused:
+            if first is not None:
+                fallback = (f"{requested.name} (the default model) is not determined by these positions: "
+                            f"{first[1][0].reason}; fitted {m.name} instead, the richest of "
+                            f"{' → '.join(determination.FALLBACK)} that they determine")
+            break
+        first = first or (problem, refused, obs)
+    else:
+        problem, refused, obs = first
+        if not force_weak:
+            smaller = _richest_determined(data, problem.model, g_local, reference, presets, noise_g)
+            raise InputError(determination.line(refused, problem.model, smaller, chain_tried=model is None))
+    model = problem.model
     slv = get_solver(solver, **(options or {}))
     rng = np.random.default_rng(seed)
     result = slv.solve(problem, x0=x0, budget=budget, rng=rng)
@@ -158,8 +181,31 @@ def calibrate(data: PositionsData, model: str | Model = "nonlinear12", *, solver
                      + (f"; it gives less than half weight to {', '.join(diag.name(i) for i in low[:5])}, so the "
                         "errors assume the noise of the positions kept" if low.size else ""))
     notes += _weak_notes(problem, x, sd, obs, gof)
+    refused = refused + determination.exact(gof, len(data)) + determination.plausibility(model, x, data, g_local)
+    if refused and not force_weak:
+        raise InputError(determination.line(refused, model, None))
+    if refused:
+        notes.insert(0, "forced (`force_weak`): " + "; ".join(r.reason for r in refused))
+    if fallback:
+        notes.insert(0, fallback)
     return Calibration(model, x, sd, obs, gof, problem, solver, result, notes, diag, loss,
-                       None if f_scale is None else float(f_scale))
+                       None if f_scale is None else float(f_scale), [r.reason for r in refused],
+                       None if fallback is None else requested.name)
+
+
+def _richest_determined(data: PositionsData, model: Model, g_local: float, reference: bool,
+                        presets: Presets | None, noise_g: float | None) -> str | None:
+    """The richest model of the fallback chain, other than ``model``, that these positions determine before
+    any fit (:func:`optcal.determination.structure`), for a refusal to name; None if there is none."""
+    for name in determination.FALLBACK:
+        m = get_model(name)
+        if m.name == model.name or m.n_params >= model.n_params:
+            continue
+        problem = CalibrationProblem(m, data, g_local=g_local, reference=reference, presets=presets,
+                                     noise_g=noise_g, check=False)
+        if not determination.structure(problem, observability(problem), gauge=presets is not None):
+            return m.name
+    return None
 
 
 def _gof_without(problem: CalibrationProblem, x: np.ndarray, drop: np.ndarray, rank: int,
