@@ -337,7 +337,13 @@ def collect(rows: list[dict], order: list[str] | None = None) -> Anytime:
             missing += 1
             continue
         A = np.array([[np.nan if v is None else v for v in x] for x in a], float)
-        if r.get("nfev"):  # the grid's last point may lie past the last evaluation
+        if r.get("at_target") and r.get("max_evals"):
+            # Stopped at the final target (studies.trial.FINAL_GAP): its record is flat from there to its
+            # budget, as COCO counts a run that stops at the last target. Its last grid point (the first
+            # at or after the stop) stands as it is, as it would in the run that went on, and the ECDFs'
+            # right end stays its budget, where a trial that ran its budget out puts it.
+            top = max(top, float(r["max_evals"]))
+        elif r.get("nfev"):  # the grid's last point may lie past the last evaluation
             A[:, 0] = np.minimum(A[:, 0], r["nfev"])
         top = max(top, float(A[-1, 0]))
         hits["accuracy"][p, s] = first_hits(A[:, 0], A[:, 2], ACCURACY_TARGETS)

@@ -26,6 +26,8 @@ SCALAR = [
     ("chi2", "REAL"), ("dof", "INTEGER"), ("nfev", "INTEGER"), ("nit", "INTEGER"), ("runtime_s", "REAL"),
     ("wall_s", "REAL"), ("accuracy", "REAL"), ("ver_mean_ug", "REAL"), ("ver_sd_ug", "REAL"),
     ("ver_truth_mean_ug", "REAL"), ("nav_max_nmi", "REAL"), ("nav_mean_nmi", "REAL"), ("f_opt", "REAL"),
+    # the evaluation budget, the final-target cost (trial.FINAL_GAP) and whether reaching it stopped the trial
+    ("max_evals", "INTEGER"), ("target_f", "REAL"), ("at_target", "INTEGER"),
 ]
 # anytime: [evaluations, best cost, accuracy] on the trace's grid (studies.trial.anytime_on_grid)
 JSON = ["names", "x_true", "x_est", "err", "err_proj", "crlb", "observable", "null_dirs", "null_err", "ver_err",
