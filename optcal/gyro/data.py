@@ -1,0 +1,114 @@
+"""A gyroscope recording cut into rests and the motions between them (Tedaldi et al., ICRA 2014, §IV-B).
+
+Each rest gives the direction of gravity in the body frame (the calibrated accelerometer's mean,
+normalised) and the gyroscope's mean output there (its bias, plus g-sensitivity times the rest's specific
+force). Each motion is the stretch of samples from the last sample of one rest to the first sample of
+the next: integrating the calibrated rate over it must carry the first rest's gravity direction onto the
+second's.
+
+The residuals are whitened by their standard deviations, estimated from the rests' sample scatter
+(white noise): a rest's mean rate has SD s_W/(K·√n) per axis; a motion's two direction residuals carry
+the noise of both rests' gravity directions, s_f/(|f|·√n) each, plus the angle random walk of the
+integrated rate, s_W/K·h·√(steps). Noise correlated over the rest (bias instability) is not in them;
+the fit's χ² says how well they hold.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..errors import InputError
+
+# A motion must turn the gravity direction by at least this much (rad): below it, the motion carries no
+# information on the scale factors and is most likely no motion at all (a rest split in two).
+MIN_TURN_RAD = np.deg2rad(5.0)
+
+
+def tangent_basis(u: np.ndarray) -> np.ndarray:
+    """Two unit vectors (m, 2, 3) orthogonal to each unit vector of u (m, 3) and to each other."""
+    a = np.where(np.abs(u[:, [0]]) < 0.9, np.array([[1.0, 0.0, 0.0]]), np.array([[0.0, 1.0, 0.0]]))
+    e1 = np.cross(u, a)
+    e1 /= np.linalg.norm(e1, axis=1, keepdims=True)
+    e2 = np.cross(u, e1)
+    return np.stack([e1, e2], axis=1)
+
+
+@dataclass
+class GyroData:
+    """Samples and their rests. ``t`` (n,) s, ``W`` (n, 3) raw gyroscope outputs in ``units``, ``F`` (n, 3)
+    calibrated specific force in g, ``rests`` (r, 2) sample ranges [start, stop) of the static intervals in
+    time order. ``saturated`` (n,) marks gyroscope samples at a rail."""
+
+    t: np.ndarray
+    W: np.ndarray
+    F: np.ndarray
+    rests: np.ndarray
+    units: str = "counts"
+    saturated: np.ndarray | None = None
+    extra: dict = field(default_factory=dict)
+
+    def __post_init__(self):
+        self.t = np.ascontiguousarray(self.t, float)
+        self.W = np.ascontiguousarray(self.W, float)
+        self.F = np.ascontiguousarray(self.F, float)
+        self.rests = np.asarray(self.rests, np.int64).reshape(-1, 2)
+        n = len(self.t)
+        if self.W.shape != (n, 3) or self.F.shape != (n, 3):
+            raise InputError(f"the gyroscope ({self.W.shape}) and accelerometer ({self.F.shape}) samples must both "
+                             f"be (n, 3) with the {n} times; check the columns")
+        if not (np.all(np.isfinite(self.t)) and np.all(np.diff(self.t) > 0)):
+            raise InputError("the sample times must be finite and strictly increasing; check the time column")
+        if not (np.all(np.isfinite(self.W)) and np.all(np.isfinite(self.F))):
+            raise InputError("the recording holds NaN or infinite samples; remove them or the rows holding them")
+        r = self.rests
+        if len(r) < 2:
+            raise InputError(f"{len(r)} rest(s) found: a gyroscope calibration needs motions between rests; record "
+                             "rests with rotations between them")
+        if np.any(r[:, 1] - r[:, 0] < 2) or np.any(r[1:, 0] <= r[:-1, 1] - 1) or r[0, 0] < 0 or r[-1, 1] > n:
+            raise InputError("the rests must be ordered, non-overlapping sample ranges of at least 2 samples each")
+        self._derive()
+
+    def _derive(self) -> None:
+        r = self.rests
+        nr = np.diff(r, axis=1)[:, 0].astype(float)
+        fbar = np.array([self.F[a:b].mean(axis=0) for a, b in r])
+        self.rest_W = np.array([self.W[a:b].mean(axis=0) for a, b in r])
+        self.rest_F = fbar
+        self.rest_n = nr
+        self.rest_sd_W = np.array([self.W[a:b].std(axis=0, ddof=1) for a, b in r])
+        sd_f = np.array([self.F[a:b].std(axis=0, ddof=1) for a, b in r])
+        norm = np.linalg.norm(fbar, axis=1)
+        if np.any(norm < 0.1):
+            raise InputError("a rest's mean specific force is below 0.1 g: the accelerometer columns or its "
+                             "calibration are wrong; check them")
+        self.u = fbar / norm[:, None]
+        # direction noise (rad) of each rest, per tangent component
+        self.rest_sd_u = np.sqrt(np.mean(sd_f**2, axis=1) / nr) / norm
+        self.start = np.ascontiguousarray(r[:-1, 1] - 1)
+        self.stop = np.ascontiguousarray(r[1:, 0])
+        self.u0 = np.ascontiguousarray(self.u[:-1])
+        self.u1 = np.ascontiguousarray(self.u[1:])
+        self.E = np.ascontiguousarray(tangent_basis(self.u1))
+        self.turn = np.arccos(np.clip(np.sum(self.u0 * self.u1, axis=1), -1.0, 1.0))
+        self.steps = self.stop - self.start
+        h2 = np.array([np.sum(np.diff(self.t[a:b + 1]) ** 2) for a, b in zip(self.start, self.stop, strict=True)])
+        self._h2 = h2
+
+    @property
+    def n_motions(self) -> int:
+        return len(self.start)
+
+    @property
+    def n_rests(self) -> int:
+        return len(self.rests)
+
+    def motion_sd(self, K0: np.ndarray) -> np.ndarray:
+        """SD (m,) in rad of each motion's two direction residuals, for nominal scale factors K0 (3,)."""
+        sw = np.sqrt(np.mean((self.rest_sd_W / K0) ** 2))  # white rate noise per sample, rad/s
+        return np.sqrt(self.rest_sd_u[:-1] ** 2 + self.rest_sd_u[1:] ** 2 + sw**2 * self._h2)
+
+    def rest_sd(self, K0: np.ndarray) -> np.ndarray:
+        """SD (r, 3) in rad/s of each rest's mean calibrated rate, for nominal scale factors K0 (3,)."""
+        return self.rest_sd_W / K0 / np.sqrt(self.rest_n)[:, None]

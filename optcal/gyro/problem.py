@@ -1,0 +1,306 @@
+"""The gyroscope calibration problem, behind the interface of :class:`optcal.problem.CalibrationProblem`.
+
+Residuals (Tedaldi, Pretto and Menegatti, ICRA 2014, Eq. 15, with whitening and the rests added):
+
+* one pair per motion: the first rest's gravity direction u0, carried through the motion by the rate
+  the candidate calibrates (RK4 on the sample times, :mod:`optcal.kernels.gyro`), against the second
+  rest's direction u1, along two unit vectors orthogonal to u1 (rad), divided by its SD;
+* three per rest: the calibrated rate of the rest's mean output, which must be zero (rad/s), divided by
+  its SD. They determine the bias, and with g-sensitivity they determine G from the rests' different
+  specific forces.
+
+Every residual is whitened (:mod:`optcal.gyro.data`), so the cost is a χ² and the noise level handed to
+:func:`optcal.analysis.crlb` is 1. The Earth's rate (7.3e-5 rad/s) is not modelled: it is below the
+noise of the MEMS gyroscopes this is for; its vertical part looks like an isotropic g-sensitivity of
+−7.3e-5·sin(latitude) (rad/s)/g.
+
+The class offers what the solvers and :mod:`optcal.analysis` use of the accelerometer's problem: views
+(``restrict``, ``normalised``), the shared evaluation counter and budget, ``cost``/``cost_batch``/
+``residuals``/``residuals_batch``/``jacobian``/``gradient`` in view coordinates and ``residuals_full``/
+``jacobian_full`` on full vectors, ``model`` (names, groups), ``presets`` (the search centre: not None, so
+local methods start there) and ``noise_g`` (1: whitened residuals).
+"""
+
+from __future__ import annotations
+
+import copy
+from types import SimpleNamespace
+
+import numpy as np
+
+from ..budget import Budget, Counter
+from ..errors import InputError
+from .data import GyroData
+from .model import GyroModel, get_gyro_model
+
+
+def _kernel():
+    global _kernel
+    from ..kernels import gyro
+
+    _kernel = lambda: gyro  # noqa: E731
+    return gyro
+
+
+# Search half-widths around the centre (the box of the search methods; least squares ignores it): 5 % of
+# the scale, 0.05 rad of misalignment, 0.02 rad/s of bias around the rests' mean, 0.01 (rad/s)/g of G.
+HALFWIDTH = {"K": 0.05, "T": 0.05, "b": 0.02, "G": 0.01}
+
+
+class GyroPresets:
+    """Search centre and half-widths of a gyroscope problem (full vectors)."""
+
+    def __init__(self, centre: np.ndarray, halfwidth: np.ndarray):
+        self.centre, self.halfwidth = np.asarray(centre, float), np.asarray(halfwidth, float)
+
+
+def start_vector(model: GyroModel, data: GyroData, K: np.ndarray) -> np.ndarray:
+    """Nominal scale ``K``, no misalignment or g-sensitivity, the bias of the rests' mean output."""
+    x = model.default_vector(K)
+    x[9:12] = np.mean(data.rest_W, axis=0) / K
+    return x
+
+
+def common_scale(model: GyroModel, data: GyroData, k_min: float, k_max: float, n: int = 240) -> float:
+    """The one scale factor (output units per rad/s, every axis) under which the motions best carry each
+    rest's gravity direction onto the next's: a log-spaced grid of ``n`` candidates in one batched call,
+    then a finer grid around the best. For raw counts with no nominal scale."""
+    def best(ks):
+        X = np.array([start_vector(model, data, k) for k in ks])
+        P = np.ascontiguousarray(model.affine(X))
+        R = np.empty((len(ks), data.n_motions, 2))
+        _kernel().rotate_batch(P, data.W, data.F, data.t, data.start, data.stop, data.u0, data.E, R)
+        return ks[int(np.argmin(np.sum(R**2, axis=(1, 2))))]
+
+    k = best(np.geomspace(k_min, k_max, n))
+    step = (k_max / k_min) ** (1.0 / (n - 1))
+    return float(best(np.geomspace(k / step, k * step, 41)))
+
+
+class GyroProblem:
+    """Gyroscope calibration from ``data`` (:class:`GyroData`) with the model of
+    :mod:`optcal.gyro.model` (``g_sensitivity`` adds G). ``scale``: nominal scale factor (output units
+    per rad/s, one number or three); without it, :func:`common_scale` finds one. ``presets``: a
+    :class:`GyroPresets` to centre the search elsewhere."""
+
+    reference = False
+    g_local = 1.0
+
+    def __init__(self, data: GyroData, *, g_sensitivity: bool = False, scale=None,
+                 presets: GyroPresets | None = None):
+        self.model = get_gyro_model(g_sensitivity)
+        self.data = data
+        if data.n_motions < 1:
+            raise InputError("no motion between rests: record rotations between the rests")
+        still = data.turn < np.deg2rad(5.0)
+        if np.all(still):
+            raise InputError("no motion turns the gravity direction by 5° or more: the recording has no rotation "
+                             "between its rests; turn the sensor between rests")
+        if scale is None:
+            scale = common_scale(self.model, data, 1e-3, 1e7)
+        K = np.broadcast_to(np.asarray(scale, float), (3,)).copy()
+        if not np.all(np.isfinite(K) & (K > 0)):
+            raise InputError(f"the gyroscope's nominal scale must be positive (output units per rad/s), got {scale}")
+        if presets is None:
+            centre = start_vector(self.model, data, K)
+            width = np.concatenate([HALFWIDTH["K"] * K, np.full(6, HALFWIDTH["T"]), np.full(3, HALFWIDTH["b"]),
+                                    np.full(self.model.n_params - 12, HALFWIDTH["G"])])
+            presets = GyroPresets(centre, width)
+        self.presets = presets
+        self.centre, self.halfwidth = presets.centre.copy(), presets.halfwidth.copy()
+        self._K0 = np.abs(self.centre[:3])
+        self.noise_g = 1.0  # whitened residuals
+        self.ctx = SimpleNamespace(dtemp=None, dt=None)
+        self.sd_motion = data.motion_sd(self._K0)
+        self.sd_rest = data.rest_sd(self._K0)
+        if not (np.all(self.sd_motion > 0) and np.all(self.sd_rest > 0)):
+            raise InputError("a rest's gyroscope or accelerometer output does not vary at all (a constant column?), "
+                             "so its noise is unknown; check the columns")
+        self.free = np.arange(self.model.n_params)
+        self.x_fixed = self.centre.copy()
+        self.is_normalised = False
+        self.counter = Counter()
+
+    # -- views (as CalibrationProblem) ------------------------------------------------------
+    def restrict(self, groups_or_indices, at: np.ndarray | None = None) -> GyroProblem:
+        groups = self.model.groups()
+        idx: list[int] = []
+        for g in np.atleast_1d(groups_or_indices):
+            if isinstance(g, str | np.str_):
+                if str(g) not in groups:
+                    raise InputError(f"model {self.model.name} has no parameter group {g!r}; it has "
+                                     f"{', '.join(groups)}")
+                idx.extend(groups[str(g)])
+            else:
+                idx.append(int(g))
+        view = copy.copy(self)
+        view.free = np.array(sorted(set(idx)), int)
+        view.x_fixed = np.array(self.x_fixed if at is None else at, float)
+        return view
+
+    def normalised(self) -> GyroProblem:
+        view = copy.copy(self)
+        view.is_normalised = True
+        return view
+
+    @property
+    def n(self) -> int:
+        return len(self.free)
+
+    @property
+    def names(self) -> list[str]:
+        return [self.model.names[i] for i in self.free]
+
+    @property
+    def lb(self) -> np.ndarray:
+        return -np.ones(self.n) if self.is_normalised else (self.centre - self.halfwidth)[self.free]
+
+    @property
+    def ub(self) -> np.ndarray:
+        return np.ones(self.n) if self.is_normalised else (self.centre + self.halfwidth)[self.free]
+
+    @property
+    def x0(self) -> np.ndarray:
+        return self.from_full(self.x_fixed if self.n < self.model.n_params else self.centre)
+
+    def to_full(self, X) -> np.ndarray:
+        X = np.atleast_2d(np.asarray(X, float))
+        if X.shape[1] != self.n:
+            raise ValueError(f"expected {self.n} coordinates, got {X.shape[1]}")
+        if self.is_normalised:
+            X = self.centre[self.free] + self.halfwidth[self.free] * X
+        full = np.tile(self.x_fixed, (X.shape[0], 1))
+        full[:, self.free] = X
+        return full
+
+    def from_full(self, x_full) -> np.ndarray:
+        x = np.asarray(x_full, float)[..., self.free]
+        if self.is_normalised:
+            x = (x - self.centre[self.free]) / self.halfwidth[self.free]
+        return x
+
+    def start(self, budget=None) -> Counter:
+        self.counter.__init__(Budget.of(budget))
+        return self.counter
+
+    @property
+    def nfev(self) -> int:
+        return self.counter.nfev
+
+    @property
+    def best(self):
+        c = self.counter
+        return (None if c.best_x is None else self.from_full(c.best_x)), c.best_f
+
+    # -- residuals --------------------------------------------------------------------------
+    @property
+    def n_motion_residuals(self) -> int:
+        return 2 * self.data.n_motions
+
+    @property
+    def n_position_residuals(self) -> int:
+        return self.n_motion_residuals + 3 * self.data.n_rests
+
+    n_residuals = n_position_residuals
+    rows_per_position = 1
+
+    def residuals_full(self, X_full) -> np.ndarray:
+        """Whitened residuals (S, m) of full parameter vectors (S, p): motions then rests; not counted."""
+        X = np.atleast_2d(np.asarray(X_full, float))
+        if X.shape[1] != self.model.n_params:
+            raise ValueError(f"parameters have {X.shape[1]} columns, model {self.model.name} has "
+                             f"{self.model.n_params}")
+        d = self.data
+        with np.errstate(all="ignore"):
+            P = np.ascontiguousarray(self.model.affine(X))
+        bad = ~np.all(np.isfinite(P), axis=1)
+        P[bad] = 0.0
+        R = np.empty((len(X), d.n_motions, 2))
+        _kernel().rotate_batch(P, d.W, d.F, d.t, d.start, d.stop, d.u0, d.E, R)
+        R /= self.sd_motion[None, :, None]
+        rest = (np.einsum("sij,rj->sri", P[:, :9].reshape(-1, 3, 3), d.rest_W) + P[:, None, 9:12]
+                + np.einsum("sij,rj->sri", P[:, 12:].reshape(-1, 3, 3), d.rest_F)) / self.sd_rest[None]
+        out = np.concatenate([R.reshape(len(X), -1), rest.reshape(len(X), -1)], axis=1)
+        out[bad] = np.nan
+        return out
+
+    def position_residuals(self, x_full) -> np.ndarray:
+        return self.residuals_full(x_full)[0]
+
+    def motion_angles(self, x_full) -> np.ndarray:
+        """Angle (rad) between each motion's carried and measured gravity directions (the residual a user
+        reads: unwhitened)."""
+        R = self.residuals_full(x_full)[0][: self.n_motion_residuals].reshape(-1, 2) * self.sd_motion[:, None]
+        return np.linalg.norm(R, axis=1)
+
+    def rms(self, x_full) -> float:
+        return float(np.sqrt(np.mean(self.position_residuals(x_full) ** 2)))
+
+    def _evaluate(self, X, keep_residuals: bool = True):
+        X = np.ascontiguousarray(np.atleast_2d(X), dtype=float)
+        S = X.shape[0]
+        if X.ndim != 2 or X.shape[1] != self.n:
+            raise ValueError(f"expected {self.n} coordinates, got {X.shape[-1]}")
+        counter = self.counter
+        k = counter.allow(S)
+        f = np.full(S, np.inf)
+        R = np.full((S, self.n_residuals), np.nan) if keep_residuals else None
+        if k:
+            Xf = self.to_full(X[:k])
+            Rk = self.residuals_full(Xf)
+            with np.errstate(all="ignore"):
+                fk = np.sum(Rk**2, axis=1)
+            fk[~np.isfinite(fk)] = np.nan
+            f[:k] = fk
+            if R is not None:
+                R[:k] = Rk
+            counter.record(fk, Xf)
+        return R, f
+
+    def residuals_batch(self, X) -> np.ndarray:
+        return self._evaluate(X)[0]
+
+    def residuals(self, x) -> np.ndarray:
+        return self._evaluate(np.asarray(x, float)[None])[0][0]
+
+    def cost_batch(self, X) -> np.ndarray:
+        return self._evaluate(X, keep_residuals=False)[1]
+
+    def cost(self, x) -> float:
+        return float(self._evaluate(np.asarray(x, float)[None], keep_residuals=False)[1][0])
+
+    # -- derivatives ------------------------------------------------------------------------
+    def jacobian_full(self, x_full) -> np.ndarray:
+        """Exact Jacobian (m, p) of the whitened residuals: the integrator's forward-mode derivatives with
+        respect to the affine numbers, times their complex-step derivatives with respect to the parameters."""
+        x = np.asarray(x_full, float)
+        if x.shape != (self.model.n_params,):
+            raise ValueError(f"expected {self.model.n_params} parameters, got shape {x.shape}")
+        d = self.data
+        P = np.ascontiguousarray(self.model.affine(x[None])[0])
+        n_dir = 21 if self.model.g_sensitivity else 12
+        Jm = np.empty((d.n_motions, 2, n_dir))
+        _kernel().rotate_jacobian(P, n_dir, d.W, d.F, d.t, d.start, d.stop, d.u0, d.E, Jm)
+        Jm /= self.sd_motion[:, None, None]
+        # rests: ω = M·W̄ + c + D·f̄, linear in the affine numbers
+        r = d.n_rests
+        Jr = np.zeros((r, 3, n_dir))
+        for i in range(3):
+            Jr[:, i, 3 * i:3 * i + 3] = d.rest_W
+            Jr[:, i, 9 + i] = 1.0
+            if n_dir == 21:
+                Jr[:, i, 12 + 3 * i:15 + 3 * i] = d.rest_F
+        Jr /= self.sd_rest[:, :, None]
+        A = self.model.affine_jacobian(x)[:n_dir]
+        return np.concatenate([Jm.reshape(-1, n_dir), Jr.reshape(-1, n_dir)]) @ A
+
+    def jacobian(self, x) -> np.ndarray:
+        self.counter.allow(1)
+        self.counter.njev += 1
+        self.counter.nfev += 1
+        J = self.jacobian_full(self.to_full(x)[0])[:, self.free]
+        return J * self.halfwidth[self.free] if self.is_normalised else J
+
+    def gradient(self, x) -> np.ndarray:
+        r = self.residuals(x)
+        return 2.0 * self.jacobian(x).T @ r
