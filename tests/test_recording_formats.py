@@ -267,7 +267,7 @@ def test_mat_recordings_and_positions(tmp_path, uint16, capsys):
     assert code == 0, err
     assert json.loads(out)["n_positions"] == 24 and 50e-6 < json.loads(out)["rms_residual_g"] < 150e-6
     code, _, err = _cli(["calibrate", str(tmp_path / "pos.mat"), "--raw", "--rate", "50"], capsys)
-    assert code == 2 and "it has 24 rows, too few for a recording" in err and "drop --raw" in err
+    assert code == 2 and "differ by a median 76% of the outputs' magnitude, as positions" in err and "drop --raw" in err
     code, _, err = _cli(["calibrate", str(tmp_path / "matrix.mat"), "--units", "counts"], capsys)
     assert code == 2 and "looks like a raw recording" in err
 

@@ -138,7 +138,8 @@ def load_positions(args, path) -> PositionsData:
 
     from ..data import check_units, read_positions
     from ..recording.positions import mat_positions
-    from ..recording.sniff import is_mat, raw_file_reason
+    from ..recording.reading import raw_file_reason
+    from ..recording.sniff import is_mat
 
     reason = raw_file_reason(Path(path)) if Path(path).is_file() else None
     if reason:

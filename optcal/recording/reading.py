@@ -19,7 +19,9 @@ import numpy as np
 
 from ..data import UNITS, PositionsData, check_units
 from ..errors import InputError
+from ..tablefile import COMMENT, DECODE_ERRORS, is_comment, open_text
 from .sniff import (
+    KIND_ROWS,
     ROLES,
     Layout,
     compression,
@@ -31,6 +33,7 @@ from .sniff import (
     resolve_column,
     role_columns,
     sniff_layout,
+    table_kind,
 )
 
 INT16_RAILS = (-32768.0, 32767.0)
@@ -123,7 +126,8 @@ def read_recording(path, columns=None, rate: float | None = None, units: str = "
     n = len(raw)
     if n < 2:
         raise InputError(f"{path} has {n} sample(s); a raw recording needs many samples per static pose")
-    reason = positions_file_reason(lay, n, "t" in cols) if refuse_positions else None
+    reason = positions_file_reason(lay, raw[:, [order.index(a) for a in ("ax", "ay", "az")]]) if refuse_positions \
+        else None
     if reason:
         raise InputError(f"{path} looks like a positions file, not a raw recording ({reason}); "
                          "read it as positions (drop `raw`)")
@@ -279,12 +283,12 @@ def _text(path: Path):
     return io.TextIOWrapper(open_binary(path), encoding="utf-8-sig")
 
 
-def _load_numeric(path: Path, lay: Layout, usecols: list[int]) -> np.ndarray:
+def _load_numeric(path: Path, lay: Layout, usecols: list[int], max_rows: int | None = None) -> np.ndarray:
     """The chosen columns as floats, (n, len(usecols)). Delimited files go through Arrow's multithreaded
     CSV reader when pyarrow is installed (several times faster than NumPy's); anything it does not read
     cleanly (comment lines, ragged rows, text in a number column, whitespace-separated files) goes through
     numpy.loadtxt, a C reader too, whose messages name the offending row."""
-    if lay.delimiter is not None and _arrow_reader() is not None:
+    if lay.delimiter is not None and max_rows is None and _arrow_reader() is not None:
         out = _load_arrow(path, lay, usecols)
         if out is not None:
             return out
@@ -292,7 +296,7 @@ def _load_numeric(path: Path, lay: Layout, usecols: list[int]) -> np.ndarray:
     try:
         with _text(path) as fh:
             return np.loadtxt(fh, delimiter=lay.delimiter, skiprows=lay.skiprows, usecols=usecols, ndmin=2,
-                              comments="#", dtype=float, converters=comma)
+                              comments=COMMENT, dtype=float, converters=comma, max_rows=max_rows)
     except ValueError as exc:
         msg = str(exc).splitlines()[0].rstrip(".")
         raise InputError(f"{path}: {msg} (data start on line {lay.skiprows + 1}); fix or remove that row") from None
@@ -326,7 +330,30 @@ def _read_labels(path: Path, lay: Layout, column: str, n: int) -> np.ndarray:
     j = resolve_column(column, lay, path)
     with _text(path) as fh:
         lab = np.loadtxt(fh, delimiter=lay.delimiter, skiprows=lay.skiprows, usecols=[j], dtype=str,
-                         comments="#", ndmin=1)
+                         comments=COMMENT, ndmin=1)
     if len(lab) != n:  # pragma: no cover - the same rows were read as numbers
         raise InputError(f"{path}: label column {column!r} has {len(lab)} rows, the data {n}")
     return lab
+
+
+def raw_file_reason(path) -> str | None:
+    """Why a file given as a positions file (docs/design.md §9.1) is a raw recording, or None: the decision
+    of :func:`~optcal.recording.sniff.table_kind` on its ax, ay, az columns as :func:`read_recording` finds
+    them without `columns` (the first :data:`~optcal.recording.sniff.KIND_ROWS` rows are read). A file whose
+    layout or columns cannot be found is left to the positions reader, whose message names the problem."""
+    path = Path(path)
+    try:
+        if is_mat(path):
+            lay, table = mat_layout(path)
+            cols = role_columns(None, lay, path)
+            N, nrows = table[:KIND_ROWS, [cols[a] for a in ("ax", "ay", "az")]], len(table)
+        else:
+            lay = sniff_layout(path)
+            cols = role_columns(None, lay, path)
+            with open_text(path) as fh:
+                nrows = sum(1 for i, ln in enumerate(fh) if i >= lay.skiprows and ln.strip() and not is_comment(ln))
+            N = _load_numeric(path, lay, [cols[a] for a in ("ax", "ay", "az")], max_rows=KIND_ROWS)
+    except (InputError, ValueError, *DECODE_ERRORS):
+        return None
+    kind, why = table_kind(lay.header, N, nrows, None if lay.header else lay.ncol)
+    return why if kind == "samples" else None

@@ -10,18 +10,26 @@ command line puts its option names there (optcal/commands/_dataopts.py).
 
 from __future__ import annotations
 
-import bz2
 import difflib
-import gzip
 import io
-import itertools
-import lzma
-from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
 from ..errors import InputError
+from ..tablefile import (  # noqa: F401 - the layout's names, re-exported for the recording path
+    COMPRESSED,
+    DECODE_ERRORS,
+    SNIFF_LINES,
+    Layout,
+    compression,
+    inner_suffix,
+    is_number,
+    open_binary,
+    refuse_duplicates,
+    split_fields,
+)
+from ..tablefile import sniff_layout as sniff_table
 
 ROLES = ("t", "ax", "ay", "az", "gx", "gy", "gz", "temp")
 GYRO = ("gx", "gy", "gz")  # angular rate, in the file's units (rad/s, °/s or counts): optional, all three or none
@@ -39,52 +47,17 @@ ALIASES = {
 # an IMU's row, time, the accelerometer's three axes and the gyroscope's three
 POSITIONAL = {3: ("ax", "ay", "az"), 4: ("t", "ax", "ay", "az"), 5: ("t", "ax", "ay", "az", "temp"),
               7: ("t", "ax", "ay", "az", "gx", "gy", "gz")}
+KNOWN = {a for names in ALIASES.values() for a in names}  # the names a commented header line may hold
 RATE_KEYS = ("fs", "rate", "sample rate", "sampling rate", "sample_rate", "sampling_rate", "fs_hz", "rate_hz")
-SNIFF_LINES = 200
-COMPRESSED = {".gz": gzip.open, ".bz2": bz2.open, ".xz": lzma.open}
 # columns only a positions file has (docs/design.md §9.1): a raw recording has one row per sample
 POSITIONS_ONLY = ("position", "n", "sx", "sy", "sz", "ref_x", "ref_y", "ref_z")
-FEW_ROWS = 100  # a raw recording this short cannot hold the static intervals of a calibration
-MANY_ROWS = 1000  # a file of samples this long, with none of a positions file's own columns, is a recording
-
-
-@dataclass
-class Layout:
-    delimiter: str | None
-    skiprows: int  # physical lines before the first data row
-    ncol: int
-    numeric: tuple[bool, ...]
-    header: list[str] | None
-    meta: dict
-    first: list[str]  # the fields of the first data row (to check a fast reader started there)
-    decimal: str = "."  # "," for a decimal comma (then the delimiter is not a comma)
-
-
-def is_number(s: str, decimal: str = ".") -> bool:
-    try:
-        float(s.replace(",", ".") if decimal == "," else s)
-    except ValueError:
-        return False
-    return True
-
-
-def compression(path: Path) -> str | None:
-    """The compression suffix of ``path`` (``.gz``, ``.bz2``, ``.xz``), or None."""
-    suffix = path.suffix.lower()
-    return suffix if suffix in COMPRESSED else None
-
-
-def inner_suffix(path: Path) -> str:
-    """The suffix that names the format, under any compression suffix (``x.mat.gz`` → ``.mat``)."""
-    return Path(path.stem).suffix.lower() if compression(path) else path.suffix.lower()
-
-
-def open_binary(path: Path):
-    """The file's bytes as a stream, decompressed by its suffix."""
-    try:
-        return COMPRESSED.get(compression(path), open)(path, "rb")
-    except OSError as exc:
-        raise InputError(f"cannot read {path}: {exc.strerror or exc}") from None
+MANY_ROWS = 1000  # a table this long is samples when its data say so, whatever its columns are called
+# Positions or samples (table_kind), from the median jump between consecutive rows as a fraction of the rows'
+# magnitude: turns between positions of 12° or more make 0.2 or more; a recording's samples at 100 Hz differ by
+# noise (1 mg of noise: 0.0014) except while the sensor turns, a minority of the samples.
+POSITION_JUMP = 0.2
+SAMPLE_JUMP = 0.05
+KIND_ROWS = 2000  # the rows the decision reads (a raw recording given as positions need not be read whole)
 
 
 def is_mat(path: Path) -> bool:
@@ -95,7 +68,7 @@ def is_mat(path: Path) -> bool:
     with open_binary(path) as fh:
         try:
             return fh.read(6) == b"MATLAB"
-        except (OSError, EOFError, lzma.LZMAError) as exc:
+        except DECODE_ERRORS as exc:
             raise InputError(f"cannot read {path}: {exc}") from None
 
 
@@ -143,83 +116,60 @@ def mat_layout(path: Path) -> tuple[Layout, np.ndarray]:
     return lay, table
 
 
-def refuse_duplicates(header: list[str], path: Path) -> None:
-    """Two columns of one name (case-insensitive) would make the name ambiguous: refused, naming it."""
-    low = [h.lower() for h in header]
-    for j, h in enumerate(low):
-        if h and h in low[:j]:
-            raise InputError(f"{path}: the header names column {header[j]!r} twice (columns {low.index(h)} and "
-                             f"{j}); rename one of them")
-
-
-def _delimiter(line: str) -> tuple[str | None, str]:
-    """Delimiter and decimal mark of a data line: semicolon or tab first (they leave a comma free to be a
-    decimal comma), whitespace when it splits the line into numbers (``1,5 2,25``), else a comma."""
-    for d in (";", "\t"):
-        if d in line:
-            return d, "," if any("," in f and is_number(f, ",") for f in split_fields(line, d)) else "."
-    ws = line.split()
-    if len(ws) > 1 and "," in line and all(is_number(f, ",") for f in ws):
-        return None, ","
-    return ("," if "," in line else None), "."
-
-
-def split_fields(line: str, delim: str | None) -> list[str]:
-    """The fields of one line, unquoted; ``delim`` None splits on whitespace."""
-    return [f.strip().strip('"').strip("'") for f in (line.split(delim) if delim else line.split())]
-
-
 def sniff_layout(path: Path) -> Layout:
-    """Delimiter, header, leading key/value lines and the first data line, from the file's first lines."""
-    try:
-        with io.TextIOWrapper(open_binary(path), encoding="utf-8-sig", errors="replace") as fh:
-            head = list(itertools.islice(fh, SNIFF_LINES))
-    except (OSError, EOFError, lzma.LZMAError) as exc:
-        raise InputError(f"cannot read {path}: {getattr(exc, 'strerror', None) or exc}") from None
-    lines = [(i, ln.strip()) for i, ln in enumerate(head) if ln.strip() and not ln.lstrip().startswith("#")]
-    if not lines:
-        raise InputError(f"{path} is empty; a raw recording needs one row per sample (t, ax, ay, az)")
-    if "\x00" in "".join(ln for _, ln in lines[:5]):
-        raise InputError(f"{path} is a binary file, not text; a raw recording is a text table or a MAT file")
-    delim, dec = _delimiter(lines[-1][1])
-    rows = [(i, split_fields(ln, delim)) for i, ln in lines]
-    pattern = [(len(f), tuple(is_number(x, dec) for x in f)) for _, f in rows]
-    ref = pattern[-1]
-    if not any(ref[1]):
-        raise InputError(f"{path} has no numeric rows; a raw recording needs one row per sample (t, ax, ay, az)")
-    start = len(rows) - 1
-    while start > 0 and pattern[start - 1] == ref:
-        start -= 1
-    header = None
-    before = rows[:start]
-    # A header has text wherever the data have numbers; a line with the data's width and numbers in it is
-    # a data row that does not parse (an empty or text cell), and must not be skipped silently.
-    if before and len(before[-1][1]) == ref[0] and not any(
-            d and is_number(x, dec) for x, d in zip(before[-1][1], ref[1])):
-        header = before[-1][1]
-        before = before[:-1]
-        refuse_duplicates(header, path)
-    for i, f in reversed(before):  # the last such line is the one that breaks the run of data rows
-        if len(f) == ref[0] and any(is_number(x, dec) for x in f):
-            raise InputError(
-                f"{path}: line {i + 1} ({','.join(f)}) has the width of a data row but not its numbers "
-                "(an empty or text cell?); fix or remove it"
-            )
-    meta = {f[0].strip().lower(): f[1].strip() for _, f in before if len(f) >= 2}
-    return Layout(delim, rows[start][0], ref[0], ref[1], header, meta, rows[start][1], dec)
+    """The layout of a raw recording's text file (:func:`optcal.tablefile.sniff_layout`); a commented header
+    line (``# t ax ay az``, ``% time acc_x ...``) is one that names a column by a role's name or alias."""
+    return sniff_table(path, KNOWN)
 
 
-def positions_file_reason(lay: Layout, nrows: int, timed: bool) -> str | None:
-    """Why a file read as a raw recording looks like a positions file (docs/design.md §9.1), or None: its
-    header names columns only positions files have, or it has no time column (``timed`` False) and too few
-    rows for a recording."""
-    names = [h.lower() for h in lay.header or []]
-    only = [c for c in POSITIONS_ONLY if c in names]
-    if only and all(c in names for c in ("ax", "ay", "az")):
-        return f"its columns {', '.join(only)} are those of a positions file"
-    if nrows < FEW_ROWS and not timed:
-        return f"it has {nrows} rows, too few for a recording with one row per sample"
-    return None
+def jump_ratio(N: np.ndarray) -> float | None:
+    """The median distance between consecutive rows of ``N`` (its first :data:`KIND_ROWS`), as a fraction
+    of the rows' median magnitude, or None when that cannot be measured (fewer than 2 finite rows, zero
+    outputs). Positions were turned between, so consecutive ones differ by a large fraction of g (√2 g for
+    the 90° turns of the 24-position scheme); consecutive samples of a recording mostly differ by noise."""
+    N = np.asarray(N, float)[:KIND_ROWS]
+    N = N[np.all(np.isfinite(N), axis=1)]
+    if len(N) < 2:
+        return None
+    with np.errstate(over="ignore", invalid="ignore"):
+        scale = float(np.median(np.linalg.norm(N, axis=1)))
+        jump = float(np.median(np.linalg.norm(np.diff(N, axis=0), axis=1)))
+    if not (np.isfinite(scale) and np.isfinite(jump) and scale > 0):
+        return None
+    return jump / scale
+
+
+def table_kind(names, N: np.ndarray, nrows: int, ncol: int | None = None) -> tuple[str | None, str]:
+    """Whether a table holds ``"positions"`` (docs/design.md §9.1) or ``"samples"`` of a raw recording (§9.2),
+    or None when neither is clear, with the evidence in words. The data decide first (:func:`jump_ratio`:
+    :data:`POSITION_JUMP` or more is positions, :data:`SAMPLE_JUMP` or less samples); columns only a
+    positions file has (:data:`POSITIONS_ONLY`) decide positions for a table of fewer than
+    :data:`MANY_ROWS` rows when the data say samples (a sensor left in one pose while the temperature
+    changed). ``N`` holds the ax, ay, az columns; ``ncol``, given for a table without a header, is said in
+    the evidence. Both readers refuse the other kind through this one decision (:func:`positions_file_reason`,
+    :func:`optcal.recording.reading.raw_file_reason`), so their advice cannot send a user round in a loop."""
+    low = [str(h).lower() for h in names or []]
+    only = [c for c in POSITIONS_ONLY if c in low]
+    r = jump_ratio(N)
+    named = f"its columns {', '.join(only)} are a positions file's" if only else ""
+    if r is not None and r >= POSITION_JUMP:
+        said = (f"consecutive rows differ by a median {r:.0%} of the outputs' magnitude, as positions the "
+                "sensor was turned between do")
+        return "positions", said + (f"; {named}" if named else "")
+    if named and nrows < MANY_ROWS:
+        return "positions", named
+    if r is not None and r <= SAMPLE_JUMP:
+        shape = f" of {ncol} numbers and no header" if ncol is not None else ""
+        return "samples", (f"{nrows} rows{shape}, one per sample: consecutive rows differ by a median "
+                           f"{r:.2%} of the outputs' magnitude, as samples do (positions differ by a large "
+                           "fraction of g)")
+    return None, ""
+
+
+def positions_file_reason(lay: Layout, N: np.ndarray) -> str | None:
+    """Why a file read as a raw recording is a positions file (:func:`table_kind`), or None."""
+    kind, why = table_kind(lay.header, N, len(N))
+    return why if kind == "positions" else None
 
 
 def resolve_column(ref: str, lay: Layout, path: Path) -> int:
@@ -299,31 +249,4 @@ def rate_from_meta(meta: dict) -> float | None:
     for k in RATE_KEYS:
         if k in meta and is_number(meta[k]):
             return float(meta[k])
-    return None
-
-
-def raw_file_reason(path: Path) -> str | None:
-    """Why a file given as a positions file (docs/design.md §9.1) looks like a raw recording, or None: a
-    MAT file's matrix or a table with :data:`MANY_ROWS` rows or more and none of the columns only positions
-    files have, or a table whose columns are named as a recording's (``acc_x``, ``time``) or not at all."""
-    try:
-        if is_mat(path):
-            header, table = mat_table(path)
-            names, nrows = [h.lower() for h in header or []], len(table)
-        else:
-            lay = sniff_layout(path)
-            names = [h.lower() for h in lay.header or []]
-            with io.TextIOWrapper(open_binary(path), encoding="utf-8-sig", errors="replace") as fh:
-                nrows = sum(1 for _ in fh) - lay.skiprows
-            if lay.header is None and lay.ncol in POSITIONAL and all(lay.numeric):
-                return f"{nrows} rows of {lay.ncol} numbers and no header"
-            if any(c in names for c in POSITIONS_ONLY):
-                return None  # a positions file, perhaps with misnamed columns: its reader says which
-            if lay.header is not None and not all(c in names for c in ("ax", "ay", "az")):
-                role_columns(None, lay, path)  # names a recording's columns (acc_x, ...): else not a recording
-                return f"its columns {', '.join(lay.header)} are a recording's"
-    except InputError:
-        return None
-    if nrows >= MANY_ROWS and not any(c in names for c in POSITIONS_ONLY):
-        return f"{nrows} rows, one per sample, and no position, n or sx column"
     return None
