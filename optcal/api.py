@@ -76,10 +76,10 @@ _READING = ("columns", "rate", "saturation", "adc", "time_unit", "labels", "labe
             "threshold_k", "window_s", "min_static_s", "init_s")
 
 
-def calibrate(data, model="nonlinear12", *, solver: str = "scipy-lm", units: str | None = None, raw: bool = False,
+def calibrate(data, model=None, *, solver: str = "scipy-lm", units: str | None = None, raw: bool = False,
               g_local: float = 1.0, options: dict | None = None, reference: bool = False,
               presets: Presets | None = None, seed: int | None = 0, budget=None, noise_g: float | None = None,
-              **reading) -> Calibration:
+              force_weak: bool = False, **reading) -> Calibration:
     """Fit ``model`` (a named model, a sum of terms, docs/design.md §3.3, or a Model) to ``data`` and return
     an :class:`optcal.fit.Calibration` (parameters, standard errors, observability, goodness of fit).
 
@@ -94,6 +94,12 @@ def calibrate(data, model="nonlinear12", *, solver: str = "scipy-lm", units: str
     (``optcal.gravity.local_gravity_g`` converts m/s² or a latitude). The rest is :func:`optcal.fit.calibrate`'s:
     the registered solver and its options, turntable ``reference``, ``presets``, the solver's ``seed``, the
     evaluation ``budget`` and the noise SD of a position mean ``noise_g`` (g).
+
+    The rules of ``optcal calibrate`` hold (docs/design.md §7.5): a fit the data do not determine (too few
+    positions for the model, an unobservable direction, fewer than 3 residual degrees of freedom, an exact
+    fit, physically implausible parameters) raises :class:`~optcal.errors.InputError` with the CLI's line;
+    ``model`` None (the default, nonlinear12) falls back to the richest of linear9 and diag6 that the data
+    determine, with a note; ``force_weak=True`` returns the weak fit, its ``forced`` listing the reasons.
     """
     from .fit import calibrate as fit
 
@@ -101,9 +107,12 @@ def calibrate(data, model="nonlinear12", *, solver: str = "scipy-lm", units: str
     if unknown:
         raise InputError(f"calibrate() got unknown keyword(s) {', '.join(unknown)}; the recording options are "
                          f"{', '.join(_READING)}")
-    positions = _positions(data, units, raw, g_local, model, reading)
+    from .determination import DEFAULT_MODEL
+
+    # a raw recording's intervals are found for the model asked for, the default one when none is named
+    positions = _positions(data, units, raw, g_local, DEFAULT_MODEL if model is None else model, reading)
     return fit(positions, model, solver=solver, options=options, g_local=g_local, reference=reference,
-               presets=presets, seed=seed, budget=budget, noise_g=noise_g)
+               presets=presets, seed=seed, budget=budget, noise_g=noise_g, force_weak=force_weak)
 
 
 def _calibration_file(calibration) -> CalibrationFile:
@@ -128,10 +137,16 @@ def apply(calibration, samples, *, temp=None, t=None) -> np.ndarray:
     one sample of 3) in the calibration's output units. ``calibration``: what :func:`calibrate` returns, a
     :class:`~optcal.calfile.CalibrationFile` or the path of a calibration file (docs/design.md §9.3). The
     model is inverted exactly as ``optcal apply`` does (§3.5); models with temperature or drift terms need
-    the samples' ``temp`` (°C) or ``t`` (s)."""
+    the samples' ``temp`` (°C) or ``t`` (s). A forced calibration (``force_weak``) is applied with a warning on
+    the ``optcal`` logger naming its reasons."""
     import numpy as np
 
     cal = _calibration_file(calibration)
+    if cal.forced:  # as optcal apply says it (docs/design.md §9.3)
+        import logging
+
+        logging.getLogger("optcal").warning("applying a forced calibration (written with force_weak although the "
+                                            "data did not determine it): %s", "; ".join(cal.forced))
     N = np.asarray(samples, dtype=float)
     one = N.shape == (3,)
     A = cal.apply(N.reshape(1, 3) if one else N, temp=temp, t=t)

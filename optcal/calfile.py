@@ -5,9 +5,11 @@ Content: ``format``, ``format_version`` (2), ``model``, ``terms``, ``parameters`
 ``stderr`` {name: value or null}, ``units`` {``raw``: the sensor's output units (what the data were in and what
 :meth:`CalibrationFile.apply` takes), ``calibrated``: "g" (what it gives), ``parameters``: {name: unit}},
 ``g_local`` (in g), ``data`` {``n_positions``, ``rms_residual_g``, ``source``}, ``solver``, ``created``
-(ISO-8601 UTC), ``observability`` {rank, n_parameters, unobservable}, and, for models with temperature or drift
+(ISO-8601 UTC), ``observability`` {rank, n_parameters, unobservable}, for models with temperature or drift
 terms, ``context`` {``T0``, ``t0``}: the reference temperature and time of the calibration data
-(docs/design.md §3.4), which applying the file to new data must reuse.
+(docs/design.md §3.4), which applying the file to new data must reuse, and, for a fit written with
+``--force-weak`` although the data did not determine it (:mod:`optcal.determination`), ``forced`` (true) and
+``forced_reasons`` (the one-line reasons it would have been refused for).
 
 Version 1 named the units ``input`` ("g") and ``output`` (the raw units), which read backwards to users; a
 version-1 file is still read, its fields mapped by :func:`upgrade`.
@@ -109,6 +111,10 @@ def calibration_to_dict(cal, *, units_in: str = "g", units_out: str | None = Non
         context["t0"] = float(np.asarray(data.t, float)[0])
     if context:
         out["context"] = context
+    forced = list(getattr(cal, "forced", None) or [])
+    if forced:  # written only then, so that files of determined fits read as before (docs/design.md §9.3)
+        out["forced"] = True
+        out["forced_reasons"] = [str(r) for r in forced]
     return out
 
 
@@ -151,6 +157,11 @@ class CalibrationFile:
     @property
     def parameters(self) -> dict[str, float]:
         return self.model.to_dict(self.x)
+
+    @property
+    def forced(self) -> list[str]:
+        """The reasons this calibration was refused and written anyway (``--force-weak``); empty if it was not."""
+        return list(self.meta.get("forced_reasons") or []) if self.meta.get("forced") else []
 
     @property
     def parameter_units(self) -> dict[str, str]:
@@ -235,6 +246,8 @@ class _CalibrationRecord(_Record):
     created: str
     observability: dict | None = None
     context: _Context | None = None
+    forced: bool | None = None
+    forced_reasons: list[str] | None = None
     _model: Model = PrivateAttr()
 
     @model_validator(mode="after")
@@ -257,6 +270,9 @@ class _CalibrationRecord(_Record):
             wrong = sorted(n for n, u in model.units(self.units.raw).items() if self.units.parameters.get(n) != u)
             raise _problem(f"units.parameters disagree with units.raw {self.units.raw!r} for "
                            f"{', '.join(wrong) or 'extra names'} (docs/design.md §3.1); {_RECREATE}")
+        if bool(self.forced) != bool(self.forced_reasons):
+            raise _problem("a forced calibration has both forced: true and its forced_reasons, and only it has "
+                           f"them; {_RECREATE}")
         ctx = self.context or _Context()
         for col, key in (("temp", "T0"), ("t", "t0")):
             if col in model.needs and getattr(ctx, key) is None:

@@ -194,7 +194,7 @@ def way_out(refusals: list[Refusal], model: Model, smaller: str | None) -> str:
         return ("are these static positions of one sensor in these units? check the units (`units`), that the "
                 f"positions were still and the intervals; {force}")
     if "exact_data" in kinds:
-        return f"fit recorded data, or state their noise (`noise_g`); {force}"
+        return f"calibrate from recorded positions, whose means carry noise; {force}"
     need = model.n_params + MIN_DOF
     alt = f", fit a smaller model (`model` {smaller})" if smaller and smaller != model.name else ""
     more = "more varied positions" if kinds == {"rank"} else f"at least {need} positions (more varied)"

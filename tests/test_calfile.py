@@ -137,8 +137,8 @@ def test_apply_reuses_the_calibrations_reference_temperature(tmp_path):
     truth = {**{k: v for k, v in COUNTS_TRUTH.items() if k in m.names}, "beta_x": 2e-4, "beta_y": -1e-4,
              "beta_z": 3e-4}
     sim = simulate(m, truth, np.random.default_rng(4), scheme="36", noise_g=10e-6, temp=(15.0, 35.0))
-    cal = calibrate(sim.data, m)
-    write_calibration(cal, tmp_path / "t.json", units_in="g", units_out="g")
+    cal = calibrate(replace(sim.data, units="counts"), m)  # the truth's scale factors are counts per g
+    write_calibration(cal, tmp_path / "t.json", units_in="g", units_out="counts")
     cf = read_calibration(tmp_path / "t.json")
     T0 = float(np.mean(sim.data.temp))
     assert cf.meta["context"] == {"T0": T0}

@@ -120,6 +120,9 @@ def run(args) -> int:
     print(f"applied {args.calibration} (model {cal.model.name}, outputs in {cal.units_out}) to {len(rec)} samples "
           f"of {args.data}; wrote {args.output} (ax, ay, az in {args.output_units})")
     print(f"median |A| = {np.median(norm):.6f} g (calibration's local gravity {cal.g_local:.6f} g)")
+    if cal.forced:
+        print(f"note: applying a forced calibration (written with --force-weak although the data did not determine "
+              f"it): {'; '.join(cal.forced)}")
     if rec.saturated.any():
         print(f"note: {int(rec.saturated.sum())} saturated sample(s) are flagged in column 'saturated'")
     gave_gravity = getattr(args, "gravity_ms2", None) is not None or args.latitude is not None

@@ -18,12 +18,13 @@ from ._common import (
 )
 from ._dataopts import add_data_options, flag_names, gravity_from_args, load_positions
 
-HELP = "calibrate an accelerometer from static positions (default model nonlinear12)"
+HELP = "calibrate an accelerometer from static positions (default model nonlinear12, or smaller if the data ask)"
 
 
 def add_arguments(p):
     p.add_argument("data", metavar="DATA", help="positions CSV (or a raw recording with --raw)")
-    p.add_argument("--model", default="nonlinear12", help="model name or sum of terms (default nonlinear12)")
+    p.add_argument("--model", help="model name or sum of terms (default nonlinear12; when the positions do not "
+                   "determine it, the richest of linear9 and diag6 that they do, said in a note)")
     p.add_argument("--solver", default="scipy-lm", help="registered solver, e.g. bsas, staged:bsas (default scipy-lm)")
     p.add_argument("--option", action="append", metavar="KEY=VALUE", help="solver option (repeatable)")
     p.add_argument("--seed", type=int, default=0, help="seed of the solver's random generator")
@@ -33,6 +34,9 @@ def add_arguments(p):
     p.add_argument("--json", action="store_true", help="print the result as one JSON object")
     p.add_argument("-o", "--output", metavar="CALIBRATION.json", help="write the calibration file")
     p.add_argument("--force", action="store_true", help="overwrite an existing calibration file or figure")
+    p.add_argument("--force-weak", action="store_true", help="write a fit the data do not determine (too few "
+                   "positions, fewer than 3 residual degrees of freedom, an exact fit, implausible parameters) "
+                   "instead of refusing it; the file records that it was forced and why")
     p.add_argument("--plot", metavar="FILE.png", help="the residual per position with its noise band and the "
                    "outliers (with --raw: the recording with its intervals and residuals); the suffix names the "
                    "format: .png, .pdf, .svg, ...")
@@ -62,6 +66,11 @@ def run(args) -> int:
         refuse_overwrite(args.plot, args.force)
         check_figure_path(args.plot)
     g_local = gravity_from_args(args)
+    named = args.model is not None
+    if not named:  # a raw recording's intervals are found for the default model, as before the fallback
+        from ..determination import DEFAULT_MODEL
+
+        args.model = DEFAULT_MODEL
     data = load_positions(args, args.data)
     presets = load_presets(args.presets) if args.presets else None
     detection = data.extra.get("detection") if isinstance(data.extra, dict) else None
@@ -70,8 +79,9 @@ def run(args) -> int:
         rate = detection.recording.rate if detection is not None else args.rate
         with flag_names():  # a noise recording is read with --columns and --rate
             noise_g, noise = noise_from_args(args, data.n_samples, rate)
-    cal = calibrate(data, args.model, solver=args.solver, options=parse_options(args.option), g_local=g_local,
-                    reference=args.reference, presets=presets, seed=args.seed, budget=args.budget, noise_g=noise_g)
+    cal = calibrate(data, args.model if named else None, solver=args.solver, options=parse_options(args.option),
+                    g_local=g_local, reference=args.reference, presets=presets, seed=args.seed, budget=args.budget,
+                    noise_g=noise_g, force_weak=args.force_weak)
     figure = None
     if args.plot and detection is not None:
         from ..plots.recording import recording_figure
