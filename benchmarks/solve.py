@@ -1,0 +1,59 @@
+"""``time_*``: the evaluation kernel and one calibration per solver backend, on the CI study's problem (the
+2020 paper's truth, nonlinear12, 24 positions, 10 µg noise, manufacturer presets)."""
+
+from __future__ import annotations
+
+import numpy as np
+
+BACKENDS = ["scipy-lm", "nlopt-bobyqa", "cmaes", "pso", "staged:bsas", "nafsa"]
+BUDGET = 2000  # evaluations per calibration
+
+
+def _problem():
+    from optcal.presets import PAPER_TRUTH, manufacturer_presets
+    from optcal.problem import CalibrationProblem
+    from optcal.simulate import simulate
+
+    rng = np.random.default_rng(4242)
+    sim = simulate("nonlinear12", PAPER_TRUTH, rng, scheme="24", noise_g=10e-6, tilt_deg=1.0)
+    presets = manufacturer_presets(PAPER_TRUTH, rng, 1.0)
+    return CalibrationProblem("nonlinear12", sim.data, presets=presets, noise_g=10e-6)
+
+
+class Kernel:
+    """The cost of a population of 100 candidates in one call, and the Jacobian of one."""
+
+    def setup(self):
+        from optcal.warmup import warm
+
+        warm()
+        self.p = _problem()
+        self.p.start(None)
+        self.Z = self.p.x0 + 1e-4 * np.random.default_rng(0).standard_normal((100, self.p.n))
+
+    def time_cost_batch_100(self):
+        self.p.cost_batch(self.Z)
+
+    def time_jacobian(self):
+        self.p.jacobian(self.p.x0)
+
+
+class Calibrate:
+    """One calibration of the CI problem, per backend, with a budget of 2,000 evaluations."""
+
+    params = BACKENDS
+    param_names = ["solver"]
+    timeout = 300
+
+    def setup(self, name):
+        import solvers
+        from optcal.warmup import warm
+
+        warm()
+        if not solvers.get(name).is_available():
+            raise NotImplementedError  # asv: skipped
+        self.p = _problem()
+        self.solver = solvers.get(name)
+
+    def time_calibrate(self, name):
+        self.solver.solve(self.p, budget=BUDGET, rng=np.random.default_rng(1))
