@@ -40,7 +40,7 @@ class DetectionResult:
 
     recording: Recording
     intervals: np.ndarray  # (m, 2) int, end exclusive
-    method: str  # "variance", "given" or "labels"
+    method: str  # "segment" (optcal.recording.segment), "variance", "given" or "labels"
     names: list[str] | None = None
     window: int | None = None  # samples in the variance window
     min_samples: int = 1
@@ -52,6 +52,9 @@ class DetectionResult:
     threshold: float | None = None
     notes: list[str] = field(default_factory=list)
     search: list[dict] = field(default_factory=list)  # per k: n_intervals, score (or note)
+    noise: np.ndarray | None = None  # "segment": white noise SD of a sample per axis, sensor units
+    block: int | None = None  # "segment": samples per block
+    segmentation: object = None  # "segment": the optcal.recording.segment.Segmentation behind the intervals
 
     @property
     def n_intervals(self) -> int:
