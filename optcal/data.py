@@ -128,16 +128,34 @@ def _fmt(v) -> str:
 
 
 def read_positions(path: str | Path, units: str = "g") -> PositionsData:
-    """Read and validate a positions CSV (docs/design.md §9.1). Every problem is an :class:`InputError`."""
+    """Read and validate a positions CSV (docs/design.md §9.1). Every problem is an :class:`InputError`.
+
+    The layout is read as the raw reader reads it (:mod:`optcal.tablefile`): a comma, semicolon, tab or
+    whitespace between the cells (from the last line), a decimal comma with the last three, compression by
+    suffix, a UTF-8 byte-order mark, ``#`` and ``%`` comment lines. The header is the first line that is not
+    a comment; when that line is all numbers, the last comment line before it if it names the columns
+    (``# position ax ay az``), else the columns go by position (:func:`_positional_names`)."""
+    from .tablefile import COMMENT, commented_header, csv_fields, delimiter_of, head_lines, header_fields, is_number
+
     path = Path(path)
-    try:
-        text = path.read_text()
-    except (OSError, UnicodeDecodeError) as exc:
-        raise InputError(f"cannot read {path}: {exc.strerror if hasattr(exc, 'strerror') else exc}") from None
-    rows = [r for r in csv.reader(io.StringIO(text)) if r and any(c.strip() for c in r)]
-    if not rows:
+    lines = [(i + 1, ln.strip()) for i, ln in enumerate(head_lines(path, None, "a positions file")) if ln.strip()]
+    data = [(i, ln) for i, ln in lines if not ln.startswith(COMMENT)]
+    if not data:
         raise InputError(f"{path} is empty; a positions CSV needs a header with ax, ay, az and one row per position")
-    header = [h.strip() for h in rows[0]]
+    delim, dec = delimiter_of(data[-1][1])
+    rows = [(i, csv_fields(ln, delim)) for i, ln in data]
+    first_line, first = rows[0]
+    if all(is_number(c, dec) for c in first):  # no header line: a commented one, or columns by position
+        known = REQUIRED + OPTIONAL
+        notes = [ln for i, ln in lines if i < first_line]
+        header = commented_header(notes[-1], delim, len(first), known) if notes else None
+        if header is None:
+            header = _positional_names(path, rows)
+        body = rows
+    else:
+        header, body = [h.strip() for h in first], rows[1:]
+        if body and len(header) != len(body[0][1]):  # a header written with another delimiter than the data
+            header = header_fields(data[0][1], delim, len(body[0][1])) or header
     for name in dict.fromkeys(header):
         where = [i + 1 for i, h in enumerate(header) if h == name]
         if len(where) > 1 and name:
@@ -154,7 +172,6 @@ def read_positions(path: str | Path, units: str = "g") -> PositionsData:
         raise InputError(
             f"{path}: missing column(s) {', '.join(missing)}; the header must name ax, ay, az{hint}"
         )
-    body = rows[1:]
     if not body:
         raise InputError(f"{path} has a header but no positions")
     wanted = [c for c in REQUIRED + OPTIONAL if c in header]
@@ -162,17 +179,17 @@ def read_positions(path: str | Path, units: str = "g") -> PositionsData:
     for c in wanted:
         j = header.index(c)
         vals = np.empty(len(body))
-        for r, row in enumerate(body):
+        for r, (line, row) in enumerate(body):
             cell = row[j].strip() if j < len(row) else ""
             try:
-                vals[r] = float(cell)
+                vals[r] = float(cell.replace(",", ".") if dec == "," else cell)
             except ValueError:
                 raise InputError(
-                    f"{path}: line {r + 2}, column {c!r}: {cell!r} is not a number; fix or remove that row"
+                    f"{path}: line {line}, column {c!r}: {cell!r} is not a number; fix or remove that row"
                 ) from None
             if not math.isfinite(vals[r]):
                 raise InputError(
-                    f"{path}: line {r + 2}, column {c!r} is {cell}; remove the position or re-average it"
+                    f"{path}: line {line}, column {c!r} is {cell}; remove the position or re-average it"
                 )
         cols[c] = vals
     N = np.stack([cols[c] for c in REQUIRED], 1)
@@ -189,7 +206,7 @@ def read_positions(path: str | Path, units: str = "g") -> PositionsData:
         raise InputError(f"{path}: column 'n' (samples averaged) must be at least 1")
     if "t" in cols and np.any(np.diff(cols["t"]) < 0):
         raise InputError(f"{path}: column 't' decreases; positions must be in time order")
-    extra = {h: [row[i] if i < len(row) else "" for row in body]
+    extra = {h: [row[i] if i < len(row) else "" for _, row in body]
              for i, h in enumerate(header) if h not in REQUIRED + OPTIONAL}
     return PositionsData(
         N=N,
@@ -203,6 +220,27 @@ def read_positions(path: str | Path, units: str = "g") -> PositionsData:
         units=units,
         extra=extra,
     )
+
+
+def _positional_names(path: Path, rows: list[tuple[int, list[str]]]) -> list[str]:
+    """The columns of a positions file without a header, by their number: three are ax, ay, az; four are
+    position, ax, ay, az when the first column numbers the rows 0, 1, 2, ... or 1, 2, 3, ... Anything else
+    (a time or temperature column, per-axis SDs) cannot be told apart by position: refused, asking for a
+    header."""
+    width = len(rows[0][1])
+    if width == 3:
+        return list(REQUIRED)
+    if width == 4:
+        try:
+            first = np.array([float(r[0]) for _, r in rows])
+        except ValueError:
+            first = None
+        if first is not None and len(first) and first[0] in (0, 1) and np.array_equal(
+                first, first[0] + np.arange(len(first))):
+            return ["position", *REQUIRED]
+    raise InputError(f"{path}: {width} columns and no header; a positions file without a header has 3 columns "
+                     "(ax, ay, az) or 4 (position 0, 1, 2, ... or 1, 2, 3, ..., then ax, ay, az): add a header "
+                     "line naming the columns, e.g. position,ax,ay,az,t,temp,n,sx,sy,sz")
 
 
 UNITS = ("g", "m/s2", "counts", "volts", "mg")

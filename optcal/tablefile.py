@@ -74,16 +74,16 @@ def open_text(path: Path, errors: str = "replace"):
     return io.TextIOWrapper(open_binary(path), encoding="utf-8-sig", errors=errors)
 
 
-def head_lines(path: Path, n: int | None = SNIFF_LINES) -> list[str]:
+def head_lines(path: Path, n: int | None = SNIFF_LINES, kind: str = "a raw recording") -> list[str]:
     """The first ``n`` lines of the file (all with None), as text; a file that cannot be read, or one that is
-    binary, is an InputError."""
+    binary, is an InputError (naming what ``kind`` of file was expected)."""
     try:
         with open_text(path) as fh:
             head = list(itertools.islice(fh, n))
     except DECODE_ERRORS as exc:
         raise InputError(f"cannot read {path}: {getattr(exc, 'strerror', None) or exc}") from None
     if "\x00" in "".join(head[:5]):
-        raise InputError(f"{path} is a binary file, not text; save the table as text (or a MAT file)")
+        raise InputError(f"cannot read {path}: it is a binary file, not text; {kind} is a text table or a MAT file")
     return head
 
 
