@@ -12,6 +12,9 @@ from __future__ import annotations
 
 import difflib
 import io
+import logging
+import struct
+import zlib
 from pathlib import Path
 
 import numpy as np
@@ -30,6 +33,8 @@ from ..tablefile import (  # noqa: F401 - the layout's names, re-exported for th
     split_fields,
 )
 from ..tablefile import sniff_layout as sniff_table
+
+log = logging.getLogger(__name__)
 
 ROLES = ("t", "ax", "ay", "az", "gx", "gy", "gz", "temp")
 GYRO = ("gx", "gy", "gz")  # angular rate, in the file's units (rad/s, °/s or counts): optional, all three or none
@@ -73,21 +78,19 @@ def is_mat(path: Path) -> bool:
 
 
 def mat_table(path: Path) -> tuple[list[str] | None, np.ndarray]:
-    """A MAT file's numeric variables as one table (scipy.io.loadmat): a single matrix is returned as it
-    is, without a header (columns by position, as a headerless text file; a 3 × n or 4 × n matrix is
-    transposed); several variables of one length n are columns named by the variables (an n × k matrix
-    ``acc`` giving ``acc_0`` … ``acc_{k-1}``)."""
-    from scipy.io import loadmat
-
+    """A MAT file's numeric variables (:func:`load_mat`) as one table: a single matrix is returned as it is,
+    without a header (columns by position, as a headerless text file; a k × n matrix with k < n and k up to
+    7 is transposed); several variables of one length n are columns named by the variables (an n × k
+    matrix ``acc`` giving ``acc_0`` … ``acc_{k-1}``)."""
     try:
         with open_binary(path) as fh:
-            m = loadmat(io.BytesIO(fh.read()))
-    except NotImplementedError:
-        raise InputError(f"{path} is a MATLAB v7.3 (HDF5) file; save it with save(..., '-v7') to read it") from None
-    except (ValueError, TypeError, OSError) as exc:
-        raise InputError(f"cannot read MAT file {path}: {exc}") from None
+            raw = fh.read()
+    except DECODE_ERRORS as exc:
+        raise InputError(f"cannot read {path}: {getattr(exc, 'strerror', None) or exc}") from None
+    m = load_mat(raw, path)
     found = {k: np.asarray(v) for k, v in m.items() if not k.startswith("__")}
-    arrays = {k: (v.T if v.ndim == 2 and v.shape[0] < v.shape[1] and v.shape[0] <= 5 else v).astype(float)
+    wide = max(POSITIONAL)  # rows stored as columns (3 × n, as Hassan & Bao store positions, up to 7 × n)
+    arrays = {k: (v.T if v.ndim == 2 and v.shape[0] < v.shape[1] and v.shape[0] <= wide else v).astype(float)
               for k, v in found.items() if v.dtype.kind in "iufb" and v.ndim <= 2 and v.size > 1}
     if not arrays:
         raise InputError(f"{path} holds no numeric matrix (variables: {', '.join(found) or 'none'}); "
@@ -105,6 +108,72 @@ def mat_table(path: Path) -> tuple[list[str] | None, np.ndarray]:
         names += [k] if v.shape[1] == 1 else [f"{k}_{j}" for j in range(v.shape[1])]
         cols.append(v)
     return names, np.hstack(cols)
+
+
+def load_mat(raw: bytes, path) -> dict:
+    """The variables of a MAT file's bytes (scipy.io.loadmat), every failure one line. A level 5 file whose
+    compressed variables fail their zlib checksum, which MATLAB reads, is read when their data inflate in
+    full (:func:`inflate_ignoring_checksums`), with a warning; a v7.3 file (HDF5), which scipy does not
+    read, is refused naming the way to save it."""
+    from scipy.io import loadmat
+
+    try:
+        return loadmat(io.BytesIO(raw))
+    except NotImplementedError:
+        raise InputError(f"{path} is a MATLAB v7.3 (HDF5) file, which optcal does not read; save it with "
+                         "save(FILE, ..., '-v7') to read it") from None
+    except zlib.error as exc:
+        repaired = inflate_ignoring_checksums(raw)
+        if repaired is None:
+            raise InputError(f"cannot read MAT file {path}: a compressed variable is damaged ({exc}); save it "
+                             "again from MATLAB") from None
+        try:
+            m = loadmat(io.BytesIO(repaired[0]))
+        except Exception as exc2:  # noqa: BLE001 - scipy's parser on damaged bytes: one line, whatever it raises
+            raise InputError(f"cannot read MAT file {path}: a compressed variable is damaged ({exc2}); save it "
+                             "again from MATLAB") from None
+        log.warning("%s: %d compressed variable(s) fail their zlib checksum but inflate in full; read as MATLAB "
+                    "reads them: check the values, or save the file again", path, repaired[1])
+        return m
+    except Exception as exc:  # noqa: BLE001 - scipy's parser raises many kinds on bytes it does not expect
+        raise InputError(f"cannot read MAT file {path}: {exc or type(exc).__name__}; save it again from MATLAB "
+                         "(save(FILE, ..., '-v7')) or as a text table") from None
+
+
+def inflate_ignoring_checksums(raw: bytes) -> tuple[bytes, int] | None:
+    """A level 5 MAT file's bytes with each compressed data element (miCOMPRESSED, type 15) replaced by its
+    inflated content, and the number whose zlib (Adler-32) checksum failed; None when the file's structure
+    or a deflate stream is broken, or a variable inflates to less than its tag declares. The deflate stream
+    is fed without its 4-byte checksum, so zlib never compares it (MATLAB does not either)."""
+    if len(raw) < 136 or raw[126:128] not in (b"IM", b"MI"):
+        return None
+    order = "<" if raw[126:128] == b"IM" else ">"
+    out, pos, bad = [raw[:128]], 128, 0
+    while pos + 8 <= len(raw):
+        typ, nbytes = struct.unpack(order + "II", raw[pos:pos + 8])
+        if typ >> 16:  # a small data element: type and size in 4 bytes, data in the other 4
+            out.append(raw[pos:pos + 8])
+            pos += 8
+            continue
+        body = raw[pos + 8:pos + 8 + nbytes]
+        if len(body) < nbytes:
+            return None
+        if typ == 15:
+            try:
+                data = zlib.decompress(body)
+            except zlib.error:
+                try:
+                    data = zlib.decompressobj().decompress(body[:-4])
+                except zlib.error:
+                    return None
+                if len(data) < 8 or len(data) < 8 + struct.unpack(order + "II", data[:8])[1]:
+                    return None
+                bad += 1
+            out.append(data)
+        else:
+            out.append(raw[pos:pos + 8 + nbytes])
+        pos += 8 + nbytes
+    return b"".join(out), bad
 
 
 def mat_layout(path: Path) -> tuple[Layout, np.ndarray]:
