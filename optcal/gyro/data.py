@@ -96,6 +96,18 @@ class GyroData:
         h2 = np.array([np.sum(np.diff(self.t[a:b + 1]) ** 2) for a, b in zip(self.start, self.stop, strict=True)])
         self._h2 = h2
 
+    def debiased(self) -> GyroData:
+        """The same recording with the bias taken from the rests: each sample minus the rests' mean output,
+        interpolated linearly in time between the mid-times of the rests before and after it (held
+        constant before the first and after the last). A bias that drifts over the recording (warm-up,
+        bias instability) is then followed rest by rest instead of fitted as one constant; it leaves the
+        scale factors and misalignments to the motions."""
+        mid = np.array([self.t[a:b].mean() for a, b in self.rests])
+        offset = np.column_stack([np.interp(self.t, mid, self.rest_W[:, i]) for i in range(3)])
+        out = GyroData(self.t, self.W - offset, self.F, self.rests, units=self.units, saturated=self.saturated,
+                       extra=dict(self.extra, bias_from_rests=offset))
+        return out
+
     @property
     def n_motions(self) -> int:
         return len(self.start)

@@ -45,18 +45,31 @@ def param_units(output_units: str) -> dict[str, str]:
 
 @dataclass(frozen=True)
 class GyroModel:
-    """The gyroscope model with or without g-sensitivity; the same attributes the solvers read from the
-    accelerometer's :class:`optcal.model.Model` (``names``, ``n_params``, ``terms``, ``needs``, ``groups``)."""
+    """The gyroscope model with or without g-sensitivity, with or without the bias (``bias=False``: the
+    bias is taken from the rests before fitting, :meth:`optcal.gyro.data.GyroData.debiased`); the same
+    attributes the solvers read from the accelerometer's :class:`optcal.model.Model` (``names``,
+    ``n_params``, ``terms``, ``needs``, ``groups``)."""
 
     g_sensitivity: bool = False
+    bias: bool = True
 
     @property
     def terms(self) -> tuple[str, ...]:
-        return ("scale", "misalignment", "bias") + (("g_sensitivity",) if self.g_sensitivity else ())
+        return (("scale", "misalignment") + (("bias",) if self.bias else ())
+                + (("g_sensitivity",) if self.g_sensitivity else ()))
 
     @property
     def name(self) -> str:
-        return "gyro15" if self.g_sensitivity else "gyro12"
+        return f"gyro{self.n_params}"
+
+    def slice_of(self, term: str) -> slice | None:
+        """Where ``term``'s parameters sit in the vector (None when the model lacks it)."""
+        k = 0
+        for t in self.terms:
+            if t == term:
+                return slice(k, k + len(TERMS[t]))
+            k += len(TERMS[t])
+        return None
 
     @property
     def names(self) -> list[str]:
@@ -99,8 +112,9 @@ class GyroModel:
         T = np.broadcast_to(np.eye(3, dtype=X.dtype), (S, 3, 3)).copy()
         for k, n in enumerate(MISALIGNMENT):
             T[:, AXES.index(n[2]), AXES.index(n[3])] = X[:, 3 + k]
-        b = X[:, 9:12]
-        G = np.zeros((S, 3, 3), X.dtype) if not self.g_sensitivity else X[:, 12:21].reshape(S, 3, 3)
+        sb, sg = self.slice_of("bias"), self.slice_of("g_sensitivity")
+        b = np.zeros((S, 3), X.dtype) if sb is None else X[:, sb]
+        G = np.zeros((S, 3, 3), X.dtype) if sg is None else X[:, sg].reshape(S, 3, 3)
         return K, T, b, G
 
     def affine(self, X: np.ndarray) -> np.ndarray:
@@ -130,5 +144,5 @@ class GyroModel:
         return W @ P[:9].reshape(3, 3).T + P[9:12] + f @ P[12:21].reshape(3, 3).T
 
 
-def get_gyro_model(g_sensitivity: bool = False) -> GyroModel:
-    return GyroModel(bool(g_sensitivity))
+def get_gyro_model(g_sensitivity: bool = False, bias: bool = True) -> GyroModel:
+    return GyroModel(bool(g_sensitivity), bool(bias))

@@ -5,9 +5,9 @@ Residuals (Tedaldi, Pretto and Menegatti, ICRA 2014, Eq. 15, with whitening and 
 * one pair per motion: the first rest's gravity direction u0, carried through the motion by the rate
   the candidate calibrates (RK4 on the sample times, :mod:`optcal.kernels.gyro`), against the second
   rest's direction u1, along two unit vectors orthogonal to u1 (rad), divided by its SD;
-* three per rest: the calibrated rate of the rest's mean output, which must be zero (rad/s), divided by
-  its SD. They determine the bias, and with g-sensitivity they determine G from the rests' different
-  specific forces.
+* three per rest (when the bias is fitted): the calibrated rate of the rest's mean output, which must be
+  zero (rad/s), divided by its SD. They determine the bias, and with g-sensitivity they determine G from
+  the rests' different specific forces.
 
 Every residual is whitened (:mod:`optcal.gyro.data`), so the cost is a χ² and the noise level handed to
 :func:`optcal.analysis.crlb` is 1. The Earth's rate (7.3e-5 rad/s) is not modelled: it is below the
@@ -57,7 +57,8 @@ class GyroPresets:
 def start_vector(model: GyroModel, data: GyroData, K: np.ndarray) -> np.ndarray:
     """Nominal scale ``K``, no misalignment or g-sensitivity, the bias of the rests' mean output."""
     x = model.default_vector(K)
-    x[9:12] = np.mean(data.rest_W, axis=0) / K
+    if model.bias:
+        x[model.slice_of("bias")] = np.mean(data.rest_W, axis=0) / K
     return x
 
 
@@ -77,18 +78,31 @@ def common_scale(model: GyroModel, data: GyroData, k_min: float, k_max: float, n
     return float(best(np.geomspace(k / step, k * step, 41)))
 
 
+BIAS_MODES = ("fit", "rests")
+
+
 class GyroProblem:
     """Gyroscope calibration from ``data`` (:class:`GyroData`) with the model of
-    :mod:`optcal.gyro.model` (``g_sensitivity`` adds G). ``scale``: nominal scale factor (output units
-    per rad/s, one number or three); without it, :func:`common_scale` finds one. ``presets``: a
+    :mod:`optcal.gyro.model` (``g_sensitivity`` adds G). ``bias``: ``fit`` (parameters, determined by
+    the rests' residuals and the motions together) or ``rests`` (taken from the rests before fitting,
+    interpolated between them, :meth:`GyroData.debiased`: the model then has no bias parameters and the
+    problem no rest residuals; G needs ``fit``). ``scale``: nominal scale factor (output units per
+    rad/s, one number or three); without it, :func:`common_scale` finds one. ``presets``: a
     :class:`GyroPresets` to centre the search elsewhere."""
 
     reference = False
     g_local = 1.0
 
-    def __init__(self, data: GyroData, *, g_sensitivity: bool = False, scale=None,
+    def __init__(self, data: GyroData, *, g_sensitivity: bool = False, bias: str = "fit", scale=None,
                  presets: GyroPresets | None = None):
-        self.model = get_gyro_model(g_sensitivity)
+        if bias not in BIAS_MODES:
+            raise InputError(f"unknown gyroscope bias mode {bias!r}; use one of {', '.join(BIAS_MODES)}")
+        if bias == "rests" and g_sensitivity:
+            raise InputError("g-sensitivity needs the bias fitted (`bias` fit): the rests' outputs hold both")
+        self.bias_mode = bias
+        self.model = get_gyro_model(g_sensitivity, bias=bias == "fit")
+        if bias == "rests":
+            data = data.debiased()
         self.data = data
         if data.n_motions < 1:
             raise InputError("no motion between rests: record rotations between the rests")
@@ -103,8 +117,9 @@ class GyroProblem:
             raise InputError(f"the gyroscope's nominal scale must be positive (output units per rad/s), got {scale}")
         if presets is None:
             centre = start_vector(self.model, data, K)
-            width = np.concatenate([HALFWIDTH["K"] * K, np.full(6, HALFWIDTH["T"]), np.full(3, HALFWIDTH["b"]),
-                                    np.full(self.model.n_params - 12, HALFWIDTH["G"])])
+            width = np.concatenate([HALFWIDTH["K"] * K, np.full(6, HALFWIDTH["T"])]
+                                   + ([np.full(3, HALFWIDTH["b"])] if self.model.bias else [])
+                                   + ([np.full(9, HALFWIDTH["G"])] if self.model.g_sensitivity else []))
             presets = GyroPresets(centre, width)
         self.presets = presets
         self.centre, self.halfwidth = presets.centre.copy(), presets.halfwidth.copy()
@@ -199,7 +214,11 @@ class GyroProblem:
 
     @property
     def n_position_residuals(self) -> int:
-        return self.n_motion_residuals + 3 * self.data.n_rests
+        return self.n_motion_residuals + self.n_rest_residuals
+
+    @property
+    def n_rest_residuals(self) -> int:
+        return 3 * self.data.n_rests if self.model.bias else 0
 
     n_residuals = n_position_residuals
     rows_per_position = 1
@@ -218,9 +237,12 @@ class GyroProblem:
         R = np.empty((len(X), d.n_motions, 2))
         _kernel().rotate_batch(P, d.W, d.F, d.t, d.start, d.stop, d.u0, d.E, R)
         R /= self.sd_motion[None, :, None]
-        rest = (np.einsum("sij,rj->sri", P[:, :9].reshape(-1, 3, 3), d.rest_W) + P[:, None, 9:12]
-                + np.einsum("sij,rj->sri", P[:, 12:].reshape(-1, 3, 3), d.rest_F)) / self.sd_rest[None]
-        out = np.concatenate([R.reshape(len(X), -1), rest.reshape(len(X), -1)], axis=1)
+        parts = [R.reshape(len(X), -1)]
+        if self.model.bias:
+            rest = (np.einsum("sij,rj->sri", P[:, :9].reshape(-1, 3, 3), d.rest_W) + P[:, None, 9:12]
+                    + np.einsum("sij,rj->sri", P[:, 12:].reshape(-1, 3, 3), d.rest_F)) / self.sd_rest[None]
+            parts.append(rest.reshape(len(X), -1))
+        out = np.concatenate(parts, axis=1)
         out[bad] = np.nan
         return out
 
@@ -278,21 +300,21 @@ class GyroProblem:
             raise ValueError(f"expected {self.model.n_params} parameters, got shape {x.shape}")
         d = self.data
         P = np.ascontiguousarray(self.model.affine(x[None])[0])
-        n_dir = 21 if self.model.g_sensitivity else 12
+        # the affine numbers that can move: M always, c with a bias, D with g-sensitivity (which needs c)
+        n_dir = 21 if self.model.g_sensitivity else 12 if self.model.bias else 9
         Jm = np.empty((d.n_motions, 2, n_dir))
         _kernel().rotate_jacobian(P, n_dir, d.W, d.F, d.t, d.start, d.stop, d.u0, d.E, Jm)
         Jm /= self.sd_motion[:, None, None]
-        # rests: ω = M·W̄ + c + D·f̄, linear in the affine numbers
-        r = d.n_rests
-        Jr = np.zeros((r, 3, n_dir))
-        for i in range(3):
-            Jr[:, i, 3 * i:3 * i + 3] = d.rest_W
-            Jr[:, i, 9 + i] = 1.0
-            if n_dir == 21:
-                Jr[:, i, 12 + 3 * i:15 + 3 * i] = d.rest_F
-        Jr /= self.sd_rest[:, :, None]
-        A = self.model.affine_jacobian(x)[:n_dir]
-        return np.concatenate([Jm.reshape(-1, n_dir), Jr.reshape(-1, n_dir)]) @ A
+        rows = [Jm.reshape(-1, n_dir)]
+        if self.model.bias:  # rests: ω = M·W̄ + c + D·f̄, linear in the affine numbers
+            Jr = np.zeros((d.n_rests, 3, n_dir))
+            for i in range(3):
+                Jr[:, i, 3 * i:3 * i + 3] = d.rest_W
+                Jr[:, i, 9 + i] = 1.0
+                if n_dir == 21:
+                    Jr[:, i, 12 + 3 * i:15 + 3 * i] = d.rest_F
+            rows.append((Jr / self.sd_rest[:, :, None]).reshape(-1, n_dir))
+        return np.concatenate(rows) @ self.model.affine_jacobian(x)[:n_dir]
 
     def jacobian(self, x) -> np.ndarray:
         self.counter.allow(1)

@@ -1,0 +1,57 @@
+"""A gyroscope's samples joined to the accelerometer's recording: the same times, the rests the
+accelerometer's detection found, and the accelerometer's calibration turning its samples into specific
+force (imu_tk's data come as two files sharing times; Tedaldi et al., ICRA 2014, §V)."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..errors import InputError
+from ..model import Context, get_model
+from .data import GyroData
+
+# Two time columns agree when no sample differs by more than this fraction of the median step.
+TIME_TOLERANCE = 0.1
+
+
+def join_times(t_acc: np.ndarray, t_gyro: np.ndarray) -> None:
+    """Refuse two sample-time columns that are not the same times (within a tenth of a step)."""
+    t_acc, t_gyro = np.asarray(t_acc, float), np.asarray(t_gyro, float)
+    if len(t_acc) != len(t_gyro):
+        raise InputError(f"the accelerometer has {len(t_acc)} samples and the gyroscope {len(t_gyro)}: the two "
+                         "files must share their sample times; cut them to the same samples")
+    step = float(np.median(np.diff(t_acc)))
+    worst = float(np.max(np.abs(t_acc - t_gyro)))
+    if worst > TIME_TOLERANCE * step:
+        i = int(np.argmax(np.abs(t_acc - t_gyro)))
+        raise InputError(f"the accelerometer's and gyroscope's times disagree by {worst:.3g} s at sample {i} "
+                         f"(more than {TIME_TOLERANCE:g} of the {step:.3g} s step); resample them to common times")
+
+
+def saturated_motion(W: np.ndarray, rails: tuple[float, float] | None, data: GyroData) -> int | None:
+    """Index of the first motion during which a gyroscope sample sits at a rail, or None."""
+    if rails is None:
+        return None
+    at = np.any((W <= rails[0]) | (W >= rails[1]), axis=1)
+    for k, (a, b) in enumerate(zip(data.start, data.stop, strict=True)):
+        if at[a:b + 1].any():
+            return k
+    return None
+
+
+def gyro_data(t, W, N_acc, intervals, acc_model, x_acc, *, units: str,
+              temp=None, rails: tuple[float, float] | None = None) -> GyroData:
+    """The gyroscope's :class:`GyroData`: samples ``W`` (n, 3) at times ``t``, the accelerometer's raw
+    samples ``N_acc`` calibrated by ``acc_model`` at ``x_acc`` into specific force (g), the rests
+    ``intervals`` (r, 2) of its detection. A motion with a gyroscope sample at one of ``rails`` is refused:
+    its integrated rotation would be wrong."""
+    model = get_model(acc_model)
+    ctx = Context.from_columns(temp=temp if "temp" in model.needs else None, t=t if "t" in model.needs else None)
+    F = model.inverse(np.asarray(x_acc, float)[None], np.asarray(N_acc, float), ctx)[0]
+    data = GyroData(t, W, F, intervals, units=units)
+    k = saturated_motion(np.asarray(W, float), rails, data)
+    if k is not None:
+        raise InputError(f"the gyroscope is saturated during motion {k + 1} (between rests {k + 1} and {k + 2}, "
+                         f"t = {data.t[data.start[k]]:.2f}-{data.t[data.stop[k]]:.2f} s): turn the sensor more "
+                         "slowly, or cut that motion out")
+    return data
