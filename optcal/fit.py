@@ -181,11 +181,13 @@ def calibrate(data: PositionsData, model: str | Model | None = None, *, solver: 
                      + (f"; it gives less than half weight to {', '.join(diag.name(i) for i in low[:5])}, so the "
                         "errors assume the noise of the positions kept" if low.size else ""))
     notes += _weak_notes(problem, x, sd, obs, gof)
-    refused = refused + determination.exact(gof, len(data)) + determination.plausibility(model, x, data, g_local)
+    if not any(r.kind == "exact" for r in refused):  # no residual at all says it once
+        refused = refused + determination.exact(gof, len(data))
+    refused = refused + determination.plausibility(model, x, data, g_local)
     if refused and not force_weak:
         raise InputError(determination.line(refused, model, None))
     if refused:
-        notes.insert(0, "forced (`force_weak`): " + "; ".join(r.reason for r in refused))
+        notes.insert(0, "forced although the data do not determine it: " + "; ".join(r.reason for r in refused))
     if fallback:
         notes.insert(0, fallback)
     return Calibration(model, x, sd, obs, gof, problem, solver, result, notes, diag, loss,

@@ -74,7 +74,7 @@ def test_calibrate_a_raw_recording(session):
     # linear9 from the same ten positions leaves one degree of freedom: refused; forced, it is marked
     weak = ns["weak"]
     assert weak.model.name == "linear9" and weak.forced[0].startswith("10 positions leave linear9 only 1 residual")
-    assert weak.notes[0].startswith("forced (`force_weak`): 10 positions leave linear9")
+    assert weak.notes[0].startswith("forced although the data do not determine it: 10 positions leave linear9")
 
 
 def test_the_api_refuses_what_the_data_do_not_determine_with_the_clis_line(session, tmp_path, capsys):
