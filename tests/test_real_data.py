@@ -80,11 +80,16 @@ def test_imucal_norm_fit_agrees_with_imucal_within_method_differences(annotated)
     measured ≤ 0.54 counts): the diag6 ellipsoid has no cross-axis terms, so imucal's misalignments
     (up to 0.024 rad) move the result at second order, (0.024)² ≈ 6e-4."""
     _, _, data, ref = annotated
-    cal = calibrate(data, "diag6", g_local=G_IMUCAL / G0)
+    # six positions, six parameters: an exact fit, no residual to judge it by, so optcal refuses it unless
+    # told to write a weak fit (optcal.determination); forced, it is imucal's result to 3e-4
+    with pytest.raises(InputError, match="exact fit"):
+        calibrate(data, "diag6", g_local=G_IMUCAL / G0)
+    cal = calibrate(data, "diag6", g_local=G_IMUCAL / G0, force_weak=True)
+    assert len(cal.forced) == 1 and "exact fit" in cal.forced[0]
     K = cal.x[:3] / G0  # counts per g0 → counts per m/s², imucal's K_a unit
     np.testing.assert_allclose(K, np.diag(ref["K_a"]), rtol=3e-4)
     np.testing.assert_allclose(cal.x[:3] * cal.x[3:6], ref["b_a"], atol=1.0)
-    assert cal.fit.rms_g < 1e-9  # six positions, six parameters: an exact fit, no residual to judge it by
+    assert cal.fit.rms_g < 1e-9
     # Six ±axis poses observe no misalignment with the norm cost: linear9 is refused, and its Jacobian at
     # these positions has rank 6 with the three angles as the unobservable directions.
     with pytest.raises(InputError, match="fewer than the 9 parameters"):
@@ -97,11 +102,19 @@ def test_imucal_norm_fit_agrees_with_imucal_within_method_differences(annotated)
 
 
 def test_imucal_session_through_the_cli(tmp_path, capsys):
+    """The six labelled poses give an exact diag6 fit: refused in one line, nothing written; with
+    --force-weak it is written, marked as forced, and equals imucal's scale factors to 3e-4."""
+    cal = tmp_path / "cal.json"
     argv = ["calibrate", str(IMUCAL / "annotated_session.csv"), "--raw", "--columns", "acc_x,acc_y,acc_z",
             "--rate", "204.8", "--units", "counts", "--labels", "part=" + ",".join(POSES), "--model", "diag6",
-            "--gravity-ms2", "9.81", "--json"]
-    assert main(argv) == 0
+            "--gravity-ms2", "9.81", "-o", str(cal)]
+    assert main(argv) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "exact fit" in err[0] and "--force-weak" in err[0]
+    assert not cal.exists()
+    assert main([*argv, "--force-weak", "--json"]) == 0
     out = json.loads(capsys.readouterr().out)
+    assert json.loads(cal.read_text())["forced"]
     ref = json.loads((IMUCAL / "example_cal.json").read_text())
     K = np.array([out["parameters"][f"K_{a}"] for a in "xyz"]) / G0
     np.testing.assert_allclose(K, np.diag(ref["K_a"]), rtol=3e-4)
@@ -120,9 +133,9 @@ def mpu():
 def test_mpu6050_detection_finds_the_reference_poses(mpu):
     rec, ref = mpu
     assert rec.rate == 100.0 and len(rec) == 10245 and not rec.saturated.any()  # the gyro saturates, not acc
-    det = choose_threshold(rec, "linear9")
+    det = choose_threshold(rec, "diag6")
     assert det.n_intervals == 10 == len(ref)
-    assert det.k == 7  # the search: k = 2 finds 7 intervals; 3…10 find 10, k = 7 fits best
+    assert det.k == 8  # the search with diag6: k = 8 fits best of those that find the 10 poses
     ov = _overlaps(det.intervals, ref)
     # one to one: each reference interval lies inside exactly one detected interval, and vice versa
     assert np.all((ov > 0).sum(axis=0) == 1) and np.all((ov > 0).sum(axis=1) == 1)
@@ -137,21 +150,27 @@ def test_mpu6050_scale_factors_near_nominal_and_residual(mpu):
     rec, ref = mpu
     theirs = np.loadtxt(MPU / "params_acc.csv")  # 3 misalignments, 3 scales (m/s² per count), 3 biases (counts)
     K_theirs = G0 / theirs[3:6]
-    results = {}
-    for model in ("diag6", "linear9"):
-        det = choose_threshold(rec, model)
-        cal = calibrate(positions_from_recording(rec, det), model)
-        K = cal.x[:3]
-        # MPU-6050 datasheet: 16384 LSB/g ±3 % at ±2 g
-        assert np.all(np.abs(K / 16384 - 1) < 0.03), K
-        np.testing.assert_allclose(K, K_theirs, rtol=0.005)
-        # their biases are the negated output offsets (they calibrate raw + b)
-        np.testing.assert_allclose(cal.x[:3] * cal.x[3:6], -theirs[6:], atol=25.0)
-        results[model] = (det, cal)
-    # residual RMS: diag6 measured 518 µg (no cross-axis terms), linear9 36 µg with one spare degree of freedom
-    assert 400e-6 < results["diag6"][1].fit.rms_g < 650e-6
-    assert results["linear9"][1].fit.rms_g < 60e-6
-    assert results["diag6"][0].n_intervals == 10
+    det = choose_threshold(rec, "diag6")
+    data = positions_from_recording(rec, det)
+    results = {"diag6": calibrate(data, "diag6"), "default": calibrate(data)}
+    # ten poses do not determine linear9 (one residual degree of freedom, and S_yz = 0.093 rad fitted, beyond
+    # ±5°): refused, and the default nonlinear12 falls back to diag6, the richest model they determine
+    with pytest.raises(InputError, match="only 1 residual degree"):
+        calibrate(data, "linear9")
+    assert results["default"].model.name == "diag6"
+    np.testing.assert_array_equal(results["default"].x, results["diag6"].x)
+    weak = calibrate(data, "linear9", force_weak=True)
+    assert any("implausible" in r for r in weak.forced) and weak.fit.rms_g < 60e-6  # 38 µg, 1 dof
+    cal = results["diag6"]
+    K = cal.x[:3]
+    # MPU-6050 datasheet: 16384 LSB/g ±3 % at ±2 g
+    assert np.all(np.abs(K / 16384 - 1) < 0.03), K
+    np.testing.assert_allclose(K, K_theirs, rtol=0.005)
+    # their biases are the negated output offsets (they calibrate raw + b)
+    np.testing.assert_allclose(cal.x[:3] * cal.x[3:6], -theirs[6:], atol=25.0)
+    # residual RMS: diag6 measured 518 µg (no cross-axis terms)
+    assert 400e-6 < cal.fit.rms_g < 650e-6
+    assert det.n_intervals == 10
     # with their intervals the same diag6 fit gives their scale factors to 0.05 %
     cal = calibrate(positions_from_recording(rec, given_intervals(rec, ref)), "diag6")
     np.testing.assert_allclose(cal.x[:3], K_theirs, rtol=5e-4)
@@ -181,6 +200,6 @@ def test_imucal_continuous_session_detection_finds_the_six_poses():
     assert det.n_intervals == 13 and np.all(ang.min(axis=1) < 0.5)
     assert set(ang.argmin(axis=1)) == set(range(6))
     # and the calibration from the detected intervals agrees with the one from the section list
-    a, b = calibrate(data, "diag6"), calibrate(poses, "diag6")
+    a, b = calibrate(data, "diag6"), calibrate(poses, "diag6", force_weak=True)  # six sections: exact fit
     np.testing.assert_allclose(a.x[:3], b.x[:3], rtol=5e-4)
     np.testing.assert_allclose(a.x[3:6], b.x[3:6], atol=5e-4)
