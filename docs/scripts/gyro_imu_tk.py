@@ -31,11 +31,29 @@ IMU_TK_MIS = np.array([[1.0, 0.00593634, 0.00111101], [0.00808812, 1.0, -0.05355
                        [0.0253067, -0.0025513, 1.0]])
 IMU_TK_SCALE = np.array([0.000209295, 0.000209899, 0.000209483])
 IMU_TK_BIAS = np.array([32777.1, 32459.8, 32511.8])
+# and its accelerometer calibration of the same run (misalignment, scale in m/s² per count, bias in counts):
+# the body frame its gyroscope misalignments refer to.
+IMU_TK_ACC_MIS = np.array([[1.0, -0.0033593, -0.00890639], [0.0, 1.0, -0.0213341], [0.0, 0.0, 1.0]])
+IMU_TK_ACC_SCALE = np.array([0.00241278, 0.00242712, 0.00241168])
+IMU_TK_ACC_BIAS = np.array([33124.2, 33275.2, 32364.4])
 
 
 def imu_tk_matrix() -> np.ndarray:
     """imu_tk's calibration matrix: ω = Mis·diag(S)·(W − bias), rad/s per count."""
     return IMU_TK_MIS @ np.diag(IMU_TK_SCALE)
+
+
+def frame_rotation(N_rest: np.ndarray, F_rest: np.ndarray) -> np.ndarray:
+    """The rotation R (3, 3) from optcal's accelerometer frame to imu_tk's: the rests' gravity directions
+    calibrated by optcal (``F_rest``) and by imu_tk's accelerometer calibration (of the raw means
+    ``N_rest``) aligned in the least-squares sense (Kabsch, through scipy's align_vectors)."""
+    from scipy.spatial.transform import Rotation
+
+    theirs = (IMU_TK_ACC_MIS @ np.diag(IMU_TK_ACC_SCALE) @ (N_rest - IMU_TK_ACC_BIAS).T).T
+    theirs /= np.linalg.norm(theirs, axis=1, keepdims=True)
+    ours = F_rest / np.linalg.norm(F_rest, axis=1, keepdims=True)
+    rot, _ = Rotation.align_vectors(theirs, ours)
+    return rot.as_matrix()
 
 
 def calibrate_xsens(bias: str = "rests", g_sensitivity: bool = False) -> dict:
@@ -72,7 +90,11 @@ def calibrate_xsens(bias: str = "rests", g_sensitivity: bool = False) -> dict:
     chi2_dof = res.fun / dof
     sd, _ = analysis.crlb(p, x, noise_g=max(1.0, np.sqrt(chi2_dof)))
     K, T, b, _ = (a[0] for a in p.model.matrices(x[None]))
-    M = np.linalg.inv(T) / K[None, :]
+    # optcal's gyroscope in imu_tk's accelerometer frame: ω' = R·ω, so M' = R·M (the misalignments are
+    # relative to the accelerometer's frame, which the two tools fix differently)
+    N_rest = np.array([acc.N[a:b_].mean(axis=0) for a, b_ in det.intervals])
+    R = frame_rotation(N_rest, data.rest_F)
+    M = R @ np.linalg.inv(T) / K[None, :]
     # the bias in counts (imu_tk's convention) and its SE by the delta method on K·b
     cov = _covariance(p, x, chi2_dof)
     if p.model.bias:
@@ -84,17 +106,17 @@ def calibrate_xsens(bias: str = "rests", g_sensitivity: bool = False) -> dict:
     else:  # the first rest's mean output and its SE (white noise; Birge-scaled as the rest)
         bias_counts = data.rest_W[0]
         se_bias = data.rest_sd_W[0] / np.sqrt(data.rest_n[0]) * np.sqrt(max(1.0, chi2_dof))
-    se_M = _matrix_se(p, x, cov)
+    se_M = _matrix_se(p, x, cov, R)
     r = p.residuals_full(x)[0]
     chi2_parts = (float(np.sum(r[: p.n_motion_residuals] ** 2)), float(np.sum(r[p.n_motion_residuals:] ** 2)))
     before = p.motion_angles(p.centre)
     after = p.motion_angles(x)
     # imu_tk's calibration, evaluated by the same residual (its bias and matrix in optcal's parameters)
-    imu_tk_x = _imu_tk_vector(p)
+    imu_tk_x = _imu_tk_vector(p, R)
     return {"x": x, "names": p.model.names, "sd": sd, "M": M, "se_M": se_M, "bias_counts": bias_counts,
             "se_bias": se_bias, "chi2_dof": chi2_dof, "dof": dof, "rank": obs.rank, "n_rests": data.n_rests,
             "n_motions": data.n_motions, "angles_before": before, "angles_after": after,
-            "angles_imu_tk": p.motion_angles(imu_tk_x), "cost": res.fun, "nfev": res.nfev,
+            "angles_imu_tk": p.motion_angles(imu_tk_x), "frame_rotation": R, "cost": res.fun, "nfev": res.nfev,
             "solver_s": res.runtime_s, "chi2_motions_rests": chi2_parts, "total_s": time.perf_counter() - t0}
 
 
@@ -103,15 +125,17 @@ def _covariance(p, x, chi2_dof: float) -> np.ndarray:
     return np.linalg.inv(J.T @ J) * max(1.0, chi2_dof)
 
 
-def _matrix_se(p, x, cov) -> np.ndarray:
-    """SE (3, 3) of M = T⁻¹·diag(1/K) (delta method through the model's affine Jacobian)."""
-    A = p.model.affine_jacobian(x)[:9]
+def _matrix_se(p, x, cov, R) -> np.ndarray:
+    """SE (3, 3) of R·M, M = T⁻¹·diag(1/K) (delta method through the model's affine Jacobian; R, fixed by
+    40 accelerometer directions to about 3e-5 rad, is taken as exact)."""
+    A = np.einsum("ij,jkp->ikp", R, p.model.affine_jacobian(x)[:9].reshape(3, 3, -1)).reshape(9, -1)
     return np.sqrt(np.diag(A @ cov @ A.T)).reshape(3, 3)
 
 
-def _imu_tk_vector(p) -> np.ndarray:
-    """optcal's parameters of imu_tk's calibration: M = T⁻¹·diag(1/K) and offset K·b = bias."""
-    M = imu_tk_matrix()
+def _imu_tk_vector(p, R) -> np.ndarray:
+    """optcal's parameters of imu_tk's calibration in optcal's frame: M = Rᵀ·M_imu_tk = T⁻¹·diag(1/K) and
+    offset K·b = bias."""
+    M = R.T @ imu_tk_matrix()
     Minv = np.linalg.inv(M)  # = diag(K)·T
     K = np.diag(Minv).copy()
     T = Minv / K[:, None]
