@@ -85,12 +85,16 @@ class Criterion:
         idx = np.array([names.index(n) for n in self.targets], int)
         return idx, np.array([self.targets[n] for n in self.targets], float)
 
-    def of_information(self, F: np.ndarray, smooth: bool = False) -> np.ndarray:
-        """The criterion (S,) of F_obs (S, r, r); ``smooth``: the targets' 16-norm instead of the maximum."""
+    def of_information(self, F: np.ndarray, smooth: bool = False, ridge: float = 0.0) -> np.ndarray:
+        """The criterion (S,) of F_obs (S, r, r); ``smooth``: the targets' 16-norm instead of the maximum;
+        ``ridge`` > 0: of F_obs + ridge·I, a prior that determines every direction (no singularity test), so
+        that designs which do not yet determine the model still have an order (Bayesian design)."""
         F = np.asarray(F, float)
+        if ridge > 0:
+            F = F + ridge * np.eye(F.shape[-1])
         if self.kind == "targets":
             idx, t = self.target_index
-            ratio = self.info.sd(F)[:, idx] / t
+            ratio = self.info.sd(F, check=ridge <= 0)[:, idx] / t
             if not smooth:
                 return ratio.max(axis=1)
             with np.errstate(over="ignore", invalid="ignore"):
@@ -98,7 +102,7 @@ class Criterion:
                 v = top[:, 0] * np.sum((ratio / top) ** SMOOTH_P, axis=1) ** (1.0 / SMOOTH_P)
             return np.where(np.isfinite(top[:, 0]), v, np.inf)
         lam = np.linalg.eigvalsh(F)
-        ok = lam[:, 0] > RTOL**2 * np.maximum(lam[:, -1], 1e-300)
+        ok = (lam[:, 0] > RTOL**2 * np.maximum(lam[:, -1], 1e-300)) | (ridge > 0)
         lam = np.where(ok[:, None], lam, 1.0)
         if self.kind == "D":
             v = np.exp(-np.mean(np.log(lam), axis=1))

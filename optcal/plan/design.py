@@ -10,7 +10,8 @@ random start improve; the reported criterion has no ridge. Several random starts
 
 Refinement: every direction moves in its own tangent plane, a_j = normalise(a⁰_j + t₁ e₁ + t₂ e₂) (smooth
 everywhere, unlike polar angles at the poles), and L-BFGS-B (SciPy) minimises the criterion over the 2N
-offsets (of the criterion's logarithm), with central-difference gradients evaluated as one population of 4N + 1 designs per step.
+offsets (of the criterion's logarithm), with central-difference gradients evaluated as one population of
+4N + 1 designs per step.
 """
 
 from __future__ import annotations
@@ -45,7 +46,7 @@ def exchange(crit: Criterion, cands: np.ndarray, n: int, rng: np.random.Generato
     R = crit.info.projected_rows(cands)  # (K, r)
     outer = R[:, :, None] * R[:, None, :]
     r = R.shape[1]
-    ridge = RIDGE * np.trace(outer.mean(axis=0)) / r * np.eye(r)
+    ridge = RIDGE * np.trace(outer.mean(axis=0)) / r
     K = len(cands)
     inits = [] if init is None else [np.asarray(init, int)]
     inits += [rng.choice(K, n, replace=n > K) for _ in range(starts)]
@@ -53,12 +54,12 @@ def exchange(crit: Criterion, cands: np.ndarray, n: int, rng: np.random.Generato
     for idx in inits:
         idx = idx.copy()
         F = outer[idx].sum(axis=0)
-        val = crit.of_information((F + ridge)[None], smooth=True)[0]
+        val = crit.of_information(F[None], smooth=True, ridge=ridge)[0]
         for _ in range(max_passes):
             improved = False
             for i in range(n):
-                Fm = F - outer[idx[i]] + ridge
-                vals = crit.of_information(Fm[None] + outer, smooth=True)
+                Fm = F - outer[idx[i]]
+                vals = crit.of_information(Fm[None] + outer, smooth=True, ridge=ridge)
                 c = int(np.argmin(vals))
                 if vals[c] < val * (1 - 1e-12):
                     F = F - outer[idx[i]] + outer[c]

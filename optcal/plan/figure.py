@@ -47,8 +47,11 @@ def plan_figure(directions: np.ndarray, title: str = "", reference: np.ndarray |
             if m[i] and m[i + 1]:
                 ax.plot(q[i:i + 2, 0], q[i:i + 2, 1], "-", color="tab:blue", lw=0.7, alpha=0.5)
         ax.plot(p[:, 0], p[:, 1], "o", color="tab:blue", ms=7)
+        labels: dict = {}  # a pose planned twice (or more) gets one label naming each of its positions
         for i, (x, y) in zip(idx, p):
-            ax.annotate(str(i + 1), (x, y), xytext=(4, 4), textcoords="offset points", fontsize=8)
+            labels.setdefault((round(x, 2), round(y, 2)), []).append(str(i + 1))
+        for (x, y), names in labels.items():
+            ax.annotate(",".join(names), (x, y), xytext=(4, 4), textcoords="offset points", fontsize=8)
         ax.set_aspect("equal")
         ax.set_xlim(-1.12, 1.12)
         ax.set_ylim(-1.12, 1.12)

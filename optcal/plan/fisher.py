@@ -91,11 +91,12 @@ class InformationModel:
         R = self.projected_rows(np.asarray(directions, float).reshape(-1, *np.shape(directions)[-2:]))
         return np.einsum("snp,snq->spq", R, R)
 
-    def sd(self, F: np.ndarray) -> np.ndarray:
+    def sd(self, F: np.ndarray, check: bool = True) -> np.ndarray:
         """Cramér-Rao SD (S, p) of every parameter's observable part, in the parameters' own units, from F_obs
-        (S, r, r); inf where F_obs is singular (the design does not determine the parameters)."""
+        (S, r, r); inf where F_obs is singular (the design does not determine the parameters; ``check``
+        False: no such test, for an information with a prior)."""
         lam, V = np.linalg.eigh(F)
-        ok = lam[:, 0] > RTOL**2 * np.maximum(lam[:, -1], 1e-300)
+        ok = (lam[:, 0] > RTOL**2 * np.maximum(lam[:, -1], 1e-300)) | (not check)
         inv = np.where(ok[:, None], 1.0 / np.where(lam > 0, lam, 1.0), 0.0)
         W = self.basis @ V  # (S, p, r): the eigenvectors in parameter coordinates
         var = np.einsum("spr,sr->sp", W * W, inv)

@@ -5,7 +5,7 @@ Faces and tilts (docs/planning.md §4): the face down is the side of the case wh
 table, −s·k for the specific force's largest component A_k of sign s (A points up, away from the table).
 With (k, i, j) cyclic (z, x, y / x, y, z / y, z, x), the two tilts α, β satisfy
 A_i = sin β, A_j = cos β · sin α, s·A_k = cos β · cos α: tilt by α about the i axis, then by β about the
-(tilted) j axis; both lie within ±45° (α) and ±35.3° (β) since A_k is the largest component.
+(tilted) j axis; both lie within ±45° since A_k is the largest component.
 """
 
 from __future__ import annotations
@@ -79,7 +79,7 @@ def candidates(fixture: str, grid: int = 1000) -> tuple[np.ndarray, bool]:
     if spec.startswith("faces:"):
         step = _step(spec)
         t = np.arange(-45.0, 45.0 + 1e-9, step)
-        A, B = np.meshgrid(t, t[np.abs(t) <= 35.27], indexing="ij")
+        A, B = np.meshgrid(t, t, indexing="ij")
         n = A.size
         faces = np.repeat(np.arange(3), 2 * n)
         signs = np.tile(np.repeat([1.0, -1.0], n), 3)

@@ -47,11 +47,12 @@ def placement_score(crit: Criterion, directions: np.ndarray, sigma_deg: float, r
     planned = float(crit(d[None])[0])
     placed = tilt(np.tile(d, (draws, 1)), sigma_deg, rng).reshape(draws, len(d), 3)
     v = crit(placed)
-    mean, p95 = float(np.mean(v)), float(np.quantile(v, 0.95))
+    # "higher": no interpolation, so a placement that loses the model (+inf) gives +inf, not NaN
+    mean, p95 = float(np.mean(v)), float(np.quantile(v, 0.95, method="higher"))
     p_miss = None
     if crit.kind == "targets":
         p_miss = float(np.mean(v > 1.0))
         fragile = planned <= 1.0 and p_miss > 0.05
     else:
-        fragile = p95 > (1 + FRAGILE) * planned
+        fragile = not p95 <= (1 + FRAGILE) * planned
     return PlacementScore(float(sigma_deg), draws, planned, mean, p95, p_miss, bool(fragile))

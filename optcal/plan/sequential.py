@@ -64,10 +64,10 @@ def next_best(crit: Criterion, recorded: np.ndarray, fixture: str = "free", grid
     R = crit.info.projected_rows(cands)
     outer = R[:, :, None] * R[:, None, :]
     r = R.shape[1]
-    ridge = RIDGE * np.trace(outer.mean(axis=0)) / r * np.eye(r)
+    ridge = RIDGE * np.trace(outer.mean(axis=0)) / r
     d0 = np.asarray(recorded, float).reshape(-1, 3)
     F0 = crit.info.information(d0[None])[0] if len(d0) else np.zeros((r, r))
-    vals = crit.of_information(F0 + ridge + outer, smooth=True)
+    vals = crit.of_information(F0 + outer, smooth=True, ridge=ridge)
     c = int(np.argmin(vals))
     best, val = cands[c], float(vals[c])
     if refine and continuous:
@@ -81,7 +81,7 @@ def next_best(crit: Criterion, recorded: np.ndarray, fixture: str = "free", grid
             dd = moved(best[None], e1, e2, T)[:, 0]
             Rn = crit.info.projected_rows(dd)
             with np.errstate(divide="ignore"):
-                v = np.log(crit.of_information(F0 + ridge + Rn[:, :, None] * Rn[:, None, :], smooth=True))
+                v = np.log(crit.of_information(F0 + Rn[:, :, None] * Rn[:, None, :], smooth=True, ridge=ridge))
             g = (v[1:3] - v[3:]) / 2e-6
             return float(v[0]), (g if np.all(np.isfinite(g)) else np.zeros(2))
 
