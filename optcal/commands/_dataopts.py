@@ -128,7 +128,8 @@ def raw_options(args) -> dict:
 def load_positions(args, path) -> PositionsData:
     """Positions from a positions CSV or MAT file, or (``--raw``) from a raw recording via static-interval
     detection. A raw recording given as positions is named as such (and a positions file given with
-    ``--raw`` by the reader)."""
+    ``--raw`` by the reader): both by the one decision of :func:`optcal.recording.sniff.table_kind`, from the
+    data, so that following one advice never meets the other."""
     if getattr(args, "raw", False):
         from ..recording.workflow import positions_from_raw
 
@@ -141,9 +142,11 @@ def load_positions(args, path) -> PositionsData:
     from ..recording.reading import raw_file_reason
     from ..recording.sniff import is_mat
 
-    reason = raw_file_reason(Path(path)) if Path(path).is_file() else None
-    if reason:
-        raise InputError(f"{path} looks like a raw recording, not a positions file ({reason}); pass --raw")
+    found = raw_file_reason(Path(path)) if Path(path).is_file() else None
+    if found:
+        reason, timed = found
+        raise InputError(f"{path} looks like a raw recording, not a positions file ({reason}); pass --raw"
+                         + ("" if timed or getattr(args, "rate", None) else " with --rate HZ (it has no time column)"))
     with flag_names():
         data = mat_positions(path, units=args.units) if is_mat(Path(path)) else read_positions(path, units=args.units)
     check_units(data, args.units)

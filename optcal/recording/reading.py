@@ -336,9 +336,10 @@ def _read_labels(path: Path, lay: Layout, column: str, n: int) -> np.ndarray:
     return lab
 
 
-def raw_file_reason(path) -> str | None:
-    """Why a file given as a positions file (docs/design.md §9.1) is a raw recording, or None: the decision
-    of :func:`~optcal.recording.sniff.table_kind` on its ax, ay, az columns as :func:`read_recording` finds
+def raw_file_reason(path) -> tuple[str, bool] | None:
+    """Why a file given as a positions file (docs/design.md §9.1) is a raw recording, and whether it has a
+    time column (else reading it needs a rate), or None: the decision of
+    :func:`~optcal.recording.sniff.table_kind` on its ax, ay, az columns as :func:`read_recording` finds
     them without `columns` (the first :data:`~optcal.recording.sniff.KIND_ROWS` rows are read). A file whose
     layout or columns cannot be found is left to the positions reader, whose message names the problem."""
     path = Path(path)
@@ -356,4 +357,4 @@ def raw_file_reason(path) -> str | None:
     except (InputError, ValueError, *DECODE_ERRORS):
         return None
     kind, why = table_kind(lay.header, N, nrows, None if lay.header else lay.ncol)
-    return why if kind == "samples" else None
+    return (why, "t" in cols) if kind == "samples" else None

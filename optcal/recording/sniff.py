@@ -59,7 +59,8 @@ POSITIONS_ONLY = ("position", "n", "sx", "sy", "sz", "ref_x", "ref_y", "ref_z")
 MANY_ROWS = 1000  # a table this long is samples when its data say so, whatever its columns are called
 # Positions or samples (table_kind), from the median jump between consecutive rows as a fraction of the rows'
 # magnitude: turns between positions of 12° or more make 0.2 or more; a recording's samples at 100 Hz differ by
-# noise (1 mg of noise: 0.0014) except while the sensor turns, a minority of the samples.
+# noise (1 mg of noise on each axis: 0.0022, the median of a 3-D difference being 2.2 σ) except while the
+# sensor turns, a minority of the samples.
 POSITION_JUMP = 0.2
 SAMPLE_JUMP = 0.05
 KIND_ROWS = 2000  # the rows the decision reads (a raw recording given as positions need not be read whole)
@@ -230,8 +231,8 @@ def table_kind(names, N: np.ndarray, nrows: int, ncol: int | None = None) -> tup
     if r is not None and r <= SAMPLE_JUMP:
         shape = f" of {ncol} numbers and no header" if ncol is not None else ""
         return "samples", (f"{nrows} rows{shape}, one per sample: consecutive rows differ by a median "
-                           f"{r:.2%} of the outputs' magnitude, as samples do (positions differ by a large "
-                           "fraction of g)")
+                           f"{r:.2%} of the outputs' magnitude, as samples do, where positions differ by a "
+                           "large fraction of g")
     return None, ""
 
 
