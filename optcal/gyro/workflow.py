@@ -1,0 +1,73 @@
+"""Fitting a gyroscope (application layer: it runs a registered solver): the fit, its refusal when the
+motions do not determine it, standard errors, and the g-sensitivity test.
+
+Standard errors are the Cramér-Rao bound of the whitened residuals (:func:`optcal.analysis.crlb` with
+unit noise), scaled by √(χ²/dof) when the fit's χ²/dof exceeds 1 (Birge): the whitening assumes white
+noise, and real rests hold more (bias instability, a hand that is not quite still).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .. import analysis
+from ..errors import InputError
+from .analysis import check_observable, g_sensitivity_test
+from .data import GyroData
+from .problem import GyroProblem
+
+
+@dataclass
+class GyroFit:
+    problem: GyroProblem
+    x: np.ndarray
+    stderr: np.ndarray
+    observability: analysis.Observability
+    result: object
+    chi2_dof: float
+    g_test: dict | None = None
+    notes: list = field(default_factory=list)
+
+
+def _fit(data, *, g_sensitivity, bias, scale, solver, options, seed, budget) -> GyroFit:
+    from solvers.registry import get
+
+    p = GyroProblem(data, g_sensitivity=g_sensitivity, bias=bias, scale=scale)
+    res = get(solver, **(options or {})).solve(p, rng=np.random.default_rng(seed), budget=budget)
+    if not np.isfinite(res.fun):
+        raise InputError(f"the gyroscope fit found no finite cost ({res.message}); check the gyroscope's columns "
+                         "and units")
+    obs = check_observable(p, res.x_full)
+    dof = p.n_residuals - p.model.n_params
+    if dof < 3:
+        raise InputError(f"{data.n_motions} motions and {data.n_rests} rests leave {dof} residual degrees of freedom "
+                         f"for the {p.model.n_params} gyroscope parameters; record more rests with rotations between")
+    chi2_dof = res.fun / dof
+    sd, _ = analysis.crlb(p, res.x_full, noise_g=max(1.0, float(np.sqrt(chi2_dof))))
+    return GyroFit(p, res.x_full, sd, obs, res, chi2_dof)
+
+
+def calibrate_gyro(data: GyroData, *, bias: str = "rests", g_sensitivity: bool = False, scale=None,
+                   solver: str = "scipy-lm", options: dict | None = None, seed: int = 0,
+                   budget: int | None = None) -> GyroFit:
+    """Fit the gyroscope of ``data`` (:class:`GyroData`). ``g_sensitivity``: fit G as well and keep it only
+    when the likelihood-ratio test finds it (:func:`optcal.gyro.analysis.g_sensitivity_test`; needs the
+    bias fitted, ``bias="fit"``); the test's outcome is in ``g_test`` and a note either way."""
+    kw = dict(scale=scale, solver=solver, options=options, seed=seed, budget=budget)
+    if not g_sensitivity:
+        return _fit(data, g_sensitivity=False, bias=bias, **kw)
+    if bias != "fit":
+        raise InputError("g-sensitivity needs the gyroscope bias fitted: pass `gyro_bias` fit")
+    plain = _fit(data, g_sensitivity=False, bias="fit", **kw)
+    with_g = _fit(data, g_sensitivity=True, bias="fit", scale=plain.x[:3], **{k: v for k, v in kw.items()
+                                                                              if k != "scale"})
+    test = g_sensitivity_test(plain.result.fun, with_g.result.fun)
+    chosen = with_g if test.detected else plain
+    chosen.g_test = test.to_dict()
+    chosen.notes.append(
+        f"g-sensitivity {'found' if test.detected else 'not found'}: likelihood ratio {test.statistic:.1f} on "
+        f"{test.dof} degrees of freedom, p = {test.p_value:.2g} (threshold 1e-3)"
+        + ("" if test.detected else "; the file holds the model without it"))
+    return chosen
