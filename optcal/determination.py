@@ -204,7 +204,9 @@ def way_out(refusals: list[Refusal], model: Model, smaller: str | None) -> str:
 def line(refusals: list[Refusal], model: Model, smaller: str | None, *, chain_tried: bool = False) -> str:
     """The one-line refusal: the reasons, that no smaller model of the chain is determined either
     (``chain_tried``: the default model's fallback found none), then the way out."""
-    also = f" (nor is any smaller model of {' → '.join(FALLBACK)})" if chain_tried else ""
+    least = get_model(FALLBACK[-1])
+    also = (f" (nor is any smaller model of {' → '.join(FALLBACK)}: {least.name} needs {least.n_params + MIN_DOF} "
+            "varied positions or more)" if chain_tried else "")
     return "; ".join(r.reason for r in refusals) + also + "; " + way_out(refusals, model, smaller)
 
 

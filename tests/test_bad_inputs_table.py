@@ -78,6 +78,16 @@ def source(tmp_path_factory):
     (d / "huge_runs.toml").write_text('name = "x"\nruns = 100000000\nmodels = ["linear9"]\nschemes = ["24"]\n'
                                       '[[solvers]]\nname = "scipy-lm"\n')
     (d / "notadir").mkdir()
+    # data that do not determine a fit (issue #20, optcal.determination): 10 and 5 of the 24 positions, 12
+    # random positions for nonlinear12's 12 parameters, linear9 from 10 random positions (one spare), and
+    # positions of a sensor whose y axis is 10° off (a misalignment beyond ±5°)
+    sim.data.subset(range(10)).to_csv(d / "p10.csv")
+    sim.data.subset(range(5)).to_csv(d / "p5.csv")
+    simulate(m, truth, np.random.default_rng(5), scheme="random:12", noise_g=10e-6).data.to_csv(d / "p12.csv")
+    simulate(lin, {k: v for k, v in PAPER_TRUTH.items() if k in lin.names}, np.random.default_rng(6),
+             scheme="random:10", noise_g=10e-6).data.to_csv(d / "l10.csv")
+    simulate(lin, {**{k: v for k, v in PAPER_TRUTH.items() if k in lin.names}, "S_yz": np.radians(10.0)},
+             np.random.default_rng(7), scheme="24", noise_g=10e-6).data.to_csv(d / "tilt10.csv")
     return d
 
 
@@ -146,6 +156,17 @@ CASES = [
     row("calibrate-dwell-without-noise", CAL + ["--dwell-s", "10"], "--noise-from"),
     row("calibrate-option-without-value", CAL + ["--option", "ftol"], "KEY=VALUE"),
     row("calibrate-unknown-solver", CAL + ["--solver", "no-such-solver"], "no-such-solver"),
+    # calibrate: data that do not determine the fit (issue #20), nothing written even with -o
+    row("calibrate-too-few-positions-for-the-model", ["calibrate", "p10.csv", "--model", "nonlinear12", "-o",
+                                                      "new.json"], "fewer than the 12 parameters of nonlinear12"),
+    row("calibrate-too-few-positions-for-any-model", ["calibrate", "p5.csv", "-o", "new.json"],
+        "nor is any smaller model of nonlinear12 → linear9 → diag6"),
+    row("calibrate-exact-fit", ["calibrate", "p12.csv", "--model", "nonlinear12", "-o", "new.json"],
+        "an exact fit"),
+    row("calibrate-fewer-than-3-degrees-of-freedom", ["calibrate", "l10.csv", "--model", "linear9", "-o",
+                                                     "new.json"], "only 1 residual degree(s) of freedom"),
+    row("calibrate-implausible-result", ["calibrate", "tilt10.csv", "--model", "linear9", "-o", "new.json"],
+        "(10°) is beyond ±5°"),
     # apply: units against the calibration, options that do nothing, outputs
     row("apply-counts-calibration-to-g-data", ["apply", "calc.json", "raw_g.csv", "-o", "out.csv"], "counts"),
     row("apply-declared-units-disagree", APPLY + ["--units", "counts"], "fitted to outputs in 'g'"),

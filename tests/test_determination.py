@@ -170,7 +170,8 @@ def test_the_default_model_falls_back_to_the_richest_determined_one_in_one_note(
     # when no model of the chain is determined, the default's reason and that none smaller is either
     line = _refused(_sim().subset(range(8)))
     assert line.startswith("8 positions give 8 residuals, fewer than the 12 parameters of nonlinear12 (nor is any "
-                           "smaller model of nonlinear12 → linear9 → diag6); record at least 15 positions")
+                           "smaller model of nonlinear12 → linear9 → diag6: diag6 needs 9 varied positions or "
+                           "more); record at least 15 positions")
 
 
 def test_the_cli_falls_back_and_says_so(tmp_path, capsys):
