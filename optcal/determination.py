@@ -79,7 +79,7 @@ def structure(problem: CalibrationProblem, obs: Observability, *, gauge: bool = 
         return [Refusal("too_few", f"{n_pos} positions give {m} residuals, fewer than the {p} parameters of "
                                    f"{model.name}")]
     if obs.rank < p and not gauge:
-        dirs = "; ".join(" ".join(f"{w['weight']:+.2f}·{w['name']}" for w in d) for d in obs.unobservable)
+        dirs = describe_directions(obs.unobservable)
         return [Refusal("rank", f"these positions leave model {model.name} unobservable (rank {obs.rank} of {p}; "
                                 f"directions: {dirs})")]
     dof = m - obs.rank
@@ -90,6 +90,16 @@ def structure(problem: CalibrationProblem, obs: Observability, *, gauge: bool = 
         return [Refusal("dof", f"{n_pos} positions leave {model.name} only {dof} residual degree(s) of freedom "
                                f"({obs.rank} determined parameters), fewer than {MIN_DOF}")]
     return []
+
+
+def describe_directions(directions: list[list[dict]], most: int = 3) -> str:
+    """Unobservable directions for one line: each by its ``most`` largest weights, at most ``most`` of them."""
+    def one(d):
+        tail = " …" if len(d) > most else ""
+        return " ".join(f"{w['weight']:+.2f}·{w['name']}" for w in d[:most]) + tail
+
+    more = f"; and {len(directions) - most} more" if len(directions) > most else ""
+    return "; ".join(one(d) for d in directions[:most]) + more
 
 
 def exact(gof: GoodnessOfFit, n_pos: int) -> list[Refusal]:

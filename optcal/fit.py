@@ -108,6 +108,7 @@ class Calibration:
             "positions": self.positions,
             "notes": list(self.notes),
             "forced": list(self.forced),
+            "requested_model": self.requested_model,
             "nfev": r.nfev, "nit": r.nit, "runtime_s": r.runtime_s, "success": r.success, "message": r.message,
         }
 

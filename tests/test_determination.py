@@ -159,6 +159,7 @@ def test_the_default_model_falls_back_to_the_richest_determined_one_in_one_note(
     data = _sim().subset(range(10))  # 10 positions: nonlinear12 too many parameters, linear9 one spare
     cal = calibrate(data)
     assert cal.model.name == "diag6" and cal.requested_model == "nonlinear12"
+    assert cal.to_dict()["requested_model"] == "nonlinear12" and cal.to_dict()["forced"] == []
     assert cal.notes[0] == ("nonlinear12 (the default model) is not determined by these positions: 10 positions "
                             "give 10 residuals, fewer than the 12 parameters of nonlinear12; fitted diag6 instead, "
                             "the richest of nonlinear12 → linear9 → diag6 that they determine")
@@ -215,3 +216,19 @@ def test_a_forced_fit_is_recorded_in_its_file_and_announced_by_apply(tmp_path, c
     (tmp_path / "half.json").write_text(json.dumps({**g, "forced": True}))
     with pytest.raises(InputError, match="forced: true and its forced_reasons"):
         read_calibration(tmp_path / "half.json")
+
+
+def test_means_of_a_slow_tumble_taken_as_static_positions_are_refused():
+    """The issue's case: 13 'static' intervals cut from a slow continuous rotation. Gravity sweeps a cone in
+    the sensor frame, so the 13 means lie on one circle, which leaves even diag6's ellipsoid undetermined:
+    refused for every model of the chain, naming the directions (at most 3, each by its 3 largest weights)."""
+    from optcal.data import PositionsData
+    from optcal.recording.synth import tumble_recording
+
+    N = tumble_recording(np.random.default_rng(1), duration_s=120, turn_rate_dps=3.0).recording.N
+    starts = np.linspace(0, len(N) - 300, 13).astype(int)
+    data = PositionsData(N=np.array([N[i:i + 300].mean(axis=0) for i in starts]), units="g")
+    line = _refused(data)
+    assert line.startswith("these positions leave model nonlinear12 unobservable (rank 7 of 12; directions: ")
+    assert "; and 2 more)" in line and "(nor is any smaller model" in line
+    assert _refused(data, "diag6").startswith("these positions leave model diag6 unobservable (rank 5 of 6")
