@@ -196,7 +196,8 @@ def test_a_forced_fit_is_recorded_in_its_file_and_announced_by_apply(tmp_path, c
     assert "only 1 residual degree(s) of freedom" in capsys.readouterr().err
     assert main(argv + ["--force-weak"]) == 0
     out = capsys.readouterr().out
-    assert "note: forced although the data do not determine it: 10 positions leave linear9 only 1 residual degree(s)" in out
+    assert ("note: forced although the data do not determine it: 10 positions leave linear9 only 1 residual "
+            "degree(s)") in out
     d = json.loads(cal.read_text())
     assert d["forced"] is True and d["format_version"] == 2
     assert d["forced_reasons"][0] == ("10 positions leave linear9 only 1 residual degree(s) of freedom (9 "
@@ -232,3 +233,36 @@ def test_means_of_a_slow_tumble_taken_as_static_positions_are_refused():
     assert line.startswith("these positions leave model nonlinear12 unobservable (rank 7 of 12; directions: ")
     assert "; and 2 more)" in line and "(nor is any smaller model" in line
     assert _refused(data, "diag6").startswith("these positions leave model diag6 unobservable (rank 5 of 6")
+
+
+def test_real_recordings_that_determine_their_fits_are_not_refused():
+    """Hassan & Bao's 24 and 49 positions (g) with the default model and linear9, and the MPU-6050's ten poses
+    at the recording's own intervals (int16 counts, diag6: 4 spare degrees of freedom) pass every check;
+    the same ten poses do not determine linear9 (1 spare), which is refused."""
+    from scipy.io import loadmat
+
+    from optcal.data import PositionsData
+    from optcal.recording import given_intervals, positions_from_recording, read_recording
+
+    data = tests_data()
+    for name in ("CalibrationOfLowCostTriaxialInertialSensors.mat",
+                 "CalibrationOfLowCostTriaxialInertialSensors50.mat"):
+        (a,) = [v for k, v in loadmat(data / "hassan_bao" / name).items() if not k.startswith("__")]
+        positions = PositionsData(N=a.T if a.shape[0] == 3 else a, units="g")
+        for model in (None, "linear9"):
+            cal = calibrate(positions, model)
+            assert cal.forced == [] and cal.requested_model is None and cal.model.name == (model or "nonlinear12")
+    rec = read_recording(data / "mpu6050" / "example_data_calibration.csv", units="counts")
+    ref = np.loadtxt(data / "mpu6050" / "static_intervals.csv", delimiter=",").T.astype(int)
+    ref[:, 1] += 1
+    poses = positions_from_recording(rec, given_intervals(rec, ref))
+    cal = calibrate(poses, "diag6")
+    assert cal.forced == [] and np.all(np.abs(cal.x[:3] / determination.nominal_scale(poses)[0] - 1) < 0.03)
+    assert "only 1 residual degree(s) of freedom" in _refused(poses, "linear9")
+
+
+def tests_data():
+    """The folder of the recordings kept in the repository (docs/design.md §9.4)."""
+    from pathlib import Path
+
+    return Path(__file__).resolve().parent / "data"
