@@ -244,7 +244,7 @@ def test_real_recordings_that_determine_their_fits_are_not_refused():
     from optcal.data import PositionsData
     from optcal.recording import given_intervals, positions_from_recording, read_recording
 
-    data = tests_data()
+    data = _data_folder()
     for name in ("CalibrationOfLowCostTriaxialInertialSensors.mat",
                  "CalibrationOfLowCostTriaxialInertialSensors50.mat"):
         (a,) = [v for k, v in loadmat(data / "hassan_bao" / name).items() if not k.startswith("__")]
@@ -261,7 +261,7 @@ def test_real_recordings_that_determine_their_fits_are_not_refused():
     assert "only 1 residual degree(s) of freedom" in _refused(poses, "linear9")
 
 
-def tests_data():
+def _data_folder():
     """The folder of the recordings kept in the repository (docs/design.md §9.4)."""
     from pathlib import Path
 
