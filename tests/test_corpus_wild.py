@@ -142,7 +142,7 @@ CK_RATE = 100.0  # assumed: the source does not give it; 100 Hz makes each 100-s
 
 def _ck_ref():
     """The fit on the 160 blocks of 100 samples the logger wrote, one per pose (nonlinear12, determined:
-    rank 12, K2 terms up to 8 SE from zero)."""
+    rank 12; its quadratic terms, up to 0.0038 g per g², bring the residual RMS from 1.03 mg to 757 µg)."""
     rec = read_recording(CK, units="g", rate=CK_RATE)
     assert len(rec) == 16000
     blocks = np.column_stack([np.arange(0, 16000, 100), np.arange(100, 16001, 100)])
