@@ -26,6 +26,18 @@ from ..problem import CalibrationProblem
 from .sphere import fibonacci_sphere
 
 
+class _RowsProblem(CalibrationProblem):
+    """A problem built once (its closed-form start and gauge computed once), whose positions are then replaced:
+    the Jacobian of new directions costs only the kernel, not a new problem's linear fit of S·N positions.
+    Nothing but the data changes (no gauge rows, the centre and K0 stay at the nominal point's), so the packed
+    kernel buffers are the only state to drop. (A public way to do this belongs in CalibrationProblem.)"""
+
+    def with_outputs(self, N: np.ndarray) -> _RowsProblem:
+        self.data = PositionsData(N=N)
+        self._full_buffers = None
+        return self
+
+
 @dataclass(frozen=True)
 class InformationModel:
     """What the design criteria need of a model: Jacobian rows of directions, in natural units, projected
@@ -55,11 +67,19 @@ class InformationModel:
         N = self.model.forward(self.x, directions)[0]
         return CalibrationProblem(self.model, PositionsData(N=N), fix_gauge=False, check=False)
 
+    @cached_property
+    def _rows_problem(self) -> _RowsProblem:
+        d = fibonacci_sphere(64)
+        return _RowsProblem(self.model, PositionsData(N=self.model.forward(self.x, d)[0]), fix_gauge=False,
+                            check=False)
+
     def rows(self, directions: np.ndarray) -> np.ndarray:
         """Jacobian rows (..., p) in natural units of directions (..., 3), all in one compiled call."""
         d = np.asarray(directions, float)
         flat = d.reshape(-1, 3)
-        J = self._problem(flat).jacobian_full(self.x) * self.units
+        flat = flat / np.linalg.norm(flat, axis=1, keepdims=True)  # directions: only their orientation counts
+        N = self.model.forward(self.x, flat)[0]
+        J = self._rows_problem.with_outputs(N).jacobian_full(self.x) * self.units
         return J.reshape(*d.shape[:-1], J.shape[1])
 
     @cached_property
