@@ -17,6 +17,7 @@ import gzip
 import io
 import itertools
 import lzma
+from collections import Counter
 from collections.abc import Collection
 from dataclasses import dataclass
 from pathlib import Path
@@ -26,6 +27,7 @@ from .errors import InputError
 COMPRESSED = {".gz": gzip.open, ".bz2": bz2.open, ".xz": lzma.open}
 COMMENT = ("#", "%")  # a line starting with one of these is a comment (or a commented header)
 SNIFF_LINES = 200
+TAIL = 20  # the last lines sniffed that set the data's delimiter and pattern
 DECODE_ERRORS = (OSError, EOFError, lzma.LZMAError)  # what reading a (compressed) file may raise
 
 
@@ -146,6 +148,13 @@ def commented_header(line: str, delim: str | None, width: int, known: Collection
     return fields if any(f.lower() in low for f in fields) else None
 
 
+def _most_common(items: list):
+    """The most common of ``items``; of equally common ones, the one that occurs last."""
+    counts = Counter(items)
+    top = max(counts.values())
+    return next(x for x in reversed(items) if counts[x] == top)
+
+
 def refuse_duplicates(header: list[str], path: Path) -> None:
     """Two columns of one name (case-insensitive) would make the name ambiguous: refused, naming it."""
     low = [h.lower() for h in header]
@@ -158,7 +167,8 @@ def refuse_duplicates(header: list[str], path: Path) -> None:
 def sniff_layout(path: Path, known: Collection[str] = (), what: str = "a raw recording needs one row per "
                  "sample (t, ax, ay, az)") -> Layout:
     """Delimiter, header, leading key/value lines and the first data line, from the file's first lines. The
-    data are the last run of rows of one width and one pattern of numbers; the line before them is the
+    data are the last run of rows of the most common width and pattern of numbers among the last
+    :data:`TAIL` lines (a broken row after them is the loader's to name); the line before them is the
     header when it has text where they have numbers, else the last comment line before them when it is a
     header of ``known`` names (:func:`commented_header`). ``what`` ends the message for a file without
     data."""
@@ -167,13 +177,16 @@ def sniff_layout(path: Path, known: Collection[str] = (), what: str = "a raw rec
     comments = [(i, ln) for i, ln in enumerate(head) if is_comment(ln)]
     if not lines:
         raise InputError(f"{path} is empty; {what}")
-    delim, dec = delimiter_of(lines[-1][1])
+    # The data's delimiter and pattern (width, which cells are numbers) are the most common among the last
+    # TAIL lines (ties: the later), so a broken last row is left to the loader, which names it.
+    tail = lines[-TAIL:]
+    delim, dec = _most_common([delimiter_of(ln) for _, ln in tail])
     rows = [(i, split_fields(ln, delim)) for i, ln in lines]
     pattern = [(len(f), tuple(is_number(x, dec) for x in f)) for _, f in rows]
-    ref = pattern[-1]
+    ref = _most_common(pattern[-TAIL:])
     if not any(ref[1]):
         raise InputError(f"{path} has no numeric rows; {what}")
-    start = len(rows) - 1
+    start = max(k for k, p in enumerate(pattern) if p == ref)
     while start > 0 and pattern[start - 1] == ref:
         start -= 1
     header, commented = None, False
@@ -191,6 +204,12 @@ def sniff_layout(path: Path, known: Collection[str] = (), what: str = "a raw rec
         commented = header is not None
     if header is not None:
         refuse_duplicates(header, path)
+    runs = [k for k in range(len(before)) if pattern[k] == ref]  # before[k] is rows[k]
+    if runs:  # data rows above a line that breaks them: name that line
+        i, f = before[runs[-1] + 1] if runs[-1] + 1 < len(before) else rows[start - 1]
+        why = (f"{len(f)} field(s) where they have {ref[0]}" if len(f) != ref[0]
+               else "a cell that is not a number where they have one (an empty or text cell?)")
+        raise InputError(f"{path}: line {i + 1} ({','.join(f)}) breaks the data rows: {why}; fix or remove it")
     for i, f in reversed(before):  # the last such line is the one that breaks the run of data rows
         if len(f) == ref[0] and any(is_number(x, dec) for x in f):
             raise InputError(

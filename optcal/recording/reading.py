@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import io
 import re
+import warnings
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -294,7 +295,9 @@ def _load_numeric(path: Path, lay: Layout, usecols: list[int], max_rows: int | N
             return out
     comma = {j: (lambda s: float(s.replace(",", "."))) for j in usecols} if lay.decimal == "," else None
     try:
-        with _text(path) as fh:
+        with _text(path) as fh, warnings.catch_warnings():
+            # with max_rows, NumPy notes that blank lines do not count as rows: that is how they are meant
+            warnings.filterwarnings("ignore", message=".*max_rows", category=UserWarning)
             return np.loadtxt(fh, delimiter=lay.delimiter, skiprows=lay.skiprows, usecols=usecols, ndmin=2,
                               comments=COMMENT, dtype=float, converters=comma, max_rows=max_rows)
     except ValueError as exc:
