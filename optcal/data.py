@@ -18,6 +18,7 @@ from pathlib import Path
 import numpy as np
 
 from .errors import InputError
+from .tablefile import COMMENT, commented_header, csv_fields, delimiter_of, head_lines, header_fields, is_number
 
 REQUIRED = ("ax", "ay", "az")
 OPTIONAL = ("position", "t", "temp", "n", "sx", "sy", "sz", "se_x", "se_y", "se_z", "ref_x", "ref_y", "ref_z")
@@ -135,8 +136,6 @@ def read_positions(path: str | Path, units: str = "g") -> PositionsData:
     suffix, a UTF-8 byte-order mark, ``#`` and ``%`` comment lines. The header is the first line that is not
     a comment; when that line is all numbers, the last comment line before it if it names the columns
     (``# position ax ay az``), else the columns go by position (:func:`_positional_names`)."""
-    from .tablefile import COMMENT, commented_header, csv_fields, delimiter_of, head_lines, header_fields, is_number
-
     path = Path(path)
     lines = [(i + 1, ln.strip()) for i, ln in enumerate(head_lines(path, None, "a positions file")) if ln.strip()]
     data = [(i, ln) for i, ln in lines if not ln.startswith(COMMENT)]
