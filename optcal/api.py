@@ -107,10 +107,17 @@ def calibrate(data, model=None, *, solver: str = "scipy-lm", units: str | None =
     if unknown:
         raise InputError(f"calibrate() got unknown keyword(s) {', '.join(unknown)}; the recording options are "
                          f"{', '.join(_READING)}")
-    from .determination import DEFAULT_MODEL
+    from .determination import FALLBACK
 
-    # a raw recording's intervals are found for the model asked for, the default one when none is named
-    positions = _positions(data, units, raw, g_local, DEFAULT_MODEL if model is None else model, reading)
+    # A raw recording's intervals are found for the model asked for; for the default, for nonlinear12, or,
+    # when the recording has too few intervals for it, for the next model of the fallback chain.
+    for k, name in enumerate((model,) if model is not None else FALLBACK):
+        try:
+            positions = _positions(data, units, raw, g_local, name, reading)
+            break
+        except InputError:
+            if model is not None or not raw or k == len(FALLBACK) - 1:
+                raise
     return fit(positions, model, solver=solver, options=options, g_local=g_local, reference=reference,
                presets=presets, seed=seed, budget=budget, noise_g=noise_g, force_weak=force_weak)
 

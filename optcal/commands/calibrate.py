@@ -46,6 +46,22 @@ def add_arguments(p):
     add_data_options(p)
 
 
+def _default_positions(args):
+    """Positions for the default model. A raw recording's intervals are found for nonlinear12 as before; when
+    it has too few for that, for the next model of the fallback chain (linear9, then diag6), whose fit
+    then says so (docs/design.md §7.5). The last model's error is the one raised."""
+    from ..determination import FALLBACK
+
+    for k, name in enumerate(FALLBACK):
+        args.model = name
+        try:
+            return load_positions(args, args.data)
+        except InputError:
+            if not getattr(args, "raw", False) or k == len(FALLBACK) - 1:
+                raise
+    raise AssertionError("unreachable")  # the loop returns or raises
+
+
 def run(args) -> int:
     from ..fit import calibrate
     from ..presets import load_presets
@@ -67,11 +83,7 @@ def run(args) -> int:
         check_figure_path(args.plot)
     g_local = gravity_from_args(args)
     named = args.model is not None
-    if not named:  # a raw recording's intervals are found for the default model, as before the fallback
-        from ..determination import DEFAULT_MODEL
-
-        args.model = DEFAULT_MODEL
-    data = load_positions(args, args.data)
+    data = load_positions(args, args.data) if named else _default_positions(args)
     presets = load_presets(args.presets) if args.presets else None
     detection = data.extra.get("detection") if isinstance(data.extra, dict) else None
     noise_g, noise = None, None
