@@ -276,3 +276,43 @@ def test_mikov_without_columns_asks_for_them(tmp_path, capsys):
     code, _, err = _run(["calibrate", str(DATA / "mikov" / "imu0.log.gz"), *args, "-o", str(cal)], capsys)
     assert code == 2 and len(err.strip().splitlines()) == 1 and "--columns" in err
     assert not cal.exists()
+
+
+# == provenance: the files are the upstream files (each folder's README gives both MD5 sums) ================
+UPSTREAM_MD5 = {  # decompressed where the copy here is gzip-compressed
+    "mikov/imu0.log.gz": "65d42026d52256ac4e844de6e136e7ed",
+    "mikov/imu1.log.gz": "fca7dcd6f8a74a27cb8328da803d4bd4",
+    "mikov/imu2.log.gz": "40c52d24088238b6a152143444be54da",
+    "mikov/imu3.log.gz": "47e85fcb938ff9e500c08455f3353daf",
+    "mikov/imu4.log.gz": "0708d8a34bd813dd76fce3b948485977",
+    "ck_explorer/acc_log.csv": "4b2fe72ae9837345ba178fee78a85902",
+    "twlogger/T1D0711-00.CSV.gz": "e03eaa48f73d720ec3e001a76c8f92cb",
+    "twlogger/Tag1_LSM303cal.csv": "cab6434a9cb80b326dd37de2931fa1d5",
+    "sunsided/full_sphere_accelerometer.mat": "13d289a0e1582dd33b1e6961a3105ad1",
+    "sunsided/tilt_sphere_accelerometer.mat": "bc99bdce3951448a00086763d7d40309",
+}
+
+
+@pytest.mark.parametrize("name", list(UPSTREAM_MD5))
+def test_files_are_the_upstream_files(name):
+    import gzip
+    import hashlib
+
+    raw = (DATA / name).read_bytes()
+    if name.endswith(".gz"):
+        raw = gzip.decompress(raw)
+    assert hashlib.md5(raw).hexdigest() == UPSTREAM_MD5[name]
+
+
+def test_ck_explorer_is_160_blocks_of_100_samples():
+    """The README's reading of the file: the orientation steps every 100 rows. Of the 159 largest
+    sample-to-sample steps, 157 fall where a block of 100 rows begins (the smallest of those boundary steps
+    is 30 mg, their median 173 mg); inside a block the samples scatter by a few mg (median step 3.4 mg, a
+    few single-sample spikes up to 32 mg)."""
+    a = np.loadtxt(CK, delimiter=",", skiprows=1)
+    assert a.shape == (16000, 3)
+    step = np.linalg.norm(np.diff(a, axis=0), axis=1)  # step[i]: from row i to row i + 1
+    largest = np.argsort(step)[-159:] + 1  # the rows that begin with one of the 159 largest steps
+    assert np.sum(largest % 100 == 0) == 157
+    inside = np.delete(step, np.arange(99, 15999, 100))
+    assert np.median(inside) < 0.005 and np.median(step[99::100]) > 0.15
