@@ -34,7 +34,8 @@ def add_arguments(p):
                    "rests, interpolated between them (follows a drifting bias; default), or fitted as constants")
     p.add_argument("--g-sensitivity", action="store_true", help="also fit the gyroscope's g-sensitivity and keep it "
                    "when a likelihood-ratio test finds it (needs --gyro-bias fit)")
-    p.add_argument("--model", default="linear9", help="the accelerometer's model (default linear9)")
+    p.add_argument("--model", help="the accelerometer's model (default as optcal calibrate's: nonlinear12, or the "
+                   "richest of linear9 and diag6 the rests determine, said in a note)")
     p.add_argument("--solver", default="scipy-lm", help="registered solver for both sensors (default scipy-lm)")
     p.add_argument("--option", action="append", metavar="KEY=VALUE", help="solver option (repeatable)")
     p.add_argument("--seed", type=int, default=0, help="seed of the solver's random generator")
@@ -93,11 +94,16 @@ def run(args) -> int:
     check_output_folder(args.output)
     args.raw = True
     g_local = gravity_from_args(args)
+    named = args.model is not None
+    if not named:  # the rests are found for the default model, as optcal calibrate does
+        from ..determination import DEFAULT_MODEL
+
+        args.model = DEFAULT_MODEL
     positions = load_positions(args, args.data)
     det = positions.extra["detection"]
     acc = det.recording
-    cal = calibrate(positions, args.model, solver=args.solver, options=parse_options(args.option), g_local=g_local,
-                    seed=args.seed, budget=args.budget)
+    cal = calibrate(positions, args.model if named else None, solver=args.solver, options=parse_options(args.option),
+                    g_local=g_local, seed=args.seed, budget=args.budget)
     gyr = _gyro_recording(args, acc)
     join_times(acc.t, gyr.t)
     F = cal.model.inverse(np.asarray(cal.x, float)[None], acc.N)[0]

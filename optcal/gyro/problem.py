@@ -81,6 +81,19 @@ def common_scale(model: GyroModel, data: GyroData, k_min: float, k_max: float, n
 BIAS_MODES = ("fit", "rests")
 
 
+def _check_rotation_seen(data: GyroData) -> None:
+    """Refuse a gyroscope that stays within its rest noise (5 SD) through every motion that turned the
+    gravity direction by 5° or more: wrong columns, or a gyroscope that was off."""
+    quiet = []
+    for k in np.flatnonzero(data.turn >= np.deg2rad(5.0)):
+        a, b = data.start[k], data.stop[k]
+        dev = np.abs(data.W[a:b + 1] - data.rest_W[k]) / np.maximum(data.rest_sd_W[k], 1e-300)
+        quiet.append(dev.max() < 5.0)
+    if quiet and all(quiet):
+        raise InputError("the gyroscope's output stays within its rest noise through every motion although the "
+                         "gravity direction turns: wrong gyroscope columns, or the gyroscope was off; check them")
+
+
 class GyroProblem:
     """Gyroscope calibration from ``data`` (:class:`GyroData`) with the model of
     :mod:`optcal.gyro.model` (``g_sensitivity`` adds G). ``bias``: ``fit`` (parameters, determined by
@@ -110,6 +123,7 @@ class GyroProblem:
         if np.all(still):
             raise InputError("no motion turns the gravity direction by 5° or more: the recording has no rotation "
                              "between its rests; turn the sensor between rests")
+        _check_rotation_seen(data)
         if scale is None:
             scale = common_scale(self.model, data, 1e-3, 1e7)
         K = np.broadcast_to(np.asarray(scale, float), (3,)).copy()
@@ -254,6 +268,16 @@ class GyroProblem:
         reads: unwhitened)."""
         R = self.residuals_full(x_full)[0][: self.n_motion_residuals].reshape(-1, 2) * self.sd_motion[:, None]
         return np.linalg.norm(R, axis=1)
+
+    def rotation(self, x_full, start: int, stop: int) -> np.ndarray:
+        """Rotation vector (3,) in rad, body frame, of the attitude change from sample ``start`` to ``stop``
+        integrated with the rate ``x_full`` calibrates (the integrator of the residuals)."""
+        P = np.ascontiguousarray(self.model.affine(np.asarray(x_full, float)[None])[0])
+        d = self.data
+        q = np.array(_kernel()._integrate(P, d.W, d.F, d.t, int(start), int(stop)))
+        v = q[1:] * np.sign(q[0] if q[0] != 0 else 1.0)
+        n = np.linalg.norm(v)
+        return np.zeros(3) if n == 0 else v / n * 2.0 * np.arctan2(n, abs(q[0]))
 
     def rms(self, x_full) -> float:
         return float(np.sqrt(np.mean(self.position_residuals(x_full) ** 2)))

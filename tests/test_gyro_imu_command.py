@@ -1,0 +1,178 @@
+"""optcal imu (issue #23): both sensors from one recording or two files into one calibration file; imucal's
+Ferraris session end to end; bad input refused in one line with exit status 2 and nothing written."""
+
+from __future__ import annotations
+
+import gzip
+import importlib.util
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+from scipy.spatial.transform import Rotation
+
+from optcal.cli import main
+from optcal.gyro import draw_truth, get_gyro_model, simulate_imu
+from optcal.gyro.calfile import read_gyro_block
+
+ROOT = Path(__file__).resolve().parents[1]
+IMUCAL = ROOT / "tests" / "data" / "imucal" / "example_ferraris_session.csv"
+IMUCAL_ARGS = ["--columns", "ax=acc_x,ay=acc_y,az=acc_z", "--rate", "102.4", "--units", "m/s2",
+               "--gyro-columns", "gyr_x,gyr_y,gyr_z", "--gyro-units", "deg/s", "--model", "diag6"]
+
+
+def _cli(argv, capsys):
+    code = main(argv)
+    out = capsys.readouterr()
+    return code, out.out, out.err
+
+
+def _write(path, t, F, W):
+    head = "t,ax,ay,az,gx,gy,gz"
+    np.savetxt(path, np.column_stack([t, F, W]), delimiter=",", header=head, comments="", fmt="%.9g")
+    return path
+
+
+def _recording(tmp_path, seed=0, attitudes=None, name="imu.csv", **kw):
+    rng = np.random.default_rng(seed)
+    model = get_gyro_model(False)
+    x = draw_truth(model, rng, 1000.0)
+    x[9:12] += 32768 / 1000.0  # an unsigned ADC's mid-scale offset
+    sim = simulate_imu(model, x, poses=24, rest_s=3.0, attitudes=attitudes, rng=rng, **kw)
+    d = sim.data
+    return _write(tmp_path / name, d.t, d.F, np.round(d.W)), x, sim
+
+
+ARGS = ["--gyro-columns", "gx,gy,gz", "--gyro-units", "counts", "--gyro-scale", "1000", "--model", "linear9"]
+
+
+def test_one_file_gives_one_calibration_file_with_both_sensors(tmp_path, capsys):
+    path, x, _ = _recording(tmp_path)
+    out = tmp_path / "imu.json"
+    code, text, err = _cli(["imu", str(path), *ARGS, "-o", str(out)], capsys)
+    assert code == 0, err
+    d = json.loads(out.read_text())
+    assert d["format"] == "optcal-calibration" and d["model"] == "linear9"
+    g = d["gyroscope"]
+    assert g["model"] == "gyro9" and g["bias_mode"] == "rests"
+    assert g["units"] == {"raw": "counts", "calibrated": "rad/s", "parameters": {
+        **{f"K_{a}": "counts/(rad/s)" for a in "xyz"}, **{n: "rad" for n in ("T_xy", "T_xz", "T_yx", "T_yz",
+                                                                            "T_zx", "T_zy")}}}
+    est = np.array([g["parameters"][n] for n in get_gyro_model(False, bias=False).names])
+    se = np.array([g["stderr"][n] for n in get_gyro_model(False, bias=False).names])
+    assert np.all(np.abs(est - x[:9]) < 4 * se)  # the 12-bit rounding adds little to the noise
+    assert g["data"]["n_motions"] == 23 and g["observability"]["rank"] == 9
+    # read back and applied: the rests' rates are zero to within their noise
+    cal = read_gyro_block(d, out)
+    w = cal.apply((x[:3] * x[9:12])[None])  # a rest's output: K·b
+    assert np.all(np.abs(w) < 1e-3)
+    assert "gyroscope: model gyro9" in text and f"wrote {out}" in text
+
+
+def test_two_files_sharing_times_as_imu_tk(tmp_path, capsys):
+    """imu_tk's Xsens pair through the command: the gyroscope block matches the library's calibration
+    (docs/scripts/gyro_imu_tk.py) to the last digit of its scale factors."""
+    acc, gyr = tmp_path / "xsens_acc.mat", tmp_path / "xsens_gyro.mat"
+    for f in (acc, gyr):
+        f.write_bytes(gzip.decompress((ROOT / "tests" / "data" / "imu_tk" / f"{f.name}.gz").read_bytes()))
+    out = tmp_path / "xsens.json"
+    code, _, err = _cli(["imu", str(acc), "--gyro", str(gyr), "--gyro-units", "counts", "--units", "counts",
+                         "--gravity-ms2", "9.81744", "--model", "linear9", "-o", str(out)], capsys)
+    assert code == 0, err
+    g = json.loads(out.read_text())["gyroscope"]
+    K = np.array([g["parameters"][f"K_{a}"] for a in "xyz"])
+    np.testing.assert_allclose(K, [4781.777, 4767.552, 4767.798], rtol=1e-6)
+    assert g["data"]["n_motions"] == 39
+    assert 0.3 < np.rad2deg(g["data"]["rms_motion_angle_rad"]) < 0.4
+
+
+def test_imucal_ferraris_session_end_to_end(tmp_path, capsys):
+    """imucal's session (another source: deg/s, 102.4 Hz, one file): calibrated, and the three 360° turns
+    about the vertical, which tell the fit nothing about their own axis's scale, come out at 360.8°,
+    356.0° and 360.9° calibrated against 370.1°, 353.7° and 359.4° at the nominal scale."""
+    out = tmp_path / "imucal.json"
+    code, text, err = _cli(["imu", str(IMUCAL), *IMUCAL_ARGS, "-o", str(out)], capsys)
+    assert code == 0, err
+    g = json.loads(out.read_text())["gyroscope"]
+    assert g["units"]["raw"] == "deg/s" and g["data"]["n_motions"] == 12
+    spec = importlib.util.spec_from_file_location("gyro_imucal", ROOT / "docs" / "scripts" / "gyro_imucal.py")
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    res = mod.calibrate_imucal()
+    np.testing.assert_allclose(res["x"], [g["parameters"][n] for n in res["names"]], rtol=1e-9)
+    turns = res["turns"]
+    for name in ("x_rot", "z_rot"):
+        assert abs(turns[name]["calibrated_deg"] - 360) < 1.5
+    assert abs(turns["y_rot"]["calibrated_deg"] - 360) < abs(turns["y_rot"]["nominal_deg"] - 360)
+    assert abs(turns["x_rot"]["calibrated_deg"] - 360) < abs(turns["x_rot"]["nominal_deg"] - 360) / 5
+    assert np.sqrt(np.mean(res["angles_after"] ** 2)) < np.sqrt(np.mean(res["angles_before"] ** 2)) / 4
+
+
+def _one_axis(tmp_path):
+    a = np.linspace(0, 2 * np.pi, 13)[:-1]
+    return _recording(tmp_path, attitudes=Rotation.from_rotvec(np.outer(a, [1, 0, 0])).as_matrix())[0]
+
+
+def _two_axes(tmp_path):
+    """24 poses reached by turns about the body's x and y axes only, alternately (40° to 120°): gravity
+    visits every direction, so the accelerometer is determined, but the gyroscope never turns about z."""
+    rng = np.random.default_rng(5)
+    C = [np.eye(3)]
+    for k in range(23):
+        axis = np.eye(3)[k % 2] * rng.choice([-1, 1])
+        C.append(C[-1] @ Rotation.from_rotvec(axis * np.deg2rad(rng.uniform(40, 120))).as_matrix())
+    return _recording(tmp_path, attitudes=np.array(C))[0]
+
+
+def _shifted_gyro_times(tmp_path):
+    path, _, sim = _recording(tmp_path)
+    d = sim.data
+    acc = tmp_path / "acc.csv"
+    np.savetxt(acc, np.column_stack([d.t, d.F]), delimiter=",", header="t,ax,ay,az", comments="", fmt="%.9g")
+    gyr = tmp_path / "gyr.csv"
+    np.savetxt(gyr, np.column_stack([d.t + 0.005, np.round(d.W)]), delimiter=",", fmt="%.9g")
+    return acc, ["--gyro", str(gyr)]
+
+
+def _saturated(tmp_path):
+    path, _, sim = _recording(tmp_path)
+    a = np.loadtxt(path, delimiter=",", skiprows=1)
+    k = sim.data.start[3] + 20  # inside the fourth motion
+    a[k:k + 5, 4] = 65535.0
+    a[:, 4:] = np.clip(a[:, 4:], 0, 65535)
+    return _write(tmp_path / "sat.csv", a[:, 0], a[:, 1:4], a[:, 4:])
+
+
+def _no_rotation(tmp_path):
+    path, _, sim = _recording(tmp_path)
+    a = np.loadtxt(path, delimiter=",", skiprows=1)
+    a[:, 4:] = np.round(32768 + sim.data.W[:, :] * 0 + np.random.default_rng(1).normal(0, 2, a[:, 4:].shape))
+    return _write(tmp_path / "still.csv", a[:, 0], a[:, 1:4], a[:, 4:])
+
+
+@pytest.mark.parametrize("case, extra, message", [
+    ("one_axis", [], "leave model linear9 unobservable"),  # gravity in one plane: the accelerometer refuses first
+    ("two_axes", [], "gyroscope parameter(s) K_z, T_xz, T_yz"),
+    ("times", ["--gyro-columns", "0,1,2,3"], "times disagree"),
+    ("saturated", [], "saturated during motion 4"),
+    ("no_rotation", [], "stays within its rest noise through every motion"),
+])
+def test_bad_input_exit_2_one_line_nothing_written(tmp_path, capsys, case, extra, message):
+    gyro_args = ARGS
+    if case == "one_axis":
+        path = _one_axis(tmp_path)
+    elif case == "two_axes":
+        path = _two_axes(tmp_path)
+    elif case == "times":
+        path, more = _shifted_gyro_times(tmp_path)
+        gyro_args = more + ["--gyro-units", "counts", "--gyro-scale", "1000", "--model", "linear9"]
+    elif case == "saturated":
+        path = _saturated(tmp_path)
+    else:
+        path = _no_rotation(tmp_path)
+    out = tmp_path / "out.json"
+    code, text, err = _cli(["imu", str(path), *gyro_args, *extra, "-o", str(out)], capsys)
+    assert code == 2
+    assert message in err and len(err.strip().splitlines()) == 1
+    assert not out.exists()
