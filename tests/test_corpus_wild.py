@@ -153,7 +153,8 @@ def _ck_ref():
 def _imucal_sections_ref(model):
     rec = read_recording(DATA / "imucal" / "example_ferraris_session.csv", rate=102.4, units="m/s2")
     given = given_intervals(rec, *read_intervals(DATA / "imucal" / "example_ferraris_session_list.json"))
-    cal = calibrate(positions_from_recording(rec, given), model, g_local=9.81 / G0)
+    # six sections: an exact fit for diag6, which optcal writes only when forced; the reference is that fit
+    cal = calibrate(positions_from_recording(rec, given), model, g_local=9.81 / G0, force_weak=True)
     return _ours(dict(zip(cal.model.names, cal.x)))
 
 
