@@ -1,7 +1,7 @@
 """Anytime performance of a study's solvers, as optimisation benchmarks report it.
 
 Every in-field trial records, at the evaluation grid 1, 1.26, 1.58, ... (ten points per decade), its best
-cost so far and the accuracy of the best point so far (:func:`studies.trial.anytime_on_grid`), and the
+cost so far, the accuracy of the best point so far and the solver time at which that point was found (:func:`studies.trial.anytime_on_grid`), and the
 optimum cost ``f_opt`` of its data set (a reference least-squares fit). From these:
 
 *Targets.* A trial reaches
@@ -235,6 +235,16 @@ class Anytime:
     missing: int = 0  # in-field trials without an anytime record (written before it existed)
     no_optimum: int = 0  # in-field trials without f_opt
     targets: dict = field(default_factory=lambda: dict(KINDS))
+    # the same hitting times in seconds of solver time (NaN: a record without times, written before them)
+    hits_s: dict = field(default_factory=dict)
+    top_s: float = float("nan")  # the longest solver time of any trial
+
+    def ecdf_s(self, kind: str, s: int, x) -> np.ndarray:
+        """The runtime ECDF of solver s against seconds of solver time."""
+        return ecdf(self.hits_s[kind][:, s, :], x)
+
+    def reached_s(self, kind: str, s: int) -> float:
+        return float(ecdf(self.hits_s[kind][:, s, :], np.inf))
 
     @property
     def runs(self) -> np.ndarray:
@@ -322,21 +332,28 @@ def collect(rows: list[dict], order: list[str] | None = None) -> Anytime:
     pi = {p: i for i, p in enumerate(problems)}
     si = {s: i for i, s in enumerate(names)}
     hits = {k: np.full((len(problems), len(names), len(t)), np.nan) for k, t in KINDS.items()}
+    hits_s = {k: np.full((len(problems), len(names), len(t)), np.nan) for k, t in KINDS.items()}
     n = np.zeros(len(problems))
     top = 1.0
+    top_s = 0.0
     missing = no_opt = 0
     for r in rows:
         p, s = pi[r["model"], r["scheme"], int(r["run"])], si[r["solver"]]
         n[p] = len(r["names"]) if r.get("names") else n[p]
         if r["status"] != "ok":  # a failed trial reaches nothing
             for k in hits:
-                hits[k][p, s] = np.inf
+                hits[k][p, s] = hits_s[k][p, s] = np.inf
             continue
         a = r.get("anytime")
         if not a:
             missing += 1
             continue
         A = np.array([[np.nan if v is None else v for v in x] for x in a], float)
+        secs = r.get("anytime_s") or []
+        timed = len(secs) == len(A)  # a record from before the seconds were kept has none
+        A = np.column_stack([A, np.asarray(secs, float) if timed else np.full(len(A), np.nan)])
+        if timed:
+            top_s = max(top_s, float(A[-1, 3]), float(r.get("runtime_s") or 0.0))
         if r.get("at_target") and r.get("max_evals"):
             # Stopped at the final target (studies.trial.FINAL_GAP): its record is flat from there to its
             # budget, as COCO counts a run that stops at the last target. Its last grid point (the first
@@ -347,13 +364,18 @@ def collect(rows: list[dict], order: list[str] | None = None) -> Anytime:
             A[:, 0] = np.minimum(A[:, 0], r["nfev"])
         top = max(top, float(A[-1, 0]))
         hits["accuracy"][p, s] = first_hits(A[:, 0], A[:, 2], ACCURACY_TARGETS)
+        if timed:
+            hits_s["accuracy"][p, s] = first_hits(A[:, 3], A[:, 2], ACCURACY_TARGETS)
         f_opt = r.get("f_opt")
         if f_opt is None or not f_opt > 0:
             no_opt += 1
             continue
         gap = np.maximum(A[:, 1] - f_opt, 0.0) / f_opt
         hits["cost"][p, s] = first_hits(A[:, 0], gap, COST_TARGETS)
-    return Anytime(names, problems, n, hits, top, missing, no_opt)
+        if timed:
+            hits_s["cost"][p, s] = first_hits(A[:, 3], gap, COST_TARGETS)
+    return Anytime(names, problems, n, hits, top, missing, no_opt, hits_s=hits_s,
+                   top_s=top_s if top_s > 0 else float("nan"))
 
 
 def grid(top: float, per_decade: int = 20) -> np.ndarray:

@@ -139,13 +139,14 @@ def verification(groups: list[Group], title: str, path: Path) -> Path:
 def accuracy_runtime(cells: dict, title: str, path: Path) -> Path:
     """Accuracy (RMSE/CRLB) against median runtime for every solver, one panel per model × scheme.
 
-    Solvers that land on the same spot (the least-squares methods all reach the same optimum) share one
-    label, rotated so that neighbours along a row stay readable."""
+    Each point (or cluster of points within 4 % in runtime and 1 % in accuracy: the least-squares methods all
+    reach the same optimum) carries a number, and the key beside the panel names the solvers of each number:
+    41 names written beside their points overlapped wherever solvers crowd."""
     plt = _plt()
     n = len(cells)
     ncol = min(2, n)
     nrow = int(np.ceil(n / ncol))
-    fig, axes = plt.subplots(nrow, ncol, figsize=(8 * ncol, 6 * nrow), squeeze=False)
+    fig, axes = plt.subplots(nrow, ncol, figsize=(10.5 * ncol, 6.5 * nrow), squeeze=False)
     for ax, ((model, scheme), gs) in zip(axes.flat, cells.items()):
         pts = []
         for g in gs:
@@ -156,7 +157,6 @@ def accuracy_runtime(cells: dict, title: str, path: Path) -> Path:
             ax.scatter(s["runtime_median_s"], s["accuracy"], marker="s" if staged else "o",
                        c="tab:orange" if staged else ("tab:green" if g.reference else "tab:blue"), s=22, zorder=3)
             pts.append((s["runtime_median_s"], s["accuracy"], g.solver))
-        # one label per cluster: points within 4 % in runtime and 1 % in accuracy
         pts.sort()
         clusters: list[list] = []
         for x, y, name in pts:
@@ -166,13 +166,15 @@ def accuracy_runtime(cells: dict, title: str, path: Path) -> Path:
                     break
             else:
                 clusters.append([x, y, [name]])
-        for x, y, names in clusters:
-            ax.annotate(", ".join(names), (x, y), fontsize=5.5, xytext=(2, 3), textcoords="offset points",
-                        rotation=35, rotation_mode="anchor")
+        clusters.sort(key=lambda c: c[1])  # numbered from the most accurate
+        for k, (x, y, names) in enumerate(clusters, 1):
+            ax.annotate(str(k), (x, y), fontsize=6.5, xytext=(3, 2), textcoords="offset points", zorder=4)
+        key = "\n".join(f"{k:>2}  {', '.join(names)}" for k, (_, _, names) in enumerate(clusters, 1))
+        ax.text(1.02, 1.0, key, transform=ax.transAxes, fontsize=5.5, va="top", ha="left", family="monospace")
         ax.set_xscale("log")
         ax.set_yscale("log")
         lo, hi = ax.get_ylim()
-        ax.set_ylim(min(lo, 0.5), max(hi * 1.6, 2.0))
+        ax.set_ylim(min(lo, 0.5), max(hi * 1.3, 2.0))
         ax.axhline(1.0, color="k", lw=0.8, ls="--")
         ax.set_xlabel("median runtime per calibration (s)")
         ax.set_ylabel("RMSE / CRLB (RMS over parameters)")
@@ -182,6 +184,7 @@ def accuracy_runtime(cells: dict, title: str, path: Path) -> Path:
         ax.set_visible(False)
     fig.suptitle(title, fontsize=10)
     fig.tight_layout()
+    fig.subplots_adjust(wspace=0.55)
     return _save(fig, path)
 
 
@@ -328,6 +331,24 @@ def runtime_ecdf(at, title: str, path: Path, order: list[str] | None = None, onl
     if only is not None:  # colours numbered within the subset, so that no two of its solvers share a style
         order = [s for s in (order or []) if s in only]
     return _curve_panels(panels, title, path, order, n=MAX_LINES if only is None else 2 * MAX_LINES)
+
+
+def runtime_ecdf_time(at, title: str, path: Path, order: list[str] | None = None) -> Path:
+    """Runtime ECDFs against seconds of solver time (the same (trial, target) pairs as :func:`runtime_ecdf`,
+    each met at the solver time of the point that met it): what a user waiting for a calibration sees,
+    where a solver's own overhead per evaluation counts as well as its evaluations."""
+    lo = np.nanmin([np.nanmin(np.where(np.isfinite(h) & (h > 0), h, np.nan)) for h in at.hits_s.values()])
+    hi = at.top_s
+    x = np.logspace(np.log10(max(lo, 1e-6)), np.log10(max(hi, 2 * lo)), 200)
+    words = {"cost": ("cost targets (f − f_opt) / f_opt ≤ ", "{:g}"), "accuracy": ("accuracy targets ≤ ", "{:g}")}
+    panels = []
+    for kind, targets in at.targets.items():
+        head, fmt = words[kind]
+        panels.append({
+            "title": head + ", ".join(fmt.format(t) for t in targets), "xlabel": "solver time (s)",
+            "ylabel": "fraction of (trial, target) pairs reached", "x": x, "legend_title": "solver (reached)",
+            "curves": [(s, at.ecdf_s(kind, i, x), at.reached_s(kind, i)) for i, s in enumerate(at.solvers)]})
+    return _curve_panels(panels, title, path, order)
 
 
 def data_profiles(at, title: str, path: Path, order: list[str] | None = None) -> Path:

@@ -9,15 +9,28 @@ from pathlib import Path
 
 import numpy as np
 
-from . import anytime, figures
+from optcal.errors import InputError
+
+from . import anytime, figures, paired
 from .metrics import Group, cells, groups
 from .report_sections import anytime_section, fmt, label_of, md_table, navigation_section, traditional_section, with_ci
 from .store import Store
 
+# summary.json: 2 = an object (study, provenance, records, paired, settings); 1 was the list of records alone
+SUMMARY_FORMAT = 2
+
+
+def rank_value(g: Group) -> float:
+    """What the report ranks on: RMSE/CRLB against the bound of data and presets together when the study
+    has presets (the bound no method beats, so a method the presets help does not lead for that alone),
+    else RMSE/CRLB against the data's bound."""
+    return g.accuracy_presets if np.isfinite(g.accuracy_presets) else g.accuracy
+
 
 def _rank(gs: list[Group]) -> list[Group]:
-    """Most accurate first; never-converging and failed groups last."""
-    return sorted(gs, key=lambda g: (-round(g.success_rate, 6), np.nan_to_num(g.accuracy, nan=np.inf)))
+    """Most accurate first (:func:`rank_value`) among the groups at the noise floor as often; never-converging
+    and failed groups last."""
+    return sorted(gs, key=lambda g: (-round(g.success_rate, 6), np.nan_to_num(rank_value(g), nan=np.inf)))
 
 
 def _has_presets_bound(gs: list[Group]) -> bool:
@@ -36,21 +49,23 @@ def _summary_rows(gs: list[Group], nav: bool, cis: dict | None = None) -> list[l
             with_ci(s["accuracy"], ci.get("accuracy"), ".2f"),
             *([with_ci(s["accuracy_presets"], ci.get("accuracy_presets"), ".2f")] if presets else []),
             f"{fmt(s['ver_mean_ug'], '.2f')} ({fmt(s['ver_sd_ug'], '.2f')})",
-            f"{fmt(s['cost_median'], '.3e')} [{fmt(s['cost_min'], '.2e')}, {fmt(s['cost_max'], '.2e')}]",
-            *([with_ci(s["runtime_median_s"], ci.get("runtime_median_s"), ".3g")] if cis is not None else []),
-            f"{fmt(s['runtime_median_s'], '.3g')} [{fmt(s['runtime_p10_s'], '.2g')}, {fmt(s['runtime_p90_s'], '.2g')}]",
-            fmt(s["nfev_median"], ".0f"),
+            f"{fmt(s['cost_median'], '.2e')} [{fmt(s['cost_min'], '.2e')}, {fmt(s['cost_max'], '.2e')}]",
+            (with_ci(s["runtime_median_s"], ci.get("runtime_median_s"), ".3g") if cis is not None else
+             f"{fmt(s['runtime_median_s'], '.3g')} [{fmt(s['runtime_p10_s'], '.3g')}, {fmt(s['runtime_p90_s'], '.3g')}]"),
+            fmt(s["nfev_median"], ",.0f"),
             fmt(s["evals_per_s"], ",.0f"),
         ]
         if nav:
-            r.append(f"{fmt(s['nav_max_nmi'], '.3f')} / {fmt(s['nav_mean_nmi'], '.3f')}")
+            r.append(f"{fmt(s['nav_max_nmi'], '.4f')} / {fmt(s['nav_mean_nmi'], '.4f')}")
         r.append(str(s["failed"]))
         rows.append(r)
     return rows
 
 
-SUMMARY_HEADER = ["solver", "success", "RMSE/CRLB", "verification µg mean (SD)", "final cost median [min, max]",
-                  "runtime s median [95 % CI]", "runtime s median [p10, p90]", "evaluations", "evaluations/s"]
+SUMMARY_HEADER = ["solver", "at noise floor", "RMSE/CRLB", "verification µg mean (SD)",
+                  "final cost (g²) median [min, max]", "runtime s median [95 % CI]", "evaluations (median)",
+                  "evaluations/s"]
+NAV_HEADER = "5-h navigation error max / mean (nautical miles)"
 
 
 def _parameters_md(cs) -> str:
@@ -81,7 +96,7 @@ def _json_safe(v):
 
 
 def headline(folder: str | Path, top: int = 8) -> str:
-    """The ``top`` solvers of each model × scheme (success, then accuracy), as markdown tables."""
+    """The ``top`` solvers of each model × scheme (the report's ranking: :func:`_rank`), as markdown tables."""
     with Store.open_existing(folder) as store:
         spec, rows = store.spec, store.rows()
     out = []
@@ -89,7 +104,7 @@ def headline(folder: str | Path, top: int = 8) -> str:
         ranked = _rank(cg)
         out.append(f"{model}, {scheme} positions ({min(top, len(ranked))} best of {len(ranked)}):")
         wp = _has_presets_bound(cg)
-        out += md_table(["solver", "success", "RMSE/CRLB"] + (["with presets"] if wp else [])
+        out += md_table(["solver", "at noise floor", "RMSE/CRLB"] + (["with presets"] if wp else [])
                       + ["verification µg", "runtime s"],
                       [[f"`{label_of(g)}`", f"{100 * g.success_rate:.0f} %", fmt(g.accuracy, ".2f")]
                        + ([fmt(g.accuracy_presets, ".2f")] if wp else [])
@@ -143,8 +158,123 @@ def _busy(session: dict) -> str:
     return "" if b is None else f", workers in trials {100 * b:.1f} % of the time"
 
 
+def provenance(sessions: list[dict]) -> dict:
+    """Where and with what the results were computed: the commits of the code that ran the trials (from the
+    sessions), this machine, Python and the versions of the libraries the results depend on."""
+    import os
+    import platform
+    from importlib import metadata
+
+    libs = {}
+    for name in ("optcal", "numpy", "scipy", "numba", "cma", "nlopt", "casadi", "nevergrad", "pandas", "matplotlib"):
+        try:
+            libs[name] = metadata.version(name)
+        except metadata.PackageNotFoundError:
+            continue
+    commits = list(dict.fromkeys(s.get("code", "") for s in sessions if s.get("code")))
+    return {"commit": commits[-1] if commits else None, "commits": commits,
+            "machine": {"node": platform.node(), "system": platform.platform(), "processor": platform.machine(),
+                        "cpus": os.cpu_count()},
+            "python": platform.python_version(), "libraries": libs}
+
+
+def settings(spec: dict, rows: list[dict]) -> list[dict]:
+    """Per solver configuration: its registry name, every option as it ran (defaults filled in), its budget,
+    and the median iterations and evaluations its trials used (the iteration count a solver derives from the
+    budget, as run), with the share of trials the final target stopped (studies.trial.FINAL_GAP)."""
+    import solvers
+
+    out = []
+    for c in spec["solvers"]:
+        label = c.get("label") or c["name"]
+        try:
+            config = dict(solvers.get(c["name"], **c.get("options", {})).config)
+        except Exception:  # noqa: BLE001 - an old store may name a solver this installation lacks
+            config = dict(c.get("options", {}))
+        mine = [r for r in rows if r["solver"] == label and r["status"] == "ok"]
+        # A trial the final target stopped inside a solver that reports its iterations only at its end has
+        # none to report (0): its iteration count is not known, and is left out.
+        nit = [r["nit"] for r in mine if r.get("nit") is not None and not (r.get("at_target") and not r["nit"])]
+        nfev = [r["nfev"] for r in mine if r.get("nfev") is not None]
+        stopped = [r.get("at_target") for r in mine if r.get("at_target") is not None]
+        out.append({"solver": label, "name": c["name"], "options": config, "budget": c.get("budget", {}),
+                    "reference": bool(c.get("reference")),
+                    "iterations_median": float(np.median(nit)) if nit else None,
+                    "evaluations_median": float(np.median(nfev)) if nfev else None,
+                    "stopped_at_target": float(np.mean(stopped)) if stopped else None})
+    return out
+
+
+def _options_text(o: dict) -> str:
+    return ", ".join(f"{k}={v:g}" if isinstance(v, float) else f"{k}={v}" for k, v in o.items()) or "–"
+
+
+def settings_section(st: list[dict]) -> list[str]:
+    L = ["## Solver settings", "",
+         "Every option as the trials ran it (defaults filled in), the budget, and the median iterations and "
+         "evaluations per calibration; *stopped at target*: share of trials that stopped once their cost was "
+         f"within {_final_gap():g} of the data's optimum (COCO's final target; the anytime record is flat beyond "
+         "it, so no table changes).", ""]
+    L += md_table(["solver", "options", "budget", "iterations (median)", "evaluations (median)", "stopped at target"],
+                  [[f"`{x['solver']}`", _options_text(x["options"]),
+                    ", ".join(f"{k} {v:,}" if isinstance(v, int) else f"{k} {v}" for k, v in x["budget"].items())
+                    or "solver's default",
+                    fmt(x["iterations_median"], ",.0f"), fmt(x["evaluations_median"], ",.0f"),
+                    "–" if x["stopped_at_target"] is None else f"{100 * x['stopped_at_target']:.0f} %"] for x in st])
+    return L
+
+
+def _final_gap() -> float:
+    from .trial import FINAL_GAP
+
+    return FINAL_GAP or 0.0
+
+
+def paired_section(cs, presets: bool) -> tuple[list[str], list[dict]]:
+    """The paired comparisons of every cell (:mod:`studies.paired`) as one compact table, and their records."""
+    recs = []
+    by_cell = {}
+    for (model, scheme), cg in cs.items():
+        ranked = [g for g in _rank(cg) if not g.reference]
+        rr = paired.compare_to_best(ranked, presets)
+        for x in rr:
+            x.update(model=model, scheme=scheme)
+        recs += rr
+        by_cell[model, scheme] = ({x["solver"]: x for x in rr}, ranked[0].solver if ranked else None)
+    if not recs:
+        return [], []
+    what = "RMSE/CRLB with presets" if presets else "RMSE/CRLB"
+    L = ["## Paired comparisons", "",
+         f"Each solver against the best of its model × scheme (named in the header), over the same runs: Wilcoxon "
+         f"signed-rank test on the per-run differences of the accuracy ranked on ({what} of each run), p-values "
+         f"Holm-adjusted within the column (family-wise level {paired.LEVEL:g}); r = matched-pairs rank-biserial "
+         "correlation (+1: worse than the best in every run, 0: neither ahead), Δ = median paired difference. "
+         "*≈*: no significant difference.", ""]
+    names = list(dict.fromkeys(x["solver"] for x in recs))
+    keys = list(by_cell)
+    rows = []
+    for n in names:
+        r = [f"`{n}`"]
+        for k in keys:
+            x = by_cell[k][0].get(n)
+            if x is None:
+                r.append("best" if by_cell[k][1] == n else "–")
+            elif x["verdict"] == "no difference":
+                r.append(f"≈ (p {x['p_holm']:.2g})")
+            elif x["verdict"] == "–":
+                r.append("–")
+            else:
+                r.append(f"{x['verdict']}: Δ {x['median_diff']:+.2f}, r {x['rank_biserial']:+.2f}, p {x['p_holm']:.1e}")
+        rows.append(r)
+    L += md_table(["solver"] + [f"{m}, {s} (best: `{by_cell[m, s][1]}`)" for m, s in keys], rows)
+    return L, recs
+
+
 def write_report(folder: str | Path) -> Path:
     """Write ``report.md``, ``parameters.md``, ``summary.json`` and ``figures/*.png`` into ``folder``."""
+    import time
+
+    t_report = time.perf_counter()
     folder = Path(folder)
     with Store.open_existing(folder) as store:
         spec = store.spec
@@ -164,6 +294,9 @@ def write_report(folder: str | Path) -> Path:
     budgets = {json.dumps(s["budget"], sort_keys=True) for s in spec["solvers"]}
     budget = (", ".join(f"{k} {v:g}" for k, v in spec["solvers"][0]["budget"].items()) or "the solvers' defaults"
               ) if len(budgets) == 1 else "per solver (see the spec)"
+    presets = any(_has_presets_bound(cg) for cg in cs.values())
+    ranked_on = ("RMSE/CRLB with presets (the bound of data and presets together)" if presets
+                 else "RMSE/CRLB (the data's bound)")
 
     L = [f"# Study `{spec['name']}`", ""]
     if spec.get("description"):
@@ -179,30 +312,42 @@ def write_report(folder: str | Path) -> Path:
         f"- Verification: {spec['verification']['scheme']} positions, {spec['verification']['noise_ug']:g} µg noise. "
         + (f"Navigation: {spec['navigation']['hours']:g} h static at {spec['navigation']['latitude_deg']:g}° latitude."
            if has_nav else "Navigation: not computed."),
-        f"- Wall time {wall:.1f} s over {len(sessions)} session(s): "
-        + "; ".join(f"{s['executor']} ×{s['workers']}: {s['trials']} trials in {s['wall_s']:.1f} s"
-                    + _busy(s) + (f" (code {s['code']})" if s.get("code") else "") for s in sessions),
+        "@@WALL@@",
         "",
-        "**How to read.** *success*: share of runs whose final cost is within the 99.9 % χ² quantile of the "
-        "cost at the optimum (reached the noise floor). *RMSE/CRLB*: RMS over parameters of each parameter's "
+        "**How to read.** *At noise floor*: share of runs whose final cost is within the 99.9 % χ² quantile of "
+        "the cost at the optimum (the `success_rate` of summary.json). It is a statistical test, not a distance "
+        "to the optimum: a final cost up to that quantile passes, even when it lies well above the optimum of "
+        "the run's data, so it is much looser than the anytime table's *solved gap ≤ 0.01* (the cost within 1 % "
+        "of that optimum); a staged solver, which keeps parameters near the presets, can be at the noise floor "
+        "in every run and within 1 % of the optimum in few. "
+        "*RMSE/CRLB*: RMS over parameters of each parameter's "
         "RMSE over runs divided by its Cramér-Rao bound (1 = as good as any unbiased estimator can be; "
         "unobservable directions excluded, see below). *RMSE/CRLB with presets*: the whole error against "
         "the bound of the data and the presets together (the presets as one more measurement of every "
         "parameter, with the manufacturer's error SD); no method can beat it, so a ratio below 1 in the "
         "first column and near 1 here means the accuracy came from the presets, not from the data. "
+        f"Solvers are ranked on {ranked_on}. "
         "*Verification*: |‖A‖ − g| on an independent "
         "verification set with the estimated calibration (2020 paper, Table 5), mean over positions "
-        "(SD over positions), averaged over runs. Runtime: solver time per calibration. "
-        f"*value [lo, hi]* after success, RMSE/CRLB and the median runtime: {100 * anytime.LEVEL:.0f} % percentile "
+        "(SD over positions), averaged over runs. *Final cost*: Σ (‖A‖ − g)² over the positions, in g². "
+        "*Runtime*: solver time per calibration. *Evaluations*: evaluations of the cost over the whole data set "
+        "per calibration; a Jacobian counts as one (so a Levenberg-Marquardt fit's few evaluations are residual "
+        "vectors and Jacobians together), and a trial stops once its cost is within "
+        f"{_final_gap():g} of its data's optimum, so a fast method uses far fewer than its budget. "
+        "*Navigation*: position error after the hours of static navigation, in nautical miles (nmi). "
+        f"*value [lo, hi]* after the share at the noise floor, RMSE/CRLB and the median runtime: "
+        f"{100 * anytime.LEVEL:.0f} % percentile "
         f"bootstrap interval over the Monte-Carlo runs ({anytime.RESAMPLES} resamples, seed {spec['seed']}).",
         "",
     ]
     if len(cs) > 1:
-        with_p = any(_has_presets_bound(cg) for cg in cs.values())
-        L += ["## Overview", "", ("RMSE/CRLB / RMSE/CRLB with presets" if with_p else "RMSE/CRLB")
-              + " (success rate) of every solver in every model × scheme, most accurate "
-              "first (mean rank over the columns); runtime: median over the columns of the median solver time.", ""]
+        L += ["## Overview", "", ("RMSE/CRLB / RMSE/CRLB with presets" if presets else "RMSE/CRLB")
+              + f" (share at the noise floor) of every solver in every model × scheme, ranked on {ranked_on}, "
+              "most accurate first (mean rank over the columns); runtime: median over the columns of the median "
+              "solver time.", ""]
         L += overview(cs)
+    paired_lines, paired_recs = paired_section(cs, presets)
+    L += paired_lines
     summary = []
     for (model, scheme), cg in cs.items():
         slug = f"{model}_{scheme}".replace(":", "-")
@@ -210,7 +355,7 @@ def write_report(folder: str | Path) -> Path:
         truth_ver = np.nanmean([g.summary()["ver_truth_ug"] for g in cg if g.ok]) if any(g.ok for g in cg) else np.nan
         L += [f"Truth calibration on the verification set: {fmt(truth_ver, '.2f')} µg (the noise floor).", ""]
         header = (SUMMARY_HEADER[:3] + (["RMSE/CRLB with presets"] if _has_presets_bound(cg) else [])
-                  + SUMMARY_HEADER[3:] + (["nav max / mean nmi"] if has_nav else []) + ["failed"])
+                  + SUMMARY_HEADER[3:] + ([NAV_HEADER] if has_nav else []) + ["failed"])
         L += md_table(header, _summary_rows(cg, has_nav, cis))
         for g in cg:
             summary.append({**g.summary(), **{f"{k}_ci": list(v) for k, v in cis[id(g)].items()},
@@ -249,11 +394,40 @@ def write_report(folder: str | Path) -> Path:
         p = figures.accuracy_runtime(cs, f"{spec['name']}: accuracy against runtime", figdir / "accuracy_runtime.png")
         L += ["## Accuracy against runtime", "", f"![accuracy against runtime](figures/{p.name})", ""]
     L += anytime_section(rows, order, spec, figdir)
+    st = settings(spec, rows)
+    L += settings_section(st)
     L += ["Per-parameter mean error, RMSE, SD and CRLB: [parameters.md](parameters.md). "
           "Every trial: `trials.csv` / `trials.parquet` / `study.sqlite`.", ""]
+    prov = provenance(sessions)
+    L += [f"Computed by commit `{prov['commit'] or 'unknown'}` on {prov['machine']['system']} "
+          f"({prov['machine']['cpus']} CPUs), Python {prov['python']}; "
+          + ", ".join(f"{k} {v}" for k, v in prov["libraries"].items()) + ".", ""]
     (folder / "parameters.md").write_text(_parameters_md(cs))
+    t_rep = time.perf_counter() - t_report
+    L[L.index("@@WALL@@")] = (
+        f"- Wall time {wall + t_rep:.1f} s: the study {wall:.1f} s over {len(sessions)} session(s) ("
+        + "; ".join(f"{s['executor']} ×{s['workers']}: {s['trials']} trials in {s['wall_s']:.1f} s"
+                    + _busy(s) + (f", code {s['code']}" if s.get("code") else "") for s in sessions)
+        + f") and this report {t_rep:.1f} s.")
+    doc = {"format": SUMMARY_FORMAT,
+           "study": {"name": spec["name"], "spec_hash": spec_hash, "runs": spec["runs"], "seed": spec["seed"],
+                     "trials": len(rows), "expected": expected, "failed": failed, "wall_s": wall,
+                     "report_s": t_rep, "ranked_on": "accuracy_presets" if presets else "accuracy",
+                     "final_gap": _final_gap()},
+           "provenance": prov, "records": summary, "paired": paired_recs, "settings": st}
     # strict JSON: a value that could not be computed (no presets, no navigation) is null, not NaN
-    (folder / "summary.json").write_text(json.dumps(_json_safe(summary), indent=1, allow_nan=False))
+    (folder / "summary.json").write_text(json.dumps(_json_safe(doc), indent=1, allow_nan=False))
     out = folder / "report.md"
     out.write_text("\n".join(L))
     return out
+
+
+def read_summary(folder: str | Path) -> dict:
+    """A study folder's summary.json (written by :func:`write_report`)."""
+    path = Path(folder) / "summary.json"
+    if not path.is_file():
+        raise InputError(f"{folder} has no summary.json; write it with `optcal study report {folder}`")
+    doc = json.loads(path.read_text())
+    if not isinstance(doc, dict) or doc.get("format") != SUMMARY_FORMAT:
+        raise InputError(f"{path} is from an older optcal; write it again with `optcal study report {folder}`")
+    return doc

@@ -63,6 +63,17 @@ def accuracy_of(X, x_true, bound) -> np.ndarray:
     return np.sqrt(np.mean((Ep / sd) ** 2, axis=1))
 
 
+def seconds_on_grid(trace) -> list[float]:
+    """The solver time (s) at which the best point so far was found, at each point of the grid of
+    :func:`trace_on_grid`: the anytime analyses count in seconds as well as in evaluations with it. Kept
+    apart from the anytime record (the ``anytime_s`` column, a timing column) because it differs between
+    identical runs."""
+    if not trace or len(trace[0]) < 3:
+        return []
+    _, _, holder = _grid_index(trace)
+    return [float(trace[i][2]) for i in holder]
+
+
 def anytime_on_grid(trace, trace_x, x_true, bound) -> list[list[float]]:
     """[evaluations, best cost, accuracy] at the grid of :func:`trace_on_grid`: the accuracy
     (:func:`accuracy_of`) of the best point so far at each grid point, one vectorised computation per

@@ -29,11 +29,13 @@ SCALAR = [
     # the evaluation budget, the final-target cost (trial.FINAL_GAP) and whether reaching it stopped the trial
     ("max_evals", "INTEGER"), ("target_f", "REAL"), ("at_target", "INTEGER"),
 ]
-# anytime: [evaluations, best cost, accuracy] on the trace's grid (studies.trial.anytime_on_grid)
+# anytime: [evaluations, best cost, accuracy] on the trace's grid (studies.trial.anytime_on_grid); anytime_s: the
+# solver time (s) at each of its points (studies.scoring.seconds_on_grid)
 JSON = ["names", "x_true", "x_est", "err", "err_proj", "crlb", "observable", "null_dirs", "null_err", "ver_err",
-        "ver_truth", "trace", "nav_curve", "crlb_presets", "anytime"]
+        "ver_truth", "trace", "nav_curve", "crlb_presets", "anytime", "anytime_s"]
 COLUMNS = [c for c, _ in SCALAR] + JSON
-TIMING = ("runtime_s", "wall_s")  # the only columns that may differ between identical runs
+# the only columns that may differ between identical runs (anytime_s: the solver time at each anytime point)
+TIMING = ("runtime_s", "wall_s", "anytime_s")
 
 
 class Store:

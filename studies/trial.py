@@ -30,7 +30,7 @@ from optcal.problem import CalibrationProblem, Counter
 from optcal.simulate import simulate
 
 from .scoring import accuracy_of as accuracy_of  # re-exported: the names studies.trial has always had
-from .scoring import anytime_on_grid, crlb_with_presets
+from .scoring import anytime_on_grid, crlb_with_presets, seconds_on_grid
 from .scoring import trace_on_grid as trace_on_grid
 from .spec import SolverConfig, Spec
 
@@ -350,5 +350,5 @@ def _score(t: Trial, w: World, x_est, res, problem, sigma) -> dict:
         ver_err=[float(v) for v in ver_err], ver_truth=[float(v) for v in ver_truth],
         trace=[a[:2] for a in anytime], nav_curve=None if nav is None else nav[2],  # = trace_on_grid(res.trace)
         # the in-field optimum: meaningless for a turntable fit, which minimises another cost
-        f_opt=None if cfg.reference else w.f_opt, anytime=anytime,
+        f_opt=None if cfg.reference else w.f_opt, anytime=anytime, anytime_s=seconds_on_grid(res.trace),
     )

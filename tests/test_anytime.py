@@ -215,7 +215,7 @@ def test_the_report_has_the_anytime_section_with_its_figures_targets_and_interva
                               '[[solvers]]\nname = "scipy-lm"\nlabel = "turntable"\nreference = true\n')
     run_study(sp, tmp_path, progress=False)
     text = write_report(tmp_path).read_text()
-    section = text.split("## Anytime performance")[1]
+    section = text.split("## Anytime performance")[1].split("## Solver settings")[0]
     assert "(f − f_opt) / f_opt ≤ 100, 10, 1, 0.1, 0.01, 0.001" in section
     assert "≤ 10, 3, 2, 1.5, 1.2" in section and "Moré & Wild" in section and "Dolan & Moré" in section
     for f in FIGS:
@@ -235,7 +235,7 @@ def test_the_report_has_the_anytime_section_with_its_figures_targets_and_interva
     assert row.count("[") >= 5 and "runtime s median [95 % CI]" in text
     import json
 
-    s = json.loads((tmp_path / "summary.json").read_text())[0]
+    s = json.loads((tmp_path / "summary.json").read_text())["records"][0]
     lo, hi = s["accuracy_ci"]
     assert lo < s["accuracy"] < hi and len(s["runtime_median_s_ci"]) == 2
 
@@ -291,7 +291,7 @@ def test_a_new_solver_in_one_file_appears_in_every_report_without_further_code(t
     text = write_report(tmp_path / "study").read_text()
     cell = text.split("## nonlinear12, 24 positions")[1].split("\n## ")[0]
     assert "| `random-search` |" in cell
-    section = text.split("## Anytime performance")[1]
+    section = text.split("## Anytime performance")[1].split("## Solver settings")[0]
     assert [r.split("`")[1] for r in section.splitlines() if r.startswith("| `")] == ["scipy-lm", "random-search"]
     assert "run jointly: `random-search`), beside scipy-lm" in section
     assert main(["study", "export", str(tmp_path / "study"), "--format", "ioh", "-o", str(tmp_path / "ioh")]) == 0

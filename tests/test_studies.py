@@ -370,17 +370,18 @@ def test_report_writes_tables_figures_and_summary(tmp_path):
     run_study(sp, tmp_path, progress=False)
     out = write_report(tmp_path)
     text = out.read_text()
-    assert "| solver | success | RMSE/CRLB |" in text and "`staged:scipy-lm`" in text
+    assert "| solver | at noise floor | RMSE/CRLB |" in text and "`staged:scipy-lm`" in text
     figs = ["cost_nonlinear12_24", "convergence_nonlinear12_24", "crlb_nonlinear12_24",
             "verification_nonlinear12_24", "accuracy_runtime"]
     for f in figs:
         p = tmp_path / "figures" / f"{f}.png"
         assert p.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" and p.stat().st_size > 10_000
         assert f"figures/{f}.png" in text
-    summary = json.loads((tmp_path / "summary.json").read_text())
+    summary = json.loads((tmp_path / "summary.json").read_text())["records"]
     assert [s["solver"] for s in summary] == ["scipy-lm", "staged:scipy-lm"]
-    # every solver's evaluation rate from the study's own records, as a column of the report
-    assert "| runtime s median [p10, p90] | evaluations | evaluations/s |" in text
+    # every solver's evaluation rate from the study's own records, as a column of the report; the cost's unit
+    assert "| runtime s median [95 % CI] | evaluations (median) | evaluations/s |" in text
+    assert "final cost (g²) median [min, max]" in text and "runtime s median [p10, p90]" not in text
     from studies.store import Store
 
     with Store.open_existing(tmp_path) as st:
@@ -532,4 +533,4 @@ def test_summary_json_is_strict_json(tmp_path):
     run_study(sp, tmp_path, progress=False)
     write_report(tmp_path)
     text = (tmp_path / "summary.json").read_text()
-    assert "NaN" not in text and json.loads(text)[0]["accuracy_presets"] is None
+    assert "NaN" not in text and json.loads(text)["records"][0]["accuracy_presets"] is None
