@@ -34,7 +34,7 @@ from .problem import CalibrationProblem
 # (the 95 % interval of σ̂/σ with 2 degrees of freedom is 0.16-1.92).
 MIN_DOF = 3
 # An exact fit: residuals at the rounding of the numbers (a CSV of 10 significant digits rounds a 1 g output at
-# about 5e-11 g; no accelerometer's position mean is quieter than about 1e-7 g) ...
+# about 5e-11 g), far below the noise of any accelerometer's position mean (0.1 µg and more) ...
 ROUNDING_G = 1e-9
 # ... or, with the noise of the position means known, χ²/dof below this: with 3 or more degrees of freedom the
 # chance of so small a χ² from noise of the stated size is below 1e-8, so the data are not noisy measurements.
@@ -42,11 +42,11 @@ EXACT_CHI2 = 1e-6
 # Plausibility (docs/design.md §7.5). Scale factors within ±30 % of the nominal: MEMS datasheets state their
 # sensitivity to a few per cent (the MPU-6050's 16384 LSB/g ±3 %), so 30 % is ten times that and more.
 SCALE_TOL = 0.30
-# Offsets within ±0.5 g: datasheet zero-g offsets are tens of mg; an axis offset by half of gravity would read
-# between +0.5 and +1.5 g where it should read ±1 g, which no working sensor does.
+# Offsets within ±0.5 g: datasheet zero-g offsets are tens of mg (the MPU-6050's ±50 mg, ±80 mg on z); an axis
+# offset by half of gravity would read +0.5 and +1.5 g where it should read ±1 g, which no working sensor does.
 BIAS_MAX_G = 0.5
 # Installation angles within ±5°: cross-axis sensitivities of MEMS parts are 1-2 % (about 1°), board mounting
-# adds a degree or two; the real recordings in tests/data show at most 1.4°.
+# adds a degree or two; the determined fits of the recordings in tests/data show at most 1.4°.
 ANGLE_MAX_RAD = math.radians(5.0)
 # Nonlinear terms: their effect at 1 g at most 5 % of the scale factor's (50 mg), ten times the 0.5 % of full
 # scale that MEMS datasheets state as nonlinearity. Temperature and drift terms: their effect over the data's
