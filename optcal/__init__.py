@@ -25,7 +25,7 @@ __version__ = "0.1.0"
 __all__ = [
     "NAMED_MODELS", "TERMS", "Budget", "BudgetExhausted", "CalibrationProblem", "Context", "InputError", "Model",
     "DiscoveryReport", "PositionsData", "Simulation", "discover", "get_model", "read_positions", "simulate",
-    "apply", "calibrate", "noise", "read_recording",
+    "apply", "calibrate", "noise", "read_recording", "study",
 ]
 
 # name -> the submodule that defines it, imported when the name is first looked up.
@@ -37,6 +37,7 @@ _LAZY = {
     "NAMED_MODELS": "model", "TERMS": "model", "Context": "model", "Model": "model", "get_model": "model",
     "Budget": "problem", "CalibrationProblem": "problem",
     "Simulation": "simulate", "simulate": "simulate",
+    "study": "study",  # the studies' Python API (application layer: optcal/study.py, docs/api.md)
 }
 # Submodules that an eager ``import optcal`` used to leave reachable as attributes (``optcal.model``).
 _SUBMODULES = frozenset({"analysis", "data", "discovery", "errors", "linfit", "model", "presets", "problem",
