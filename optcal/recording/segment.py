@@ -7,10 +7,9 @@ docs/design.md §9.2). The default detector; the variance detector of Tedaldi et
    interval there.
 2. **Noise, from the recording itself.** Per axis, the white noise σ of the samples and the noise σ_b of
    the block means (which includes flicker noise and hand tremor at the block's time scale) are robust
-   estimates from second differences, which cancel a constant rate of turn (a slow tumble cannot pass
-   for noise): the 25th percentile of |Δ²|, which lies inside the poses as long as a quarter of the
-   recording is at rest, scaled to an SD (for white noise Δ² has SD σ√6, and the 25th percentile of |Δ²|
-   is 0.3186·σ√6); neither is allowed below the quantisation step's q/√12.
+   estimates from second differences Δ², which cancel a constant rate of turn (a slow tumble cannot pass
+   for noise): the RMS of the quiet Δ² (within 3 SDs of a first guess from the 10th percentile of |Δ²|),
+   scaled to an SD (for white noise Δ² has SD σ√6); neither is allowed below the quantisation step's q/√12.
 3. **Change points.** The block means, divided by σ_b, are cut into segments of constant mean by PELT
    with the linear-kernel cost (ruptures' ``KernelCPD``, compiled; Killick, Fearnhead & Eckley, JASA 2012)
    with penalty :data:`PENALTY_PER_DIM`·3·ln(blocks), a BIC-like choice for 3 dimensions of unit noise. A
@@ -46,17 +45,22 @@ from ..errors import InputError
 from .detection import DetectionResult
 from .reading import Recording
 
-BLOCKS_PER_POSE = 5  # blocks in the shortest pose: the block is a fifth of min_static_s (and ≤ MAX_BLOCK s)
-MAX_BLOCK_S = 0.1  # s: blocks never longer (a fifth of 0.5 s, the default shortest pose)
+BLOCKS_PER_POSE = 8  # blocks in the shortest pose: the block is an eighth of min_static_s (and ≤ MAX_BLOCK_S)
+MAX_BLOCK_S = 0.0625  # s: blocks never longer (an eighth of 0.5 s, the default shortest pose)
 PIECE_BLOCKS = 4096  # PELT runs on pieces of at most this many blocks (quadratic in a piece without change)
-PENALTY_PER_DIM = 2.0  # PELT penalty per dimension, in units of ln(blocks): 3 axes → 6·ln(blocks)
+TREND_CHI2 = 30.7  # χ²(3) upper 1e-6 quantile (scipy.stats.chi2.isf(1e-6, 3) = 30.66): a slope is a motion
+PENALTY = 16 * TREND_CHI2  # PELT's penalty (unit noise): a ramp's pieces then show a slope of χ² ≈ pen/2
 NOISE_RATIO = 3.0  # a segment whose block means scatter more than this × the recording's: shaking, not rest
 TREND_CHI2 = 30.7  # χ²(3) upper 1e-6 quantile (scipy.stats.chi2.isf(1e-6, 3) = 30.66): a slope is a motion
+LINE_SLACK = 1.5  # a line fits when its residual χ² is at most this × its dof (+ LINE_SIGMAS SDs): flicker
 LINE_SIGMAS = 3.0  # a straight line explains a stretch when its residual χ² is within this many SDs of its dof
+HINGE_S = 2.0  # s: the stretch at each end of a rest searched for the start of a slow motion
 MERGE_SIGMA = 1.0  # neighbouring rests closer than this many sample-noise SDs (norm over axes) are one pose
-Q25_HALF_NORMAL = 0.31864  # the 25th percentile of |x| for x ~ N(0, 1)
+Q10_HALF_NORMAL = 0.12566  # the 10th percentile of |x| for x ~ N(0, 1)
+TRUNCATED_VARIANCE_3SD = 0.97334  # the variance of N(0, 1) cut to ±3, relative to 1
 DEFAULT_MIN_STATIC_S = 0.5  # s: the shortest pose found by default
-DEFAULT_WINDOW_S = 1.0  # s: the rest test's window
+DEFAULT_WINDOW_S = 10.0  # s: the rest test's longest window (a slow turn's pieces are tested whole)
+LOCAL_MIN_DOF = 30  # degrees of freedom (3 per block) before a window's own noise may raise the recording's
 NO_RATE_SAMPLES = 50  # samples: the shortest pose of a recording without a rate (its window: twice that)
 
 
@@ -72,13 +76,20 @@ class Segmentation:
     sigma: np.ndarray  # (3,) white noise SD of a sample, sensor units
     sigma_block: np.ndarray  # (3,) noise SD of a block mean
     n_bad_blocks: int
+    kept: np.ndarray  # (k,) bool: at rest and at least min_static_s long (before the ends are trimmed)
+    short: np.ndarray  # (k,) bool: at rest but shorter than min_static_s
 
 
-def _q25_sd(d2: np.ndarray) -> np.ndarray:
+def _noise_sd(d2: np.ndarray) -> np.ndarray:
     """Per column, the SD of white noise x from its second differences d2 = x_i − 2x_{i+1} + x_{i+2} (SD
-    σ√6), by their 25th percentile of |d2|. Second differences cancel a constant rate of change: a slow
-    rotation does not pass for noise."""
-    return np.percentile(np.abs(d2), 25.0, axis=0) / (Q25_HALF_NORMAL * np.sqrt(6.0))
+    σ√6), over the quiet part of a recording that also moves. A first guess from the 10th percentile of
+    |d2| (robust while a tenth of the recording is at rest) sets a cut at 3 SDs; the SD is then the RMS of
+    the differences inside the cut, corrected for the cut (a normal cut at ±3σ keeps 97.33 % of its
+    variance). Second differences cancel a constant rate of change: a slow turn does not pass for noise."""
+    s0 = np.percentile(np.abs(d2), 10.0, axis=0) / (Q10_HALF_NORMAL * np.sqrt(6.0))
+    inside = np.abs(d2) <= 3.0 * np.sqrt(6.0) * s0
+    ms = np.sum(np.where(inside, d2 * d2, 0.0), axis=0) / np.maximum(inside.sum(axis=0), 1)
+    return np.sqrt(ms / (6.0 * TRUNCATED_VARIANCE_3SD))
 
 
 def _quantum(N: np.ndarray) -> np.ndarray:
@@ -103,7 +114,10 @@ def _rest_test(M: np.ndarray, seg: np.ndarray, w: int) -> np.ndarray:
     out = np.full(k, "", dtype=object)
     if not k:
         return out
-    a, b = seg[:, 0], seg[:, 1]
+    # the blocks at a segment's ends may hold the start of a motion or a step: tested without them
+    inner = (seg[:, 1] - seg[:, 0]) >= 4
+    a = np.where(inner, seg[:, 0] + 1, seg[:, 0])
+    b = np.where(inner, seg[:, 1] - 1, seg[:, 1])
     L = b - a
     # (a) the scatter of the block-mean differences inside each segment, per axis (a ramp's slope is the
     # differences' mean and is left to (b))
@@ -131,38 +145,109 @@ def _rest_test(M: np.ndarray, seg: np.ndarray, w: int) -> np.ndarray:
     sxx = n * (n * n - 1) / 12.0
     ok = n >= 3
     slope = (siy - ibar[:, None] * sy) / np.where(ok, sxx, 1.0)[:, None]
-    noise = np.maximum(sigma_loc[seg_of], 1.0)
-    z2 = np.sum((slope / noise) ** 2, axis=1) * np.where(ok, sxx, 0.0)
+    # the noise about the window's line, when more than the recording's (slow wander of a long pose,
+    # flicker noise, which second differences do not see), from at least LOCAL_MIN_DOF degrees of freedom
+    c2 = _sums(M * M)
+    syy = c2[we] - c2[ws]
+    rss = np.sum(syy - sy * sy / np.maximum(n, 1)[:, None], axis=1) - np.sum(slope**2, axis=1) * sxx
+    dof = 3 * (n - 2)
+    local = np.where(dof >= LOCAL_MIN_DOF, rss / np.maximum(dof, 1), 1.0)
+    z2 = np.sum(slope**2, axis=1) * np.where(ok, sxx, 0.0) / np.maximum(local, 1.0)
     trend = np.zeros(k, bool)
     np.logical_or.at(trend, seg_of, z2 > TREND_CHI2)
-    # (c) a piece of a smooth motion: PELT cuts a ramp into pieces whose own slope stays near √(pen/2)
-    # standard errors, so each piece is also tested with its contiguous neighbours: one straight line
-    # through the three (χ² of its residuals within noise) with a significant slope is a motion. Poses
-    # between steps or motions are not on one line with their neighbours.
-    left = np.concatenate([[False], a[1:] == b[:-1]])
-    right = np.concatenate([a[1:] == b[:-1], [False]])
-    c2 = _sums(M * M)
-    for lo, hi in ((np.where(left, np.roll(a, 1), a), np.where(right, np.roll(b, -1), b)),  # both sides
-                   (np.where(left, np.roll(a, 1), a), b), (a, np.where(right, np.roll(b, -1), b))):  # one
-        trend |= _on_a_line(c0, c1, c2, lo, hi) & ((lo < a) | (hi > b))
     out[trend] = "trend"
     out[noisy & ~trend] = "noisy"
     return out
 
 
-def _on_a_line(c0, c1, c2, lo, hi) -> np.ndarray:
-    """Whether the block means in [lo, hi) (cumulative sums c0, c1, c2 of M, i·M, M²; unit noise) lie on one
-    straight line within the noise and its slope is significant (step 4c)."""
+def _slopes(c0, c1, lo, hi):
+    """Least-squares slope per axis of the block means in each [lo, hi) (cumulative sums c0 of M and c1 of
+    i·M), and Σ_axes of its inverse variance factor: slope (k, 3) and sxx (k,) (SE² = 1/sxx, unit noise)."""
     n = (hi - lo).astype(float)
-    sy, siy, syy = c0[hi] - c0[lo], c1[hi] - c1[lo], c2[hi] - c2[lo]
+    ok = n >= 2
+    sxx = np.where(ok, n * (n * n - 1) / 12.0, 0.0)
     ibar = (lo + hi - 1) / 2.0
-    ok = n >= 4
-    sxx = np.where(ok, n * (n * n - 1) / 12.0, 1.0)
-    sxy = siy - ibar[:, None] * sy
-    slope2 = np.sum(sxy * sxy, axis=1) / sxx  # Σ_axes (slope/SE)²
-    rss = np.sum(syy - sy * sy / np.maximum(n, 1)[:, None], axis=1) - slope2
-    dof = 3 * np.maximum(n - 2, 1)
-    return ok & (slope2 > TREND_CHI2) & (rss <= dof + LINE_SIGMAS * np.sqrt(2 * dof))
+    sxy = (c1[hi] - c1[lo]) - ibar[:, None] * (c0[hi] - c0[lo])
+    return sxy / np.where(ok, sxx, 1.0)[:, None], sxx
+
+
+def _continues_motion(M: np.ndarray, seg: np.ndarray) -> np.ndarray:
+    """For each segment [a, b) of block means ``M`` (unit noise, segments in order): whether it is a piece
+    of a smooth motion that runs on into a neighbour (step 4c). It is when, for the segment and a touching
+    neighbour (the one before, the one after, or both), (i) one straight line through all of them fits
+    within the noise (residual χ² at most :data:`LINE_SLACK` times its degrees of freedom plus
+    :data:`LINE_SIGMAS` SDs), (ii) its slope is significant (Σ_axes (slope/SE)² > :data:`TREND_CHI2`), and
+    (iii) the segment's own slope agrees with it (the same χ² with the segment's own SE). A pose next to
+    a step or a motion fails (i); a pause in a turn is flat and fails (iii); a piece of the turn passes."""
+    k = len(seg)
+    out = np.zeros(k, bool)
+    if k < 2:
+        return out
+    idx = np.arange(len(M), dtype=float)[:, None]
+    c0, c1, c2 = _sums(M), _sums(idx * M), _sums(M * M)
+    a, b = seg[:, 0], seg[:, 1]
+    own, own_sxx = _slopes(c0, c1, a, b)
+    left = np.concatenate([[False], a[1:] == b[:-1]])
+    right = np.concatenate([a[1:] == b[:-1], [False]])
+    prev_a, next_b = np.roll(a, 1), np.roll(b, -1)
+    for lo, hi in ((np.where(left, prev_a, a), np.where(right, next_b, b)),
+                   (np.where(left, prev_a, a), b), (a, np.where(right, next_b, b))):
+        wider = (lo < a) | (hi > b)
+        n = (hi - lo).astype(float)
+        slope, sxx = _slopes(c0, c1, lo, hi)
+        sy = c0[hi] - c0[lo]
+        rss = (np.sum(c2[hi] - c2[lo] - sy * sy / np.maximum(n, 1)[:, None], axis=1)
+               - np.sum(slope**2, axis=1) * sxx)
+        dof = 3 * np.maximum(n - 2, 1)
+        fits = rss <= LINE_SLACK * dof + LINE_SIGMAS * np.sqrt(2 * dof)
+        significant = np.sum(slope**2, axis=1) * sxx > TREND_CHI2
+        agrees = np.sum((own - slope) ** 2, axis=1) * own_sxx <= TREND_CHI2
+        out |= wider & (n >= 4) & fits & significant & agrees
+    return out
+
+
+def _hinge_trim(M: np.ndarray, seg: np.ndarray, H: int) -> np.ndarray:
+    """Each rest [a, b) (blocks, unit noise) without the start of a slow motion that PELT left in it
+    (step 6): over its last H blocks (mirrored, its first H) a hinge, constant up to block c and a
+    straight line from there, is fitted for every c; when the best hinge fits better than a constant by
+    more than :data:`TREND_CHI2`, the rest ends at c. Vectorised over rests and hinge points."""
+    out = seg.copy()
+    if not len(seg):
+        return out
+    H = max(H, 1)
+    for end in (1, 0):
+        L = seg[:, 1] - seg[:, 0]
+        h = np.minimum(L // 2, H)
+        j = np.arange(H)
+        if end:  # the last h blocks, in time order
+            pos = seg[:, 1:2] - h[:, None] + j[None, :]
+        else:  # the first h blocks, reversed so that the motion is again at the far end
+            pos = seg[:, 0:1] + h[:, None] - 1 - j[None, :]
+        valid = j[None, :] < h[:, None]
+        Y = M[np.clip(pos, 0, len(M) - 1)] * valid[..., None]  # (k, H, 3)
+        n = valid.sum(axis=1)
+        ybar = Y.sum(axis=1) / np.maximum(n, 1)[:, None]
+        rss0 = np.sum(((Y - ybar[:, None]) * valid[..., None]) ** 2, axis=(1, 2))
+        # hinge at c: regressors 1 and x = max(0, j − c), least squares per axis via 2 × 2 normal equations
+        c = np.arange(H)
+        X = np.maximum(0, j[None, :] - c[:, None])[None] * valid[:, None, :]  # (k, C, H)
+        sx = X.sum(axis=2)
+        sxx = (X * X).sum(axis=2)
+        sy = Y.sum(axis=1)  # (k, 3)
+        sxy = np.einsum("kch,kha->kca", X, Y)
+        det = n[:, None] * sxx - sx * sx
+        ok = det > 1e-9
+        beta1 = (n[:, None, None] * sxy - sx[..., None] * sy[:, None, :]) / np.where(ok, det, 1.0)[..., None]
+        rss = rss0[:, None] - np.sum(beta1 * (sxy - sx[..., None] * ybar[:, None, :]), axis=2)
+        rss = np.where(ok & (c[None, :] < n[:, None] - 2), rss, np.inf)  # a slope over 2+ blocks
+        best = np.argmin(rss, axis=1)
+        gain = rss0 - rss[np.arange(len(seg)), best]
+        cut = gain > TREND_CHI2
+        if end:
+            out[cut, 1] = seg[cut, 1] - h[cut] + best[cut] + 1
+        else:
+            out[cut, 0] = seg[cut, 0] + h[cut] - 1 - best[cut]
+    return out
 
 
 def _change_points(Z: np.ndarray, good: np.ndarray) -> np.ndarray:
@@ -172,7 +257,7 @@ def _change_points(Z: np.ndarray, good: np.ndarray) -> np.ndarray:
 
     d = np.diff(np.concatenate([[0], good.astype(np.int8), [0]]))
     runs = np.column_stack([np.flatnonzero(d == 1), np.flatnonzero(d == -1)])
-    pen = PENALTY_PER_DIM * Z.shape[1] * np.log(max(int(good.sum()), 3))
+    pen = PENALTY
     bounds = []
     for s, e in runs:  # runs of good blocks (one without drops), each cut into pieces
         cuts = np.linspace(s, e, -(-(e - s) // PIECE_BLOCKS) + 1).round().astype(int)
@@ -192,7 +277,7 @@ def _merge(M: np.ndarray, seg: np.ndarray, rest: np.ndarray, w: int, gap_ok: np.
     c = _sums(M)
     means = (c[seg[:, 1]] - c[seg[:, 0]]) / (seg[:, 1] - seg[:, 0])[:, None]
     close = np.linalg.norm((means[1:] - means[:-1]) / step_norm, axis=1) < MERGE_SIGMA
-    join = rest[:-1] & rest[1:] & close & (seg[1:, 0] == seg[:-1, 1]) & gap_ok
+    join = rest[:-1] & rest[1:] & close & gap_ok
     if not join.any():
         return seg, rest
     group = np.concatenate([[0], np.cumsum(~join)])
@@ -240,10 +325,10 @@ def segment_recording(rec: Recording, min_static_s: float | None = None,
     ok_pair = ~bad[2:] & ~bad[1:-1] & ~bad[:-2]
     ds = np.diff(Nf, 2, axis=0)[ok_pair]
     q = _quantum(Nf[~bad])
-    sigma = np.maximum(_q25_sd(ds) if len(ds) else q, q / np.sqrt(12.0))
+    sigma = np.maximum(_noise_sd(ds) if len(ds) else q, q / np.sqrt(12.0))
     ok_block = good[2:] & good[1:-1] & good[:-2]
     dm = np.diff(M, 2, axis=0)[ok_block]
-    sigma_b = np.maximum(_q25_sd(dm) if len(dm) else sigma, sigma / np.sqrt(b))
+    sigma_b = np.maximum(_noise_sd(dm) if len(dm) else sigma, sigma / np.sqrt(b))
     if not np.any(sigma > 0) or not np.ptp(Nf[~bad], axis=0).any():
         raise InputError(f"{rec.path}: the outputs never change; this is not a recording of a sensor being turned")
     scale = np.where(sigma_b > 0, sigma_b, np.max(sigma_b))  # an axis that never moves keeps unit scale
@@ -257,8 +342,18 @@ def segment_recording(rec: Recording, min_static_s: float | None = None,
     seg2, rest2 = _merge(Z, seg, reason == "", w, gap_ok, step)
     if len(seg2) != len(seg):  # joined groups passed the test; the other segments keep their reasons
         seg, reason = seg2, np.where(rest2, "", _rest_test(Z, seg2, w)).astype(object)
+    # rests long enough to keep are tested against their surroundings (step 4c)
+    cand = (reason == "") & ((seg[:, 1] - seg[:, 0]) * b >= m)
+    reason[cand & _continues_motion(Z, seg)] = "trend"
+    keep = (reason == "") & ((seg[:, 1] - seg[:, 0]) * b >= m)
+    seg = seg.copy()
+    short = (reason == "") & ~keep
+    # the hinge search leaves out the end blocks (which may mix motion and rest; they are dropped at the
+    # end anyway) and looks at most half way into the rest from each end
+    H = max(4, int(round(HINGE_S * (rate if np.isfinite(rate) else 50.0) / b)))
+    seg[keep] = _hinge_trim(Z, seg[keep] + [1, -1], H) + [-1, 1]
     rest = reason == ""
-    return Segmentation(b, w, seg, rest, reason, sigma, sigma_b, int((~good).sum()))
+    return Segmentation(b, w, seg, rest, reason, sigma, sigma_b, int((~good).sum()), keep, short)
 
 
 def _seconds(value: float | None, default: float, rate: float, param: str) -> int:
@@ -280,18 +375,18 @@ def segment_static(recording: Recording, *, min_static_s: float | None = None,
     m = (_seconds(min_static_s, DEFAULT_MIN_STATIC_S, rate, "min_static_s") if np.isfinite(rate)
          else NO_RATE_SAMPLES)
     seg, rest = sg.segments, sg.rest
-    long_enough = (seg[:, 1] - seg[:, 0]) * b >= m
-    keep = rest & long_enough
+    keep = sg.kept
     iv = seg[keep] * b
-    # less one block at each end that borders another segment (not at the recording's ends)
+    # less one block at each end that borders another segment (a block a step or a motion starts in
+    # mixes both sides), not at the recording's ends
     nb = len(recording) // b
     iv[:, 0] += np.where(seg[keep, 0] > 0, b, 0)
     iv[:, 1] -= np.where(seg[keep, 1] < nb, b, 0)
-    if seg[keep, 1].size and seg[keep, 1][-1] == nb:  # the last rest runs to the end: keep the tail samples
+    if len(iv) and seg[keep][-1, 1] == nb:  # the last rest runs to the end: keep the tail samples
         iv[-1, 1] = len(recording)
     iv = iv[iv[:, 1] > iv[:, 0]]
     notes = []
-    n_short = int(np.sum(rest & ~long_enough))
+    n_short = int(np.sum(sg.short))
     if n_short:
         notes.append(f"{n_short} rest segment(s) shorter than {m} samples ignored")
     moving = ~rest
@@ -320,7 +415,7 @@ def segment_diagnosis(det: DetectionResult, needed: int) -> tuple[str, str]:
     sec = (lambda s: f"{s / rate:.3g} s") if np.isfinite(rate) else (lambda s: f"{s} samples")
     trend = sg.reason == "trend"
     noisy = sg.reason == "noisy"
-    short_rest = sg.rest & (L < det.min_samples)
+    short_rest = sg.short
     moving_s = int(L[~sg.rest].sum())
     counts = (f"{int(trend.sum())} segment(s) trend (the outputs drift: the sensor turns), {int(noisy.sum())} "
               f"shake beyond {NOISE_RATIO:g} × the noise, {int(short_rest.sum())} at rest but shorter than "
