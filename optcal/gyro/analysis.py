@@ -12,7 +12,6 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.stats import chi2
 
 from .. import analysis
 from ..errors import InputError
@@ -33,6 +32,8 @@ class GSensitivityTest:
 
 def g_sensitivity_test(cost_without: float, cost_with: float, alpha: float = ALPHA) -> GSensitivityTest:
     """Likelihood-ratio test of G = 0 from the optimal costs of the two nested fits on the same data."""
+    from scipy.stats import chi2  # at first use: scipy.stats costs about a second to import
+
     stat = max(float(cost_without) - float(cost_with), 0.0)
     p = float(chi2.sf(stat, 9))
     return GSensitivityTest(stat, 9, p, p < alpha)

@@ -15,7 +15,6 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.spatial.transform import Rotation
 
 from ..errors import InputError
 from ..schemes import scheme
@@ -46,6 +45,8 @@ class SimulatedIMU:
 
 def _attitudes(u: np.ndarray, rng: np.random.Generator) -> np.ndarray:
     """Body-to-world rotations putting each body direction u_k on the world's z axis, random heading."""
+    from scipy.spatial.transform import Rotation
+
     out = []
     z = np.array([0.0, 0.0, 1.0])
     for v in u:
@@ -69,6 +70,8 @@ def simulate_imu(model: GyroModel, truth, *, poses=24, rate_hz: float = 100.0, r
     truth = np.asarray(truth, float)
     if truth.shape != (model.n_params,):
         raise InputError(f"the truth has {truth.size} values; model {model.name} has {model.n_params}")
+    from scipy.spatial.transform import Rotation  # imported at first use, as optcal's commands expect
+
     C = _attitudes(scheme(poses, rng), rng) if attitudes is None else np.asarray(attitudes, float)
     n_rest, n_move = int(round(rest_s * rate_hz)), int(round(motion_s * rate_hz))
     dt = 1.0 / rate_hz
