@@ -221,7 +221,8 @@ def table_kind(names, N: np.ndarray, nrows: int, ncol: int | None = None) -> tup
     low = [str(h).lower() for h in names or []]
     only = [c for c in POSITIONS_ONLY if c in low]
     r = jump_ratio(N)
-    named = f"its columns {', '.join(only)} are a positions file's" if only else ""
+    named = (f"its column{'s' * (len(only) > 1)} {', '.join(only)} {'are' if len(only) > 1 else 'is'} a positions "
+             "file's") if only else ""
     if r is not None and r >= POSITION_JUMP:
         said = (f"consecutive rows differ by a median {r:.0%} of the outputs' magnitude, as positions the "
                 "sensor was turned between do")
