@@ -106,7 +106,7 @@ def _sums(x: np.ndarray) -> np.ndarray:
     return np.concatenate([np.zeros((1,) + x.shape[1:]), np.cumsum(x, axis=0)])
 
 
-def _rest_test(M: np.ndarray, seg: np.ndarray, w: int) -> np.ndarray:
+def _rest_test(M: np.ndarray, seg: np.ndarray, w: int, excess=None) -> np.ndarray:
     """For each segment [a, b) of block means ``M`` (in units of the recording's block noise, so σ_b = 1
     per axis): "" at rest, "noisy" or "trend" (step 4 of the module docstring). Vectorised over segments
     and windows through cumulative sums."""
@@ -152,7 +152,9 @@ def _rest_test(M: np.ndarray, seg: np.ndarray, w: int) -> np.ndarray:
     rss = np.sum(syy - sy * sy / np.maximum(n, 1)[:, None], axis=1) - np.sum(slope**2, axis=1) * sxx
     dof = 3 * (n - 2)
     local = np.where(dof >= LOCAL_MIN_DOF, rss / np.maximum(dof, 1), 1.0)
-    z2 = np.sum(slope**2, axis=1) * np.where(ok, sxx, 0.0) / np.maximum(local, 1.0)
+    # windows of a pose's length or more: the recording's own excess of slow noise at that scale
+    floor = np.where((n >= BLOCKS_PER_POSE)[:, None], 1.0 if excess is None else excess, 1.0)
+    z2 = np.sum(slope**2 / np.maximum(local[:, None], floor), axis=1) * np.where(ok, sxx, 0.0)
     trend = np.zeros(k, bool)
     np.logical_or.at(trend, seg_of, z2 > TREND_CHI2)
     out[trend] = "trend"
@@ -272,7 +274,7 @@ def _change_points(Z: np.ndarray, good: np.ndarray) -> np.ndarray:
 
 
 def _merge(M: np.ndarray, seg: np.ndarray, rest: np.ndarray, w: int, gap_ok: np.ndarray,
-           step_norm: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+           step_norm: np.ndarray, excess=None) -> tuple[np.ndarray, np.ndarray]:
     """Join neighbouring rest segments (step 5): returns the new segments and their rest flags."""
     c = _sums(M)
     means = (c[seg[:, 1]] - c[seg[:, 0]]) / (seg[:, 1] - seg[:, 0])[:, None]
@@ -285,7 +287,7 @@ def _merge(M: np.ndarray, seg: np.ndarray, rest: np.ndarray, w: int, gap_ok: np.
     ends = np.concatenate([starts[1:], [len(seg)]])
     merged = np.column_stack([seg[starts, 0], seg[ends - 1, 1]])
     multi = ends - starts > 1
-    passes = _rest_test(M, merged, w) == ""
+    passes = _rest_test(M, merged, w, excess) == ""
     keep_group = multi & passes  # a joined group that passes replaces its members
     take = keep_group[group]
     out = np.concatenate([merged[keep_group], seg[~take]])
@@ -335,13 +337,22 @@ def segment_recording(rec: Recording, min_static_s: float | None = None,
     Z = M / scale
     seg = _change_points(Z, good)
     w = max(3, int(round(win / b)))
-    reason = _rest_test(Z, seg, w)
+    # slow noise (flicker, a hand's wander) is more at a pose's length than the blocks' white noise
+    # says: its excess variance there, per axis, from second differences of means over BLOCKS_PER_POSE
+    F = BLOCKS_PER_POSE
+    nB = nb // F
+    ZB = Z[: nB * F].reshape(nB, F, 3).mean(axis=1)
+    goodB = good[: nB * F].reshape(nB, F).all(axis=1)
+    okB = goodB[2:] & goodB[1:-1] & goodB[:-2]
+    excess = (np.maximum(1.0, F * _noise_sd(np.diff(ZB, 2, axis=0)[okB]) ** 2) if okB.sum() >= 10
+              else np.ones(3))
+    reason = _rest_test(Z, seg, w, excess)
     # neighbours are joined only across a cut of PELT's, never across a set-aside block
     gap_ok = seg[1:, 0] == seg[:-1, 1]
     step = np.where(sigma > 0, sigma, np.max(sigma)) / scale  # a sample's noise SD, in block-noise units
-    seg2, rest2 = _merge(Z, seg, reason == "", w, gap_ok, step)
+    seg2, rest2 = _merge(Z, seg, reason == "", w, gap_ok, step, excess)
     if len(seg2) != len(seg):  # joined groups passed the test; the other segments keep their reasons
-        seg, reason = seg2, np.where(rest2, "", _rest_test(Z, seg2, w)).astype(object)
+        seg, reason = seg2, np.where(rest2, "", _rest_test(Z, seg2, w, excess)).astype(object)
     # rests long enough to keep are tested against their surroundings (step 4c)
     cand = (reason == "") & ((seg[:, 1] - seg[:, 0]) * b >= m)
     reason[cand & _continues_motion(Z, seg)] = "trend"
