@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import argparse
 import json
 
 from ..errors import InputError
@@ -21,10 +22,21 @@ from ._dataopts import add_data_options, flag_names, gravity_from_args, load_pos
 HELP = "calibrate an accelerometer from static positions (default model nonlinear12, or smaller if the data ask)"
 
 
+class NamedModel(argparse.Action):
+    """``--model`` as given: sets the model and notes that the user named one. Only the default model falls back
+    to a smaller one when the positions do not determine it (docs/design.md §7.5); a named one is refused."""
+
+    def __call__(self, parser, namespace, values, option_string=None):
+        setattr(namespace, self.dest, values)
+        namespace.model_named = True
+
+
 def add_arguments(p):
     p.add_argument("data", metavar="DATA", help="positions CSV (or a raw recording with --raw)")
-    p.add_argument("--model", help="model name or sum of terms (default nonlinear12; when the positions do not "
-                   "determine it, the richest of linear9 and diag6 that they do, said in a note)")
+    p.add_argument("--model", default="nonlinear12", action=NamedModel,
+                   help="model name or sum of terms (default nonlinear12; when the positions do not determine it, "
+                   "the richest of linear9 and diag6 that they do, said in a note)")
+    p.set_defaults(model_named=False)
     p.add_argument("--solver", default="scipy-lm", help="registered solver, e.g. bsas, staged:bsas (default scipy-lm)")
     p.add_argument("--option", action="append", metavar="KEY=VALUE", help="solver option (repeatable)")
     p.add_argument("--seed", type=int, default=0, help="seed of the solver's random generator")
@@ -82,7 +94,7 @@ def run(args) -> int:
         refuse_overwrite(args.plot, args.force)
         check_figure_path(args.plot)
     g_local = gravity_from_args(args)
-    named = args.model is not None
+    named = args.model_named
     data = load_positions(args, args.data) if named else _default_positions(args)
     presets = load_presets(args.presets) if args.presets else None
     detection = data.extra.get("detection") if isinstance(data.extra, dict) else None
