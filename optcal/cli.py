@@ -32,9 +32,30 @@ class ArgumentParser(argparse.ArgumentParser):
     def __init__(self, *args, **kwargs):
         kwargs.setdefault("allow_abbrev", False)
         super().__init__(*args, **kwargs)
+        self._argv: list[str] = []
+
+    def parse_known_args(self, args=None, namespace=None):
+        self._argv = list(sys.argv[1:] if args is None else args)
+        return super().parse_known_args(args, namespace)
 
     def error(self, message):
+        if message.startswith("unrecognized arguments:"):
+            message += _spelled_out(self, self._argv, message.split(":", 1)[1].split())
         self.exit(2, f"{self.prog}: error: {message} (see {self.prog} --help)\n")
+
+
+def _spelled_out(parser: argparse.ArgumentParser, argv: list[str], unknown: list[str]) -> str:
+    """For an unknown ``--opt`` that begins one or more options of the command named in ``argv`` (or of
+    ``parser`` itself), the options it would have abbreviated, as a hint."""
+    for action in parser._actions:  # the command's own parser, sub-commands of sub-commands included
+        if isinstance(action, argparse._SubParsersAction):
+            named = [a for a in argv if a in action.choices]
+            if named:
+                return _spelled_out(action.choices[named[0]], argv[argv.index(named[0]) + 1:], unknown)
+    options = [s for a in parser._actions for s in a.option_strings if s.startswith("--")]
+    hints = [f"for {u} write {' or '.join(m)}" for u in unknown if u.startswith("--")
+             for m in [[o for o in options if o.startswith(u.split("=", 1)[0]) and o != u]] if m]
+    return f" (options are not abbreviated: {'; '.join(hints)})" if hints else ""
 
 
 ENTRY_POINT_GROUP = "optcal.commands"

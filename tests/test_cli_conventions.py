@@ -160,15 +160,19 @@ def test_no_parser_takes_an_abbreviated_option():
     assert [w for w, p in parsers if p.allow_abbrev] == []
 
 
-@pytest.mark.parametrize("argv, unknown", [
-    (["info", "--noise", "10"], "--noise 10"),  # argparse would read --noise-ug 10: µg the user never wrote
-    (["simulate", "-o", "x.csv", "--dwell", "5"], "--dwell 5"),
-    (["study", "run", "ci", "--work", "2"], "--work 2"),
-    (["--verb", "info"], "--verb"),
+@pytest.mark.parametrize("argv, unknown, hint", [
+    # argparse would read --noise-ug 10: µg the user never wrote
+    (["info", "--noise", "10"], "--noise 10", "for --noise write --noise-ug"),
+    (["simulate", "-o", "x.csv", "--dwell", "5"], "--dwell 5", "for --dwell write --dwell-s"),
+    (["study", "run", "ci", "--work", "2"], "--work 2", "for --work write --workers"),
+    (["calibrate", "p.csv", "--mod=linear9"], "--mod=linear9", "for --mod=linear9 write --model"),
+    (["--verb", "info"], "--verb", "for --verb write --verbose"),
+    (["info", "--bogus"], "--bogus", None),
 ])
-def test_an_abbreviated_option_is_refused_in_one_line(argv, unknown, capsys):
+def test_an_abbreviated_option_is_refused_in_one_line(argv, unknown, hint, capsys):
     with pytest.raises(SystemExit) as exc:
         cli.main(argv)
     err = capsys.readouterr().err
     assert exc.value.code == 2 and err.count("\n") == 1, err
     assert f"unrecognized arguments: {unknown}" in err
+    assert (f"(options are not abbreviated: {hint}" in err) if hint else "abbreviated" not in err
