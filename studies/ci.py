@@ -1,20 +1,38 @@
-"""CI tracking: run ``studies/specs/ci.toml`` and check its summary against the committed tolerances
-(``studies/ci_tolerances.toml``). Accuracy (RMSE/CRLB), success rate and verification error fail when they
-regress past their tolerance; run time is reported, never checked.
+"""CI tracking: run a study (the CI spec, studies/specs/ci.toml, or any other) and check it against a committed
+baseline (``studies/ci_tolerances.toml`` for the CI spec) with the study's own intervals.
 
-``python -m studies.ci [--out DIR] [--propose]`` runs the study, prints each metric beside its tolerance
-and, with ``--propose``, tolerances for the values just measured (accuracy and verification × 1.25 and
-× 1.10, success rate less two runs' worth), to paste into the tolerance file after a deliberate change.
+The baseline holds, per solver (per model × scheme × solver when the spec has several cells), the values the
+committed code measured: RMSE/CRLB (``accuracy``), the share of runs at the noise floor (``success_rate``), the
+verification error (``ver_mean_ug``, µg) and the median solver time (``runtime_median_s``, s), with the machine
+they were measured on. A metric regresses when the baseline lies outside the new run's 95 % bootstrap interval
+over the Monte-Carlo runs (:mod:`studies.anytime`) on the bad side: the change is larger than the study can
+tell from run-to-run scatter. The study's seeds are fixed, so the same code reproduces the baseline exactly
+and every interval contains it. The run time is reported; it is checked the same way only when asked
+(``--check-runtime``) and on the machine that measured the baseline: times from another machine, or from a
+machine shared with other work, say nothing about the code (the asv suite, docs/tracking.md, times the code
+with repeated samples instead).
+
+``python -m studies.ci [--spec SPEC] [--baseline FILE] [--out DIR] [--junit FILE] [--propose]`` runs the study,
+prints each metric beside its baseline and interval, writes a JUnit XML report with one test case per solver
+and metric, and with ``--propose`` prints a baseline of the values just measured (to commit after a
+deliberate change). ``optcal study export DIR --format junit`` checks a study folder already run.
 """
 
 from __future__ import annotations
 
 import argparse
 import math
+import platform
 import sys
 import tempfile
+from dataclasses import dataclass
 from pathlib import Path
 
+import numpy as np
+
+from optcal.errors import InputError
+
+from .anytime import group_ci, mean_ci
 from .execute import run_study
 from .metrics import groups
 from .spec import load
@@ -26,67 +44,181 @@ else:  # pragma: no cover
     import tomli as tomllib
 
 TOLERANCES = Path(__file__).parent / "ci_tolerances.toml"
-CHECKS = (("accuracy", "max_accuracy", "<="), ("success_rate", "min_success_rate", ">="),
-          ("ver_mean_ug", "max_ver_mean_ug", "<="))
+# (metric, unit, better): the metrics a baseline holds and which way is better
+METRICS = (("accuracy", "RMSE/CRLB", "lower"), ("success_rate", "fraction of runs", "higher"),
+           ("ver_mean_ug", "µg", "lower"), ("runtime_median_s", "s", "lower"))
 
 
-def load_tolerances(path: Path = TOLERANCES) -> dict:
-    return tomllib.loads(Path(path).read_text())["solvers"]
+def machine() -> str:
+    """This machine, as a baseline records it (host name and CPU count)."""
+    import os
+
+    return f"{platform.node()} ({os.cpu_count()} CPUs, {platform.machine()})"
 
 
-def run_ci(folder: str | Path) -> tuple[list[dict], float]:
-    """Run the CI study into ``folder``; its per-solver summaries and the wall time."""
-    s = run_study(load("ci"), folder, progress=False)
-    with Store.open_existing(folder) as st:
-        return [g.summary() for g in groups(st.rows())], s.wall_s
-
-
-def check(summary: list[dict], tolerances: dict) -> list[str]:
-    """Every regression past a tolerance, one line each (empty: all within)."""
-    out = []
-    by = {s["solver"]: s for s in summary}
-    for name in sorted(set(by) ^ set(tolerances)):
-        where = "the CI study has no tolerances for" if name in by else "the tolerances name a solver the study lacks:"
-        out.append(f"{where} {name}")
-    for name in sorted(set(by) & set(tolerances)):
-        for metric, key, op in CHECKS:
-            v, lim = by[name][metric], tolerances[name][key]
-            ok = math.isfinite(v) and (v <= lim if op == "<=" else v >= lim)
-            if not ok:
-                out.append(f"{name}: {metric} = {v:.4g}, tolerance {op} {lim:.4g}")
+def measure(rows: list[dict], seed: int) -> dict[str, dict[str, tuple[float, float, float]]]:
+    """Per solver (``model|scheme|solver`` when the study has several cells): each metric of :data:`METRICS`
+    as (value, 95 % interval low, high), the interval a percentile bootstrap over the runs."""
+    gs = groups(rows)
+    several = len({(g.model, g.scheme) for g in gs}) > 1
+    out = {}
+    for g in gs:
+        s, ci = g.summary(), group_ci(g, seed)
+        ver = [r.get("ver_mean_ug") if r["status"] == "ok" else np.nan for r in g.rows]
+        ci["ver_mean_ug"] = mean_ci(np.asarray([np.nan if v is None else v for v in ver], float), seed)
+        name = f"{g.model}|{g.scheme}|{g.solver}" if several else g.solver
+        out[name] = {m: (float(s[m]), *map(float, ci[m])) for m, _, _ in METRICS}
     return out
 
 
-def propose(summary: list[dict], runs: int) -> str:
-    lines = []
-    for s in summary:
-        lines += [f'[solvers."{s["solver"]}"]',
-                  f"max_accuracy = {math.ceil(s['accuracy'] * 1.25 * 100) / 100:.2f}",
-                  f"min_success_rate = {max(0.0, math.floor((s['success_rate'] - 2 / runs) * 100) / 100):.2f}",
-                  f"max_ver_mean_ug = {math.ceil(s['ver_mean_ug'] * 1.10 * 10) / 10:.1f}", ""]
+def load_baseline(path: str | Path = TOLERANCES) -> dict:
+    """A baseline file: ``{"machine": str, "solvers": {name: {metric: value}}}``."""
+    p = Path(path)
+    try:
+        doc = tomllib.loads(p.read_text())
+    except OSError as exc:
+        raise InputError(f"baseline {p}: cannot read it ({exc.strerror}); write one with "
+                         "`python -m studies.ci --propose`") from None
+    except tomllib.TOMLDecodeError as exc:
+        raise InputError(f"baseline {p}: not valid TOML ({exc})") from None
+    if "solvers" not in doc or any(m not in v for v in doc["solvers"].values() for m, _, _ in METRICS[:3]):
+        raise InputError(f"baseline {p} lacks [solvers.NAME] tables with accuracy, success_rate and ver_mean_ug; "
+                         "write one with `python -m studies.ci --propose`")
+    return doc
+
+
+@dataclass
+class Result:
+    """One metric of one solver against its baseline."""
+
+    solver: str
+    metric: str
+    value: float
+    interval: tuple[float, float]
+    baseline: float | None
+    status: str  # "ok", "regression", "reported" (not checked here), "missing"
+    message: str
+
+
+def check(measured: dict, baseline: dict, here: str | None = None, runtime: bool = False) -> list[Result]:
+    """Every metric of every solver against the baseline (see the module docstring); the run time only with
+    ``runtime`` and on the baseline's machine."""
+    here = machine() if here is None else here
+    same_machine = runtime and baseline.get("machine") == here
+    base = baseline["solvers"]
+    out = []
+    for name in sorted(set(base) - set(measured)):
+        out.append(Result(name, "-", math.nan, (math.nan, math.nan), None, "missing",
+                          f"the baseline names a solver the study lacks: {name}"))
+    for name in measured:
+        if name not in base:
+            out.append(Result(name, "-", math.nan, (math.nan, math.nan), None, "missing",
+                              f"the baseline has no values for {name}"))
+            continue
+        for metric, unit, better in METRICS:
+            v, lo, hi = measured[name][metric]
+            b = base[name].get(metric)
+            iv = f"{v:.4g} [{lo:.4g}, {hi:.4g}] {unit}"
+            if b is None:
+                out.append(Result(name, metric, v, (lo, hi), None, "reported", f"{name}: {metric} = {iv}, no baseline"))
+                continue
+            if metric == "runtime_median_s" and not same_machine:
+                why = "from another machine" if runtime else "reported, not checked"
+                out.append(Result(name, metric, v, (lo, hi), b, "reported", f"{name}: {metric} = {iv}; baseline {b:.4g} {why}"))
+                continue
+            if not math.isfinite(v):
+                bad = True
+            elif math.isfinite(lo) and math.isfinite(hi):
+                bad = b < lo if better == "lower" else b > hi
+            else:  # fewer than two runs: no interval, the values themselves
+                bad = v > b if better == "lower" else v < b
+            verdict = "worse than the baseline" if bad else "within"
+            out.append(Result(name, metric, v, (lo, hi), b, "regression" if bad else "ok",
+                              f"{name}: {metric} = {iv}, baseline {b:.4g} ({verdict}; {better} is better)"))
+    return out
+
+
+def regressions(results: list[Result]) -> list[str]:
+    return [r.message for r in results if r.status in ("regression", "missing")]
+
+
+def propose(measured: dict, spec_name: str) -> str:
+    """A baseline file of the values just measured."""
+    lines = [f"# Baseline of the study `{spec_name}`: the values the committed code measured, checked by",
+             "# `python -m studies.ci` and `optcal study export DIR --format junit` (studies/ci.py): a metric",
+             "# regresses when this value lies outside the new run's 95 % bootstrap interval on the bad side. The",
+             "# run time is checked only with --check-runtime, on the machine named here. Written by",
+             "# `python -m studies.ci --propose` after a deliberate change.",
+             f'machine = "{machine()}"', ""]
+    for name, m in measured.items():
+        lines.append(f'[solvers."{name}"]')
+        lines += [f"{k} = {m[k][0]:.6g}" for k, _, _ in METRICS if math.isfinite(m[k][0])]
+        lines.append("")
     return "\n".join(lines)
+
+
+def junit_xml(results: list[Result], suite: str) -> str:
+    """The check as JUnit XML (one test case per solver and metric; a regression is a failure, a metric not
+    checked here is skipped), for CI services that show test reports."""
+    import xml.etree.ElementTree as ET
+
+    bad = sum(r.status in ("regression", "missing") for r in results)
+    skipped = sum(r.status == "reported" for r in results)
+    ts = ET.Element("testsuite", name=f"optcal study {suite}", tests=str(len(results)), failures=str(bad),
+                    errors="0", skipped=str(skipped))
+    for r in results:
+        tc = ET.SubElement(ts, "testcase", classname=f"optcal.study.{suite}.{r.solver}", name=r.metric)
+        if r.status in ("regression", "missing"):
+            ET.SubElement(tc, "failure", message=r.message, type=r.status).text = r.message
+        elif r.status == "reported":
+            ET.SubElement(tc, "skipped", message=r.message)
+        ET.SubElement(tc, "system-out").text = r.message
+    root = ET.Element("testsuites", name="optcal", tests=str(len(results)), failures=str(bad))
+    root.append(ts)
+    ET.indent(root)
+    return '<?xml version="1.0" encoding="UTF-8"?>\n' + ET.tostring(root, encoding="unicode") + "\n"
+
+
+def run_ci(folder: str | Path, spec: str | Path = "ci", runs: int | None = None) -> tuple[dict, float, int]:
+    """Run ``spec`` into ``folder``; its measured metrics, the wall time and the seed."""
+    sp = load(spec)
+    if runs is not None:
+        sp = sp.with_runs(runs)
+    s = run_study(sp, folder, progress=False)
+    with Store.open_existing(folder) as st:
+        return measure(st.rows(), sp.seed), s.wall_s, sp.seed
 
 
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(prog="python -m studies.ci", description=__doc__.split("\n\n")[0])
+    ap.add_argument("--spec", default="ci", help="the study spec (default: the CI spec)")
+    ap.add_argument("--baseline", help="baseline file (default: studies/ci_tolerances.toml for the CI spec)")
     ap.add_argument("--out", help="study folder (default: a temporary one)")
-    ap.add_argument("--propose", action="store_true", help="print tolerances for the measured values")
+    ap.add_argument("--junit", metavar="FILE", help="write the check as JUnit XML")
+    ap.add_argument("--propose", action="store_true", help="print a baseline of the measured values")
+    ap.add_argument("--check-runtime", action="store_true",
+                    help="check the median run time too (only on the baseline's machine)")
     a = ap.parse_args(argv)
-    with tempfile.TemporaryDirectory() as tmp:
-        summary, wall = run_ci(a.out or tmp)
-    tol = load_tolerances() if TOLERANCES.is_file() else {}
-    for s in summary:
-        t = tol.get(s["solver"], {})
-        print(f"{s['solver']:>16}: " + ", ".join(f"{m} {s[m]:.4g} ({op} {t.get(k, float('nan')):.4g})"
-                                                  for m, k, op in CHECKS)
-              + f", median runtime {s['runtime_median_s']:.3f} s")
-    print(f"wall time {wall:.1f} s (reported, not checked)")
-    if a.propose:
-        print(propose(summary, load("ci").runs))
-    bad = check(summary, tol)
-    for b in bad:
-        print("REGRESSION:", b)
-    return 1 if bad else 0
+    try:
+        base_path = a.baseline or (TOLERANCES if a.spec == "ci" else None)
+        if base_path is None and not a.propose:
+            raise InputError(f"spec {a.spec}: give its baseline with --baseline (write one with --propose)")
+        with tempfile.TemporaryDirectory() as tmp:
+            measured, wall, _ = run_ci(a.out or tmp, a.spec)
+        if a.propose:
+            print(propose(measured, load(a.spec).name))
+            if base_path is None:
+                return 0
+        results = check(measured, load_baseline(base_path), runtime=a.check_runtime)
+    except InputError as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return 2
+    for r in results:
+        print(("REGRESSION: " if r.status in ("regression", "missing") else "  ") + r.message)
+    print(f"wall time {wall:.1f} s")
+    if a.junit:
+        Path(a.junit).write_text(junit_xml(results, load(a.spec).name))
+    return 1 if regressions(results) else 0
 
 
 if __name__ == "__main__":

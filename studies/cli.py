@@ -51,7 +51,9 @@ def report(args) -> int:
 def export(args) -> int:
     from .export import export as write
 
-    c = write(args.dir, args.out, args.format)
+    c = write(args.dir, args.out, args.format, getattr(args, "baseline", None))
     print(f"exported {c['runs']} runs of {c['algorithms']} algorithm(s) on {c['problems']} problem(s) to "
           f"{c['folder']} ({args.format} format)")
-    return 0
+    for line in c.get("regressions", []):
+        print("REGRESSION:", line)
+    return 1 if c.get("regressions") else 0

@@ -28,12 +28,18 @@ def add_arguments(parser) -> None:
                        description="Write report.md, parameters.md, summary.json and figures/ for a study folder.")
     p.add_argument("dir", metavar="DIR", help="a study folder (holding study.sqlite)")
     e = sub.add_parser("export", help="write a study folder's runs in the IOHprofiler format (IOHanalyzer, "
-                                      "iohinspector)",
-                       description="Write the study's runs (best cost so far against evaluations) in the "
-                                   "IOHprofiler json + .dat format: one problem per model × scheme, one algorithm "
-                                   "per solver configuration, one instance per Monte-Carlo run (docs/studies.md).")
+                                      "iohinspector), its metrics for github-action-benchmark, or its baseline "
+                                      "check as JUnit XML",
+                       description="Write the study's results for other tools (docs/studies.md, docs/tracking.md): "
+                                   "ioh: the runs (best cost so far against evaluations) in the IOHprofiler json + "
+                                   ".dat format; github-action-benchmark: each solver's metrics with their 95 %% "
+                                   "intervals, for hosted CI charts and gates; junit: the check against a baseline "
+                                   "(--baseline) as JUnit XML.")
     e.add_argument("dir", metavar="STUDY_DIR", help="a study folder (holding study.sqlite)")
-    e.add_argument("--format", default="ioh", choices=("ioh",), help="output format (default ioh)")
+    e.add_argument("--format", default="ioh", choices=("ioh", "github-action-benchmark", "junit"),
+                   help="output format (default ioh)")
+    e.add_argument("--baseline", metavar="FILE", help="junit: the baseline file (default for the CI spec: "
+                                                      "studies/ci_tolerances.toml)")
     e.add_argument("-o", "--out", required=True, metavar="DIR", help="output folder: new, or an empty one")
 
 

@@ -1,5 +1,14 @@
-"""``optcal study export DIR --format ioh -o OUT``: a study's runs in the IOHprofiler format, for
-IOHanalyzer and iohinspector.
+"""``optcal study export DIR --format FORMAT -o OUT``: a study's results for other tools.
+
+- ``ioh``: the runs in the IOHprofiler format, for IOHanalyzer and iohinspector (below);
+- ``github-action-benchmark``: per solver its RMSE/CRLB, verification error and median run time
+  (``smaller_is_better.json``) and its share at the noise floor and anytime ECDF areas
+  (``bigger_is_better.json``), in the ``customSmallerIsBetter`` / ``customBiggerIsBetter`` JSON of
+  github-action-benchmark, so that a hosted CI service charts them per commit and gates on them; each value
+  carries its 95 % bootstrap interval over the runs as its range;
+- ``junit``: the baseline check of :mod:`studies.ci` (``--baseline FILE``; the committed
+  studies/ci_tolerances.toml for the CI spec) as JUnit XML (``tolerances.xml``): a test case per solver and
+  metric, failed when the baseline lies outside the study's interval on the bad side.
 
 The format is the one IOHexperimenter's Analyzer logger writes (json + .dat): per algorithm a folder with,
 per problem, a meta file ``IOHprofiler_f{fid}_{name}.json`` and a data file
@@ -27,6 +36,7 @@ trials, which have no curve.
 from __future__ import annotations
 
 import json
+import math
 import os
 import re
 import shutil
@@ -37,7 +47,7 @@ from optcal.errors import InputError
 
 from .store import Store
 
-FORMATS = ("ioh",)
+FORMATS = ("ioh", "github-action-benchmark", "junit")
 SUITE = "optcal"
 
 
@@ -124,22 +134,84 @@ def write_ioh(rows: list[dict], spec: dict, spec_hash: str, folder: Path) -> dic
             "problems": len({k for k in problems}), "files": n_files}
 
 
-def export(study: str | Path, out: str | Path, fmt: str = "ioh") -> dict:
+def write_benchmark_action(rows: list[dict], spec: dict, folder: Path, commit: str | None) -> dict:
+    """Write github-action-benchmark's two custom JSON files into ``folder``; return counts."""
+    from .anytime import collect
+    from .ci import measure
+
+    measured = measure(rows, spec["seed"])
+    extra = f"study {spec['name']}, {spec['runs']} runs, seed {spec['seed']}" + (f", code {commit}" if commit else "")
+
+    def entry(name, what, unit, v, lo=None, hi=None):
+        e = {"name": f"{name}: {what}", "unit": unit, "value": v, "extra": extra}
+        if lo is not None and math.isfinite(lo) and math.isfinite(hi):
+            e["range"] = f"95 % CI [{lo:.4g}, {hi:.4g}]"
+        return e
+
+    small, big = [], []
+    for name, m in measured.items():
+        for key, what, unit in (("accuracy", "RMSE/CRLB", "RMSE/CRLB"), ("ver_mean_ug", "verification error", "µg"),
+                                ("runtime_median_s", "median run time", "s")):
+            if math.isfinite(m[key][0]):
+                small.append(entry(name, what, unit, *m[key]))
+        if math.isfinite(m["success_rate"][0]):
+            big.append(entry(name, "share of runs at the noise floor", "fraction", *m["success_rate"]))
+    for rec in collect(rows).table(spec["seed"]):
+        for kind in ("cost", "accuracy"):
+            v = rec[f"{kind}_area"]
+            if math.isfinite(v):
+                big.append(entry(rec["solver"], f"anytime ECDF area ({kind} targets)", "area", v,
+                                 *rec[f"{kind}_area_ci"]))
+    (folder / "smaller_is_better.json").write_text(json.dumps(small, indent=1, allow_nan=False))
+    (folder / "bigger_is_better.json").write_text(json.dumps(big, indent=1, allow_nan=False))
+    return {"runs": sum(r["status"] == "ok" for r in rows), "algorithms": len(measured),
+            "problems": len({(r["model"], r["scheme"]) for r in rows}), "files": 2}
+
+
+def write_junit(rows: list[dict], spec: dict, folder: Path, baseline: str | Path | None) -> dict:
+    """Write the baseline check (:mod:`studies.ci`) as JUnit XML into ``folder``; return counts."""
+    from .ci import TOLERANCES, check, junit_xml, load_baseline, measure, regressions
+
+    if baseline is None:
+        if spec["name"] not in ("ci", "ci-quick"):
+            raise InputError(f"study {spec['name']}: give its `baseline` file (write one with "
+                             "`python -m studies.ci --spec SPEC --propose`)")
+        baseline = TOLERANCES
+    results = check(measure(rows, spec["seed"]), load_baseline(baseline))
+    (folder / "tolerances.xml").write_text(junit_xml(results, spec["name"]))
+    return {"runs": sum(r["status"] == "ok" for r in rows), "algorithms": len({r.solver for r in results}),
+            "problems": len({(r["model"], r["scheme"]) for r in rows}), "files": 1,
+            "regressions": regressions(results)}
+
+
+def export(study: str | Path, out: str | Path, fmt: str = "ioh", baseline: str | Path | None = None) -> dict:
     """Export the study in ``study`` to the new folder ``out``; nothing is written there unless the whole
-    export succeeds (it is written to a temporary folder beside ``out`` and renamed)."""
+    export succeeds (it is written to a temporary folder beside ``out`` and renamed). ``baseline``: the
+    baseline file of the ``junit`` format."""
     if fmt not in FORMATS:
         raise InputError(f"unknown export format {fmt!r}; use one of {', '.join(FORMATS)}")
+    if baseline is not None and fmt != "junit":
+        raise InputError("`baseline` is for the junit `format`")
     out = Path(out)
     if out.exists() and (not out.is_dir() or any(out.iterdir())):
         raise InputError(f"{out} exists and is not an empty folder; export into a new one")
     with Store.open_existing(study) as st:
         spec, rows, spec_hash = st.spec, st.rows(), st.meta("spec_hash")
+        sessions = json.loads(st.meta("sessions") or "[]")
+    if not any(r["status"] == "ok" for r in rows):
+        raise InputError(f"{study} holds no finished trial to export")
     parent = out.absolute().parent
     made = [p for p in [parent, *parent.parents] if not p.exists()]
     parent.mkdir(parents=True, exist_ok=True)
     tmp = Path(tempfile.mkdtemp(prefix=f".{out.name}.", suffix=".tmp", dir=parent))
     try:
-        counts = write_ioh(rows, spec, spec_hash, tmp)
+        if fmt == "ioh":
+            counts = write_ioh(rows, spec, spec_hash, tmp)
+        elif fmt == "junit":
+            counts = write_junit(rows, spec, tmp, baseline)
+        else:
+            commits = [x.get("code") for x in sessions if x.get("code")]
+            counts = write_benchmark_action(rows, spec, tmp, commits[-1] if commits else None)
         if not counts["runs"]:
             raise InputError(f"{study} holds no finished in-field trial to export")
         os.chmod(tmp, 0o777 & ~_umask())

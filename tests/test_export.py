@@ -135,3 +135,63 @@ def test_export_of_an_old_store_uses_its_trace(study, tmp_path):
         assert p.read_text() == (tmp_path / "from_old" / p.relative_to(tmp_path / "new")).read_text()
     meta = json.loads(next((tmp_path / "from_old" / "pso").glob("*.json")).read_text())
     assert meta["maximization"] is False and meta["attributes"] == ["evaluations", "raw_y"]
+
+
+def test_github_action_benchmark_files_carry_every_solver_with_its_interval(study, tmp_path, capsys):
+    """customSmallerIsBetter / customBiggerIsBetter: a list of {name, unit, value, range, extra}, the values the
+    baseline check measures (studies.ci.measure), each with its 95 % bootstrap interval over the runs."""
+    from studies.ci import measure
+
+    folder, rows = study
+    out = tmp_path / "gab"
+    assert main(["study", "export", str(folder), "--format", "github-action-benchmark", "-o", str(out)]) == 0
+    small = json.loads((out / "smaller_is_better.json").read_text())
+    big = json.loads((out / "bigger_is_better.json").read_text())
+    with Store.open_existing(folder) as st:
+        seed = st.spec["seed"]
+    m = measure(rows, seed)
+    # the in-field and turntable configurations of both cells, three smaller-is-better metrics each
+    assert len(m) == 8 and len(small) == 3 * 8
+    assert all(set(e) >= {"name", "unit", "value", "extra"} for e in small + big)
+    e = next(e for e in small if e["name"] == "nonlinear12|24|scipy-lm: RMSE/CRLB")
+    v, lo, hi = m["nonlinear12|24|scipy-lm"]["accuracy"]
+    assert e["value"] == v and e["unit"] == "RMSE/CRLB" and e["range"] == f"95 % CI [{lo:.4g}, {hi:.4g}]"
+    assert lo < v < hi
+    # bigger is better: the noise-floor share of every configuration, the ECDF areas of the in-field ones
+    assert sum(e["name"].endswith("share of runs at the noise floor") for e in big) == 8
+    assert {e["name"] for e in big if "ECDF area (cost" in e["name"]} == {
+        f"{s}: anytime ECDF area (cost targets)" for s in ("scipy-lm", "pso", "staged:scipy-lm")}
+
+
+def test_junit_export_checks_a_baseline_and_fails_on_a_regression(study, tmp_path, capsys):
+    import xml.etree.ElementTree as ET
+
+    from studies.ci import measure, propose
+
+    folder, rows = study
+    with Store.open_existing(folder) as st:
+        seed = st.spec["seed"]
+    m = measure(rows, seed)
+    good = tmp_path / "base.toml"
+    good.write_text(propose(m, "t"))
+    out = tmp_path / "ok"
+    assert main(["study", "export", str(folder), "--format", "junit", "--baseline", str(good), "-o", str(out)]) == 0
+    suite = ET.parse(out / "tolerances.xml").getroot().find("testsuite")
+    assert suite.get("tests") == str(4 * 8) and suite.get("failures") == "0" and suite.get("skipped") == "8"
+    # pso claimed far more accurate than it is: its accuracy fails, nothing else does
+    bad = tmp_path / "bad.toml"
+    text = propose(m, "t")
+    block = '[solvers."nonlinear12|24|pso"]\naccuracy = '
+    i = text.index(block) + len(block)
+    bad.write_text(text[:i] + "0.01" + text[text.index("\n", i):])
+    out = tmp_path / "bad"
+    assert main(["study", "export", str(folder), "--format", "junit", "--baseline", str(bad), "-o", str(out)]) == 1
+    assert "REGRESSION: nonlinear12|24|pso: accuracy" in capsys.readouterr().out
+    suite = ET.parse(out / "tolerances.xml").getroot().find("testsuite")
+    failed = [(c.get("classname"), c.get("name")) for c in suite.iter("testcase") if c.find("failure") is not None]
+    assert failed == [("optcal.study.t.nonlinear12|24|pso", "accuracy")]
+    # a spec other than the CI one needs its baseline; --baseline belongs to junit alone
+    assert main(["study", "export", str(folder), "--format", "junit", "-o", str(tmp_path / "x")]) == 2
+    assert "give its --baseline file" in capsys.readouterr().err
+    assert main(["study", "export", str(folder), "--baseline", str(good), "-o", str(tmp_path / "y")]) == 2
+    assert not (tmp_path / "x").exists() and not (tmp_path / "y").exists()
