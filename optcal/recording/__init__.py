@@ -4,15 +4,19 @@ The package spans two layers (CONTRIBUTING.md, "Layers"). Core:
 
 - :mod:`~optcal.recording.sniff`: the file's layout (delimiter, header, ``key,value`` lines, columns);
 - :mod:`~optcal.recording.reading`: :func:`read_recording` → :class:`Recording`;
+- :mod:`~optcal.recording.segment`: the default detector, change points (ruptures' PELT) and a rest test,
+  :func:`segment_static` → :class:`DetectionResult` (docs/segmentation.md);
 - :mod:`~optcal.recording.detection`: the variance detector (Tedaldi et al. 2014, §IV-A),
   :func:`detect_static` → :class:`DetectionResult`, and :func:`parse_ks` for its threshold multipliers;
+- :mod:`~optcal.recording.synth`: simulated recordings of known poses and tumbles, and the precision and
+  recall of detected intervals (:func:`interval_scores`);
 - :mod:`~optcal.recording.intervals`: intervals given by hand or by a label column;
 - :mod:`~optcal.recording.positions`: averaging intervals into positions, :func:`positions_from_recording`;
 - :mod:`~optcal.recording.report`: what detection found, as text, :func:`describe_detection`.
 
-Application: :mod:`~optcal.recording.workflow`, what fits a model and so runs a solver: the threshold
-search :func:`choose_threshold` (scored by :func:`fit_score`) and :func:`positions_from_raw`, a recording
-file to positions in one call. The figure of a recording is :func:`optcal.plots.recording.recording_figure`.
+Application: :mod:`~optcal.recording.workflow`, what fits a model and so runs a solver: the variance
+detector's threshold search :func:`choose_threshold` (scored by :func:`fit_score`) and
+:func:`positions_from_raw`, a recording file to positions in one call. The figure of a recording is :func:`optcal.plots.recording.recording_figure`.
 
 This file re-exports both: the core names here, the workflow's at first use (PEP 562) through a plain
 ``from . import workflow``, so importing a core submodule (which runs this file first) never imports the
@@ -35,6 +39,8 @@ from .positions import positions_from_recording
 from .reading import _NOT_LOADED as _NOT_LOADED  # the reader's "pyarrow not imported yet" marker
 from .reading import INT16_RAILS, Recording, read_recording
 from .report import describe_detection, detection_summary
+from .segment import segment_static
+from .synth import interval_scores
 from .sniff import ALIASES, POSITIONAL, RATE_KEYS, ROLES, SNIFF_LINES
 
 _WORKFLOW = ("choose_threshold", "fit_score", "positions_from_raw")
@@ -44,7 +50,7 @@ __all__ = [
     "DetectionResult", "Recording", "choose_threshold", "describe_detection", "detect_static",
     "detection_summary", "fit_score",
     "given_intervals", "label_intervals", "parse_ks", "positions_from_raw", "positions_from_recording",
-    "read_intervals", "read_recording", "too_few", "variance_statistic",
+    "read_intervals", "read_recording", "segment_static", "too_few", "variance_statistic", "interval_scores",
 ]
 
 

@@ -1,6 +1,7 @@
 """What static detection found, as text (:func:`describe_detection`) and as a dict for JSON
 (:func:`detection_summary`): how the recording was read (format, time unit, ADC and its rails, samples set
-aside as saturated), the intervals, the threshold and its search, the notes (docs/design.md §9.2)."""
+aside as saturated), the intervals, how they were found (segmentation's noise and rest test, or the variance detector's threshold
+and its search), the notes (docs/design.md §9.2; docs/segmentation.md)."""
 
 from __future__ import annotations
 
@@ -28,6 +29,13 @@ def describe_detection(obj: DetectionResult | PositionsData) -> str:
             tried = ", ".join(f"{r['k']:g}:{r['n_intervals']}" + (f"/{r['score'] * 1e6:.1f}"
                               if r["score"] is not None else "") for r in det.search)
             how += f"\n  k searched (k:intervals/score σ_up/√n in µg, smallest kept): {tried}"
+    elif det.method == "segment":
+        sg = det.segmentation
+        noise = ", ".join(f"{v:.3g}" for v in det.noise)
+        how = (f"change-point segmentation (ruptures' PELT on {det.block}-sample block means) and a rest test: "
+               f"noise SD per sample {noise} {rec.units} (x, y, z, from the recording), poses of at least "
+               f"{det.min_samples} samples, rest tested in windows of up to {det.window} samples; "
+               f"{len(sg.segments)} segment(s), {int(sg.rest.sum())} at rest")
     else:
         how = "intervals given by hand" if det.method == "given" else "intervals from the label column"
     lines = [head, *([read] if read else [])]
@@ -76,5 +84,6 @@ def detection_summary(obj: DetectionResult | PositionsData) -> dict:
         "method": det.method, "n_intervals": det.n_intervals, "n_static_samples": det.n_static_samples,
         "intervals": det.intervals.tolist(), "k": det.k,
         "reference": det.reference if det.method == "variance" else None,
+        "noise_per_sample": None if det.noise is None else [float(v) for v in det.noise],
         "notes": list(det.notes),
     }

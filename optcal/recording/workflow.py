@@ -1,6 +1,8 @@
 """The parts of the raw-recording path that fit a model, and so run a solver (application layer,
-CONTRIBUTING.md "Layers"; docs/design.md §9.2): the search over the detector's threshold multiplier k, and
-a recording file to positions in one call.
+CONTRIBUTING.md "Layers"; docs/design.md §9.2): the search over the variance detector's threshold multiplier
+k, and a recording file to positions in one call. The default detector, change-point segmentation
+(:mod:`optcal.recording.segment`, docs/segmentation.md), fits no model: the threshold search runs only
+when the variance detector is asked for (``method="variance"``, or its ``threshold_k`` or ``init_s``).
 
 The search follows Tedaldi, Pretto & Menegatti (ICRA 2014, §IV-A; imu_tk tries k = 2…10): each k gives a
 set of static intervals, each set is calibrated, and the k whose calibration fits best is kept.
@@ -23,6 +25,7 @@ from ..data import PositionsData, check_units
 from ..errors import InputError
 from ..model import get_model
 from .detection import DEFAULT_KS, DetectionResult, Detector, detect_static, parse_ks, too_few
+from .segment import segment_diagnosis, segment_static
 from .intervals import given_intervals, label_intervals, read_intervals
 from .positions import positions_from_recording
 from .reading import Recording, read_recording
@@ -91,24 +94,51 @@ def choose_threshold(recording: Recording, model, fit_cost_fn=None, *, ks=DEFAUL
     return res
 
 
+METHODS = ("segment", "variance")
+
+
+def detection_method(method: str | None, threshold_k, init_s) -> str:
+    """The detector to use: ``method`` when given; else the variance detector when one of its own
+    settings (``threshold_k`` other than the default search, or ``init_s``) is given, else segmentation.
+    Settings of the variance detector with ``method="segment"`` are refused in one line."""
+    if method is not None and method not in METHODS:
+        raise InputError(f"`method` {method!r}: use segment (change points, the default) or variance "
+                         "(Tedaldi et al.'s threshold)")
+    variance_only = [name for name, v in (("threshold_k", threshold_k), ("init_s", init_s))
+                     if v is not None and not (name == "threshold_k" and parse_ks(v) == DEFAULT_KS)]
+    if method == "segment" and variance_only:
+        raise InputError(f"{' and '.join(f'`{n}`' for n in variance_only)} set the variance detector's threshold, "
+                         "which segmentation does not have (it tests each segment for rest at the recording's "
+                         "own noise); drop them, or set `method` to variance")
+    return method or ("variance" if variance_only else "segment")
+
+
 def positions_from_raw(path: str | Path, *, columns=None, rate: float | None = None, units: str = "g",
                        saturation: float | None = None, adc: str | None = None, time_unit: str | None = None,
                        labels: str | None = None,
                        label_values: Sequence[str] | None = None, intervals: str | Path | None = None,
-                       threshold_k: float | str | Sequence[float] | None = None, window_s: float = 1.0,
-                       min_static_s: float = 1.0, init_s: float | None = None, model="diag6",
+                       method: str | None = None,
+                       threshold_k: float | str | Sequence[float] | None = None, window_s: float | None = None,
+                       min_static_s: float | None = None, init_s: float | None = None, model="diag6",
                        g_local: float = 1.0) -> PositionsData:
     """Positions from a raw recording. ``columns``, ``rate`` (Hz), ``units``, ``saturation``, ``adc``,
     ``time_unit`` and ``labels`` (a label column) are :func:`~optcal.recording.read_recording`'s. The
-    static intervals come from the file ``intervals`` (:func:`~optcal.recording.read_intervals`), else from the runs of
-    ``label_values`` (all labels if None) in the column ``labels``, else from the variance detector with
-    window ``window_s``, shortest interval ``min_static_s`` and initial rest ``init_s`` (all in s; without
-    ``init_s``, a rest at the start or the quietest windows, :class:`~optcal.recording.detection.Detector`): one
-    threshold multiplier ``threshold_k`` (:func:`~optcal.recording.parse_ks`: a number, ``"2:10"``, ...)
-    is used as it is (:func:`~optcal.recording.detect_static`), several (default 2…10) are searched for
-    the best fit of ``model`` at local gravity ``g_local`` (g; :func:`~optcal.recording.choose_threshold`).
-    Fewer intervals than ``model`` has parameters, or outputs whose magnitude does not fit ``units``, are an
-    InputError."""
+    static intervals come from the file ``intervals`` (:func:`~optcal.recording.read_intervals`), else from
+    the runs of ``label_values`` (all labels if None) in the column ``labels``, else from a detector
+    (:func:`detection_method`):
+
+    - ``method="segment"`` (the default): change points and a rest test
+      (:func:`~optcal.recording.segment.segment_static`, docs/segmentation.md), poses of at least
+      ``min_static_s`` (default 0.5 s), the rest test's longest window ``window_s`` (default 10 s); no
+      model is fitted to find them;
+    - ``method="variance"``: Tedaldi et al.'s variance detector with window ``window_s`` (default 1 s),
+      shortest interval ``min_static_s`` (default 1 s) and initial rest ``init_s``: one threshold
+      multiplier ``threshold_k`` (:func:`~optcal.recording.parse_ks`) is used as it is, several (default
+      2…10) are searched for the best fit of ``model`` at local gravity ``g_local``
+      (:func:`choose_threshold`).
+
+    Fewer intervals than ``model`` has parameters (a recording without rest among them, said so), or
+    outputs whose magnitude does not fit ``units``, are an InputError."""
     rec = read_recording(path, columns, rate, units, saturation=saturation, labels=labels, adc=adc,
                          time_unit=time_unit, refuse_positions=True)
     model = get_model(model)
@@ -116,8 +146,14 @@ def positions_from_raw(path: str | Path, *, columns=None, rate: float | None = N
         det = given_intervals(rec, *read_intervals(intervals))
     elif labels is not None:
         det = label_intervals(rec, label_values)
+    elif detection_method(method, threshold_k, init_s) == "segment":
+        det = segment_static(rec, min_static_s=min_static_s, window_s=window_s)
+        if det.n_intervals < model.n_params:
+            raise too_few(det.n_intervals, model, "by segmentation", segment_diagnosis(det, model.n_params))
     else:
         ks = parse_ks(threshold_k)
+        window_s = 1.0 if window_s is None else window_s
+        min_static_s = 1.0 if min_static_s is None else min_static_s
         if len(ks) == 1:
             det = detect_static(rec, ks[0], window_s=window_s, min_static_s=min_static_s, init_s=init_s)
             if det.n_intervals < model.n_params:
