@@ -159,10 +159,55 @@ class RunSummary:
     lost: int = 0  # trials whose worker died: not stored, retried when the study is run again
 
 
-def _progress(total: int, enabled: bool | None):
+class ProgressLines:
+    """Progress as plain lines, for output that is not a terminal (a CI log, a file): trials done, the rate
+    and the time left, every :attr:`EVERY_S` seconds, every :attr:`EVERY_SHARE` of the trials (but not more
+    often than every :attr:`MIN_S` seconds) and at the end, so that a
+    log shows the study moving where a progress bar would print nothing (tqdm disables itself there)."""
+
+    EVERY_S = 30.0
+    EVERY_SHARE = 0.1
+    MIN_S = 2.0  # at most one share line in this many seconds (a quick study would print every share at once)
+
+    def __init__(self, total: int, name: str, file=None):
+        self.total, self.name, self.file = total, name, file or sys.stderr
+        self.n = self.failed = self.lost = 0
+        self.t0 = self.last_t = time.perf_counter()
+        self.last_n = 0
+
+    def update(self, k: int = 1) -> None:
+        self.n += k
+        now = time.perf_counter()
+        share = self.n - self.last_n >= max(1, self.EVERY_SHARE * self.total) and now - self.last_t >= self.MIN_S
+        if now - self.last_t >= self.EVERY_S or share or self.n == self.total:
+            self.line(now)
+
+    def line(self, now: float) -> None:
+        dt = now - self.t0
+        rate = self.n / dt if dt > 0 else float("nan")
+        left = (self.total - self.n) / rate if rate > 0 else float("nan")
+        eta = f"{left / 60:.1f} min" if left >= 60 else f"{left:.0f} s"
+        extra = (f", {self.failed} failed" if self.failed else "") + (f", {self.lost} lost" if self.lost else "")
+        print(f"study {self.name}: {self.n}/{self.total} trials ({100 * self.n / max(self.total, 1):.0f} %), "
+              f"{rate:.1f} trials/s, {dt:.0f} s elapsed, about {eta} left{extra}", file=self.file, flush=True)
+        self.last_t, self.last_n = now, self.n
+
+    def set_postfix(self, failed: int = 0, lost: int = 0, refresh: bool = False) -> None:
+        self.failed, self.lost = failed, lost
+
+    def close(self) -> None:
+        pass
+
+
+def _progress(total: int, enabled: bool | None, name: str = "", stream=None):
+    """A tqdm bar on a terminal; progress lines (:class:`ProgressLines`) when ``enabled`` is None and the
+    output is not a terminal; nothing when ``enabled`` is False."""
     from tqdm import tqdm
 
-    return tqdm(total=total, unit="trial", file=sys.stderr, disable=None if enabled is None else not enabled,
+    stream = stream or sys.stderr
+    if enabled is None and total and not (hasattr(stream, "isatty") and stream.isatty()):
+        return ProgressLines(total, name, stream)
+    return tqdm(total=total, unit="trial", file=stream, disable=None if enabled is None else not enabled,
                 dynamic_ncols=True, smoothing=0.05)
 
 
@@ -209,7 +254,7 @@ def run_study(spec: Spec, folder: str | Path, *, executor: str | None = None, wo
               scheduler: str | None = None, progress: bool | None = None, limit: int | None = None) -> RunSummary:
     """Run every trial of ``spec`` not yet in ``folder``'s store; return a summary of this session.
 
-    ``progress=None`` shows the bar only on a terminal. ``limit`` runs at most that many pending trials
+    ``progress=None`` shows the bar on a terminal and progress lines otherwise (a CI log). ``limit`` runs at most that many pending trials
     (for tests and partial runs).
     """
     ex = executor or spec.executor["kind"]
@@ -232,7 +277,7 @@ def run_study(spec: Spec, folder: str | Path, *, executor: str | None = None, wo
         ran = failed = 0
         busy = 0.0  # the trials' own wall time: the workers' useful share of the session
         lost: list[Lost] = []
-        bar = _progress(len(pending), progress)
+        bar = _progress(len(pending), progress, spec.name)
         try:
             if pending and ex != "serial":
                 # Compile (or load) the kernel here once, so that the workers load it from the cache.

@@ -534,3 +534,25 @@ def test_summary_json_is_strict_json(tmp_path):
     write_report(tmp_path)
     text = (tmp_path / "summary.json").read_text()
     assert "NaN" not in text and json.loads(text)["records"][0]["accuracy_presets"] is None
+
+
+def test_progress_is_printed_as_lines_when_the_output_is_not_a_terminal(monkeypatch):
+    """A CI log is not a terminal: tqdm would print nothing there, so the study prints progress lines (trials
+    done, rate, time left) instead; off when progress is False."""
+    import io
+
+    from studies import execute
+
+    out = io.StringIO()
+    bar = execute._progress(40, None, "demo", out)
+    assert isinstance(bar, execute.ProgressLines)
+    clock = iter(range(0, 1000, 3))  # every update 3 s later
+    monkeypatch.setattr(execute.time, "perf_counter", lambda: float(next(clock)))
+    bar.t0 = bar.last_t = 0.0
+    for _ in range(40):
+        bar.update(1)
+    lines = out.getvalue().splitlines()
+    # every 10 % (4 trials: the 4th update reads the clock at 9 s) and at the end; the rate and the time left
+    assert len(lines) == 10 and lines[0] == "study demo: 4/40 trials (10 %), 0.4 trials/s, 9 s elapsed, about 1.4 min left"
+    assert lines[-1].startswith("study demo: 40/40 trials (100 %)")
+    assert not isinstance(execute._progress(40, False, "demo", io.StringIO()), execute.ProgressLines)
