@@ -17,9 +17,9 @@ import numpy as np
 from .gauge import RTOL, n_position_residuals, natural_units, null_space
 from .problem import CalibrationProblem
 
-__all__ = ["GoodnessOfFit", "Observability", "crlb", "goodness_of_fit", "natural_units",
+__all__ = ["GoodnessOfFit", "Observability", "crlb", "floor_estimator", "goodness_of_fit", "natural_units",
            "observability", "projected_crlb", "loss_weights", "hat_values", "PositionDiagnostics",
-           "position_diagnostics", "ROBUST_LOSSES"]
+           "position_diagnostics", "position_sigma", "white_sigma", "ROBUST_LOSSES"]
 
 
 @dataclass(frozen=True)
@@ -126,27 +126,64 @@ class GoodnessOfFit:
     rms_g: float
     cost: float
     dof: int
-    noise_g: float  # noise used (given, or estimated from the residuals)
+    noise_g: float  # noise used (given, the RMS of the data's per-position floor, or estimated from the residuals)
     chi2: float | None
     p_value: float | None
+    # where the noise comes from: "stated" (given), "measured" (the data's standard error of each mean: χ² is
+    # Σ (r_i/σ_i)² over the positions' own floors, docs/noise.md) or "residuals" (no noise known: no test)
+    noise_source: str = "residuals"
+    estimator: str | None = None  # measured: how the data's floor was found (optcal.noise.floor.ESTIMATORS)
+    white_noise_g: float | None = None  # measured: the RMS of the white-noise floor σ/√n alone, for comparison
+    # measured: the floor's effective degrees of freedom (optcal.noise.floor.NoiseFloor.edf); when finite the
+    # p-value is the F test's, P(F(dof, floor_dof) > χ²/dof), an estimated variance against an estimated floor
+    floor_dof: float | None = None
 
     def to_dict(self) -> dict:
-        return {k: getattr(self, k) for k in ("rms_g", "cost", "dof", "noise_g", "chi2", "p_value")}
+        return {k: getattr(self, k) for k in ("rms_g", "cost", "dof", "noise_g", "chi2", "p_value", "noise_source",
+                                              "estimator", "white_noise_g", "floor_dof")}
+
+
+def floor_estimator(data) -> str | None:
+    """How the standard errors of ``data``'s means were found: the estimator of the recording's noise floor
+    (a key of :data:`optcal.noise.floor.ESTIMATORS`), "stated" for se_x, se_y, se_z read from a file, "white"
+    for sx, sy, sz over √n, None without them."""
+    if data.sem is not None:
+        floor = data.extra.get("noise_floor") if isinstance(data.extra, dict) else None
+        return getattr(floor, "estimator", "stated")
+    return "white" if data.noise_of_mean() is not None else None
 
 
 def goodness_of_fit(problem: CalibrationProblem, x_full: np.ndarray, noise_g: float | None = None) -> GoodnessOfFit:
-    """Residual RMS, and χ² with its p-value when the noise is known."""
+    """Residual RMS, and χ² with its p-value when the noise is known: Σ r²/σ² with ``noise_g`` or a stated
+    noise level, Σ (r_i/σ_i)² with each position's own floor when the noise comes from the data
+    (:func:`position_sigma`: the standard error of each mean, correlated noise included when the data have
+    se_x, se_y, se_z). A recording's floor is itself estimated (:class:`optcal.noise.floor.NoiseFloor`, its
+    ``edf``): its p-value is then the F test's, P(F(dof, edf) > χ²/dof), which tends to the χ² test's as
+    the floor's degrees of freedom grow (docs/noise.md)."""
     from scipy import stats  # here, not at module level: importing optcal stays light
 
-    r = problem.position_residuals(x_full)
-    obs = observability(problem, x_full)
+    x = np.asarray(x_full, float)
+    r = problem.position_residuals(x)
+    obs = observability(problem, x)
     dof = max(len(r) - obs.rank, 1)
     cost = float(r @ r)
+    rms = float(np.sqrt(np.mean(r**2)))
+    if noise_g is None and problem.noise_g is not None and problem.noise_from_data:
+        sig = position_sigma(problem, x)
+        chi2 = float(np.sum((r / sig) ** 2))
+        white = white_sigma(problem, x) if problem.data.sem is not None else sig
+        floor = problem.data.extra.get("noise_floor") if isinstance(problem.data.extra, dict) else None
+        edf = getattr(floor, "edf", None) if problem.data.sem is not None else None
+        finite = edf is not None and np.isfinite(edf)
+        p = float(stats.f.sf(chi2 / dof, dof, edf)) if finite else float(stats.chi2.sf(chi2, dof))
+        w_rms = None if white is None else float(np.sqrt(np.mean(white**2)))
+        return GoodnessOfFit(rms, cost, dof, float(np.sqrt(np.mean(sig**2))), chi2, p, "measured",
+                             floor_estimator(problem.data), w_rms, float(edf) if finite else None)
     sigma = noise_g if noise_g is not None else problem.noise_g
     if sigma is None:
-        return GoodnessOfFit(float(np.sqrt(np.mean(r**2))), cost, dof, float(np.sqrt(cost / dof)), None, None)
+        return GoodnessOfFit(rms, cost, dof, float(np.sqrt(cost / dof)), None, None)
     chi2 = cost / sigma**2
-    return GoodnessOfFit(float(np.sqrt(np.mean(r**2))), cost, dof, float(sigma), chi2, float(stats.chi2.sf(chi2, dof)))
+    return GoodnessOfFit(rms, cost, dof, float(sigma), chi2, float(stats.chi2.sf(chi2, dof)), "stated")
 
 
 # -- per-position residuals, outliers and robust weights (docs/design.md §7.5) -----------------------------
@@ -192,14 +229,11 @@ def hat_values(problem: CalibrationProblem, x_full: np.ndarray, weights: np.ndar
     return np.clip(np.diag(_hat_matrix(problem, x_full, weights)[0]), 0.0, 1.0)
 
 
-def position_sigma(problem: CalibrationProblem, x_full: np.ndarray) -> np.ndarray | None:
-    """Noise SD (g) of each position residual from the data's ``n`` and ``sx, sy, sz`` (docs/design.md §7):
-    per axis s/√n/K0; for the norm residual the axes combine along the specific force's direction,
-    σ_i² = Σ_k (A_k/‖A‖)² σ_ik² (first order); a zero SD takes its axis's median. None when the data lack them."""
-    sm = problem.data.noise_of_mean()
-    if sm is None:
-        return None
-    s = sm / problem._K0
+def _residual_sigma(problem: CalibrationProblem, x_full: np.ndarray, sm: np.ndarray) -> np.ndarray:
+    """Per-axis SDs of the position means ``sm`` (n, 3, output units) as the SD of each position residual (g):
+    per axis sm/K0; for the norm residual the axes combine along the specific force's direction,
+    σ_i² = Σ_k (A_k/‖A‖)² σ_ik² (first order); a zero SD takes its axis's median."""
+    s = np.array(sm, float) / problem._K0
     # an axis whose samples did not change (quantised output) has a sample SD of 0, which is no noise level:
     # it takes the median of that axis's other positions
     for k in range(3):
@@ -211,6 +245,23 @@ def position_sigma(problem: CalibrationProblem, x_full: np.ndarray) -> np.ndarra
     A = problem.specific_force(x_full)
     w = A / np.linalg.norm(A, axis=1, keepdims=True)
     return np.sqrt(np.sum((w * s) ** 2, axis=1))
+
+
+def position_sigma(problem: CalibrationProblem, x_full: np.ndarray) -> np.ndarray | None:
+    """Noise SD (g) of each position residual from the data's standard error of each mean
+    (:meth:`~optcal.data.PositionsData.noise_of_mean`: se_x, se_y, se_z, correlated noise included, or else
+    sx, sy, sz over √n; docs/design.md §7, docs/noise.md) through :func:`_residual_sigma`. None when the data
+    lack them."""
+    sm = problem.data.noise_of_mean()
+    return None if sm is None else _residual_sigma(problem, x_full, sm)
+
+
+def white_sigma(problem: CalibrationProblem, x_full: np.ndarray) -> np.ndarray | None:
+    """As :func:`position_sigma` with the white-noise floor alone, sx, sy, sz over √n (None without them)."""
+    d = problem.data
+    if d.std is None or d.n_samples is None:
+        return None
+    return _residual_sigma(problem, x_full, d.std / np.sqrt(d.n_samples)[:, None])
 
 
 @dataclass(frozen=True)

@@ -74,8 +74,10 @@ class CalibrationProblem:
     reference : use the turntable reference ``data.ref`` (traditional calibration)
     presets : :class:`~optcal.presets.Presets` giving the search centre and half-widths; without them the
         centre is a closed-form linear fit of the data (never the truth)
-    noise_g : input-referred SD of each position's mean in g (for Cramér-Rao bounds); taken from the data's
-        ``n`` and ``sx, sy, sz`` when present
+    noise_g : input-referred SD of each position's mean in g (for Cramér-Rao bounds); when not given, the RMS
+        over positions and axes of the data's standard error of each mean (``se_x, se_y, se_z``, correlated
+        noise included, or else ``sx, sy, sz`` over √n: :meth:`PositionsData.noise_of_mean`), and
+        ``noise_from_data`` is True (the χ² test then takes each position's own floor)
     fix_gauge : hold the unobservable directions (if any) at the centre with one extra residual each
     """
 
@@ -124,11 +126,15 @@ class CalibrationProblem:
         if noise_g is not None and not (np.isfinite(noise_g) and noise_g > 0):
             raise InputError(f"the noise SD must be a positive number of g, got {noise_g!r}")
         self.noise_g = noise_g
+        self.noise_from_data = False
         if noise_g is None and data.noise_of_mean() is not None:
             self.noise_g = float(np.sqrt(np.mean((data.noise_of_mean() / self._K0) ** 2)))
+            self.noise_from_data = True
             if not (np.isfinite(self.noise_g) and self.noise_g > 0):
-                raise InputError("the positions' sample SDs (columns sx, sy, sz) are all zero or invalid, so they "
-                                 "give no noise level; fix them, or drop the columns and state the noise")
+                what = ("standard errors (columns se_x, se_y, se_z)" if data.sem is not None
+                        else "sample SDs (columns sx, sy, sz)")
+                raise InputError(f"the positions' {what} are all zero or invalid, so they give no noise level; fix "
+                                 "them, or drop the columns and state the noise")
         # Gauge: directions the norm cost cannot see (seed15's three rotations) are held at the centre
         # (presets or linear fit) by minimum-constraint residuals, as geodesy fixes a datum. They are zero
         # at the centre and orthogonal to every observable direction, so the fit of those is unchanged.

@@ -238,8 +238,10 @@ def residual_sigma(fit: Fit, noise_g: float | None) -> float:
 
 def noise_per_position(fit: Fit, noise_g: float | None, notes: list[str]) -> np.ndarray | None:
     """σ_j, the noise of each norm residual in g: ``noise_g`` if given, else each position's standard error
-    per axis (sx, sy, sz over √n) referred to the input with the fitted scale factors and projected on the
-    measured direction, σ_j² = Σ_i â_ji²·(s_ji / (K_i·√n_j))²; None when neither is known."""
+    per axis (:meth:`~optcal.data.PositionsData.noise_of_mean`: se_x, se_y, se_z, correlated noise included,
+    as a recording's positions carry them, docs/noise.md; else sx, sy, sz over √n) referred to the input with
+    the fitted scale factors and projected on the measured direction, σ_j² = Σ_i â_ji²·(se_ji / K_i)²; None
+    when neither is known. A note names the estimator of a recording's floor."""
     m = fit.problem.n_residuals
     if noise_g is not None:
         return np.full(m, float(noise_g))
@@ -250,6 +252,9 @@ def noise_per_position(fit: Fit, noise_g: float | None, notes: list[str]) -> np.
     u = A / np.linalg.norm(A, axis=1, keepdims=True)
     K = np.abs(fit.x[fit.model.groups()["scale"]])
     sigma = np.sqrt(np.sum((u * se / K) ** 2, axis=1))
+    floor = fit.problem.data.extra.get("noise_floor") if isinstance(fit.problem.data.extra, dict) else None
+    if floor is not None and fit.problem.data.sem is not None:
+        notes.append(floor.describe())
     bad = ~(sigma > 0)
     if bad.all():
         notes.append("every position has zero sample SD; the noise floor is unknown")

@@ -1,7 +1,8 @@
 """The figure of a fit's per-position residuals (docs/design.md §7.5): each position's residual (µg) with its
-noise band (±σ_i, and the outlier threshold ±t·σ_i·√(1−h_i)), the outliers marked and named, and for an
-outlier its prediction error from the other positions. For positions from a raw recording the tick labels
-also give each interval's time (s)."""
+noise band (±σ_i, the floor of each mean with the sensor's correlated noise when the data carry it,
+docs/noise.md; and the outlier threshold ±t·σ_i·√(1−h_i)), the white-noise floor σ/√n beside it when the two
+differ, the outliers marked and named, and for an outlier its prediction error from the other positions. For
+positions from a raw recording the tick labels also give each interval's time (s)."""
 
 from __future__ import annotations
 
@@ -29,6 +30,18 @@ def _tick_labels(cal, diag) -> list[str]:
     return labels
 
 
+def _white_band(cal) -> np.ndarray | None:
+    """σ/√n of each position residual (µg), as the figure's σ band is built (the RMS of the three axes with a
+    reference); None without n and sx, sy, sz."""
+    from ..analysis import white_sigma
+
+    w = white_sigma(cal.problem, cal.x)
+    if w is None:
+        return None
+    n = len(cal.problem.data)
+    return (w if w.size == n else np.sqrt(np.mean(w.reshape(n, 3) ** 2, axis=1))) * 1e6
+
+
 def fit_figure(cal, path=None) -> Figure:
     """Residual per position of the calibration ``cal`` (an :class:`optcal.fit.Calibration`) against its noise;
     written to ``path`` (its suffix names the format, :func:`optcal.plots.save_figure`) when given."""
@@ -41,8 +54,14 @@ def fit_figure(cal, path=None) -> Figure:
     band = diag.threshold * sig * np.sqrt(np.clip(1.0 - diag.leverage, 0.0, 1.0))
     fig = Figure(figsize=(max(7.0, 0.32 * len(idx) + 3.0), 4.2), layout="constrained")
     ax = fig.subplots()
+    est = cal.fit.estimator if cal.fit.noise_source == "measured" and diag.sigma_source == "measured" else None
+    what = {"allan": "Allan model", "white": "σ/√n", "stated": "se_x, se_y, se_z"}.get(est)
     ax.fill_between(idx, -sig, sig, step="mid", color="tab:green", alpha=0.25, lw=0,
-                    label=f"±σ ({diag.sigma_source} noise)")
+                    label=f"±σ ({diag.sigma_source} noise{': ' + what if what else ''})")
+    white = _white_band(cal) if est in ("allan", "stated") else None
+    if white is not None:
+        ax.step(idx, white, where="mid", color="tab:green", lw=0.8, ls=":", label="±σ/√n (white noise alone)")
+        ax.step(idx, -white, where="mid", color="tab:green", lw=0.8, ls=":")
     ax.step(idx, band, where="mid", color="tab:red", lw=0.8, ls="--",
             label=f"outlier threshold ±{diag.threshold:.2f} σ·√(1−h)")
     ax.step(idx, -band, where="mid", color="tab:red", lw=0.8, ls="--")
@@ -63,7 +82,9 @@ def fit_figure(cal, path=None) -> Figure:
     ax.set_xlabel("position")
     ax.set_ylabel("residual ‖A‖ − g [µg]" if not cal.problem.reference else "residual, 3-axis misfit [µg]")
     loss = "" if cal.loss == "linear" else f", loss {cal.loss}"
-    ax.set_title(f"{cal.model.name}, {cal.solver}{loss}: {len(idx)} positions, RMS {cal.fit.rms_g * 1e6:.3g} µg, "
+    chi = ("" if cal.fit.chi2 is None else
+           f", χ²/dof {cal.fit.chi2 / cal.fit.dof:.3g} (p = {cal.fit.p_value:.2g})")
+    ax.set_title(f"{cal.model.name}, {cal.solver}{loss}: {len(idx)} positions, RMS {cal.fit.rms_g * 1e6:.3g} µg{chi}, "
                  f"{int(diag.outlier.sum())} outlier(s)", fontsize=10)
     ax.legend(loc="best", fontsize=8)
     if path is not None:

@@ -1,6 +1,7 @@
 """Averaging static intervals into positions: each interval of a recording becomes one row of the positions
-data set of docs/design.md §9.1 (mean output, n, per-axis SD, middle time, mean temperature); and a
-positions file stored as a MATLAB matrix (:func:`mat_positions`)."""
+data set of docs/design.md §9.1 (mean output, n, per-axis SD, the standard error of the mean with the
+sensor's correlated noise, middle time, mean temperature); and a positions file stored as a MATLAB matrix
+(:func:`mat_positions`)."""
 
 from __future__ import annotations
 
@@ -11,6 +12,7 @@ import numpy as np
 
 from ..data import PositionsData
 from ..errors import InputError
+from ..noise.floor import noise_floor
 from .sniff import mat_table
 
 if TYPE_CHECKING:
@@ -19,8 +21,10 @@ if TYPE_CHECKING:
 
 
 def positions_from_recording(recording: Recording, detection: DetectionResult) -> PositionsData:
-    """One position per interval: mean output, n, per-axis SD, middle time and mean temperature. The
-    detection and the recording's path are kept in ``extra`` (``detection``, ``source``)."""
+    """One position per interval: mean output, n, per-axis SD, the standard error of the mean ``sem``
+    (:func:`optcal.noise.floor.noise_floor`: the Allan model of the recording's static intervals, never below
+    SD/√n), middle time and mean temperature. The detection, the recording's path and the noise floor
+    (:class:`optcal.noise.floor.NoiseFloor`) are kept in ``extra`` (``detection``, ``source``, ``noise_floor``)."""
     iv = detection.intervals
     if not len(iv):
         raise InputError("no static intervals to average into positions")
@@ -29,8 +33,10 @@ def positions_from_recording(recording: Recording, detection: DetectionResult) -
     sd = np.array([recording.N[s:e].std(axis=0, ddof=1) if e - s > 1 else np.zeros(3) for s, e in iv])
     t = np.array([recording.t[s:e].mean() for s, e in iv])
     temp = None if recording.temp is None else np.array([recording.temp[s:e].mean() for s, e in iv])
-    return PositionsData(N=N, t=t, temp=temp, n_samples=(iv[:, 1] - iv[:, 0]).astype(float), std=sd,
-                         units=recording.units, extra={"detection": detection, "source": recording.path})
+    floor = noise_floor(recording.N, iv, recording.t[iv[:, 0]], recording.rate, recording.units)
+    return PositionsData(N=N, t=t, temp=temp, n_samples=(iv[:, 1] - iv[:, 0]).astype(float), std=sd, sem=floor.sem,
+                         units=recording.units,
+                         extra={"detection": detection, "source": recording.path, "noise_floor": floor})
 
 
 def mat_positions(path, units: str = "g") -> PositionsData:

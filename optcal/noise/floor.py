@@ -1,0 +1,269 @@
+"""The noise floor of a position: the standard error of each static interval's mean when the sensor's noise is
+correlated (docs/noise.md, "The noise floor of a position").
+
+σ/√n is the standard error of a mean of n samples only when they are independent. A MEMS accelerometer's bias
+wanders (flicker noise): the mean of an interval then differs from the others' by more than σ/√n, and a fit
+whose residuals are compared with σ/√n looks worse than its noise. The calibration sees each position's mean
+against the others (a constant offset per axis is the bias it fits), so the floor of position i is the SD of
+its mean about the mean of all positions,
+
+    sem_i² = p/(p − 1) · [P C P]_ii,   P = I − 11ᵀ/p,
+
+with C the covariance of the p interval means under the sensor's noise and p/(p − 1) the factor that makes
+the floor exactly σ/√n for independent means. The noise is white plus flicker, the first two terms of the
+power law of :mod:`optcal.noise` (IEEE Std 952-1997 Annex C; El-Sheimy, Hou & Niu 2008): two-sided PSD
+S(f) = N² + B²/(2π|f|), Allan variance σ²(τ) = N²/τ + (0.664·B)². N and B are fitted per axis to the
+overlapping Allan variance of all the recording's static intervals pooled (:func:`pooled_avar`: every second
+difference of τ-averages that lies inside one interval, from all of them) by weighted least squares
+(:func:`fit_white_flicker`). The covariance of two means over [a_i, a_i + T_i] and [a_j, a_j + T_j] is exact
+for that PSD, in closed form (:func:`flicker_covariance`): with the flicker's generalised autocovariance
+R(x) = −(B²/π)·ln|x| (defined up to a constant, which P removes) and Φ its second antiderivative,
+C_ij = [Φ(b_i − a_j) + Φ(a_i − b_j) − Φ(b_i − b_j) − Φ(a_i − a_j)] / (T_i·T_j), b = a + T; white noise adds
+N²/T_i to the diagonal.
+
+Why not the Allan deviation at τ = T alone: it is the SD of the difference of two *adjacent* means, but the
+positions of a calibration are spread over minutes, and with flicker noise the scatter of p means about their
+average grows with the span (Allan's p-sample variance; Barnes' bias function B₁(p, μ = 0) =
+p·ln p / (2(p − 1)·ln 2) = 2.39 for 24 contiguous means, which :func:`flicker_covariance` reproduces). The
+model's Allan deviation at τ = T is kept beside the floor (``adev_at_interval``) for comparison.
+
+The rule beyond the data: the pooled intervals reach τ of half the longest interval (with at least
+:data:`MIN_PAIRS` pairs), while the floor depends on the noise up to the recording's span. Beyond the longest
+τ fitted, σ(τ) is held flat at the fitted flicker level: a curve that still falls there is taken to flatten
+no lower, and one that rises (a random walk, warm-up drift) is not extrapolated: a drift over the recording
+that the intervals do not show is the model's to explain (``bias_drift``, ``optcal discover``), not noise.
+The flicker level B² is fitted without a sign constraint (an unbiased estimate; a negative one means none is
+seen), and the floor is never below the white-noise value: sem_i = max(√(p/(p − 1)·[PCP]_ii), s_i/√n_i) per
+axis, with s_i the interval's own sample SD.
+
+The floor is an estimate: B² from a few seconds of data has a standard error (the fit's), which the span
+multiplies. Its effective degrees of freedom (``edf``, Satterthwaite: 2·(Σ sem²)²/Var(Σ sem²)) let the χ²
+test of a fit become the F test of an estimated variance (:func:`optcal.analysis.goodness_of_fit`).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..errors import InputError
+from .fit import FLICKER_FACTOR, SLOPE_TOL
+
+MIN_PAIRS = 8.0  # a τ is fitted when the pooled intervals hold this many independent pairs of τ-averages at it
+FIT_PASSES = 6  # iterative re-weighting of the power-law fit (as optcal.noise.fit.fit_terms)
+MIN_STATIC = 64  # static samples (pooled) below which the Allan deviation says nothing: the floor is σ/√n
+ESTIMATORS = {
+    "allan": "Allan model of the static intervals (white + flicker noise; each mean's scatter about all "
+             "positions' mean)",
+    "white": "within-interval scatter σ/√n (white noise)",
+}
+
+
+@dataclass(frozen=True)
+class NoiseFloor:
+    """The standard error of each position's mean and how it was found, in the recording's output units."""
+
+    sem: np.ndarray  # (p, 3) the floor: SD of each mean about all positions' mean, correlated noise included
+    white: np.ndarray  # (p, 3) σ/√n, each interval's sample SD over √n
+    estimator: str  # a key of ESTIMATORS
+    units: str
+    rate_hz: float  # the rate the coefficients' seconds refer to (NaN: the recording has none; seconds are samples)
+    density: np.ndarray | None = None  # (3,) N, units/√Hz
+    bias_instability: np.ndarray | None = None  # (3,) B, units (0: none seen)
+    tau_s: np.ndarray | None = None  # the τ fitted
+    adev: np.ndarray | None = None  # (len(tau_s), 3) pooled overlapping Allan deviation, units
+    adev_at_interval: np.ndarray | None = None  # (p, 3) the model's Allan deviation at τ = each interval's length
+    notes: list = field(default_factory=list)
+    edf: float = math.inf  # effective degrees of freedom of the floor's Σ sem² (Satterthwaite): its estimation noise
+
+    @property
+    def ratio(self) -> float:
+        """RMS of the floor over RMS of the white-noise value (1 for white noise)."""
+        w = float(np.sqrt(np.mean(self.white**2)))
+        return float(np.sqrt(np.mean(self.sem**2))) / w if w > 0 else math.nan
+
+    def describe(self) -> str:
+        """One line: the estimator, its coefficients and the floor against σ/√n, in the output units."""
+        u = self.units
+        rms = float(np.sqrt(np.mean(self.sem**2)))
+        head = (f"noise floor of a position {rms:.4g} {u} RMS ({ESTIMATORS[self.estimator]}; σ/√n alone "
+                f"{float(np.sqrt(np.mean(self.white**2))):.4g} {u}, ×{self.ratio:.3g})")
+        if self.estimator != "allan":
+            return head
+        per = "s" if math.isfinite(self.rate_hz) else "sample"
+
+        def axes(v, fmt=".3g"):
+            return "/".join(format(float(x), fmt) for x in v)
+
+        return (head + f"; per axis x/y/z N = {axes(self.density)} {u}/√Hz, B = {axes(self.bias_instability)} {u}, "
+                f"fitted at τ = {self.tau_s[0]:.3g}–{self.tau_s[-1]:.3g} {per}, {self.edf:.3g} degrees of freedom")
+
+    def to_dict(self) -> dict:
+        """The JSON form: every key names its unit (the output units are ``units``)."""
+        def lst(v):
+            return None if v is None else [float(x) for x in np.ravel(v)]
+
+        return {"estimator": self.estimator, "description": ESTIMATORS[self.estimator], "units": self.units,
+                "rate_hz": None if not math.isfinite(self.rate_hz) else self.rate_hz,
+                "floor_rms": float(np.sqrt(np.mean(self.sem**2))),
+                "white_rms": float(np.sqrt(np.mean(self.white**2))), "ratio": self.ratio,
+                "white_noise_density_per_sqrt_hz": lst(self.density), "bias_instability": lst(self.bias_instability),
+                "tau_fitted_s": lst(self.tau_s), "degrees_of_freedom": None if math.isinf(self.edf) else self.edf,
+                "notes": list(self.notes)}
+
+
+# -- the pooled Allan variance -------------------------------------------------------------------------------
+
+def _pooled(x: np.ndarray, intervals: np.ndarray):
+    """The samples of the ``intervals`` one after another, each about its own mean; their lengths, where each
+    starts among the pooled samples, and their means."""
+    iv = np.asarray(intervals, int).reshape(-1, 2)
+    lengths = iv[:, 1] - iv[:, 0]
+    first = np.cumsum(np.r_[0, lengths[:-1]])
+    idx = np.repeat(iv[:, 0] - first, lengths) + np.arange(int(lengths.sum()))
+    y = np.asarray(x, float)[idx]
+    means = np.add.reduceat(y, first, axis=0) / lengths[:, None]
+    return y - np.repeat(means, lengths, axis=0), lengths, first, means
+
+
+def pooled_avar(x: np.ndarray, intervals: np.ndarray, m: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Overlapping Allan variance of each column of ``x`` (n, k) at averaging factors ``m`` (samples), pooled
+    over the ``intervals`` [start, end): every second difference of the τ-averages that lies inside one
+    interval, from all of them, with equal weight (on one interval it is ``allantools.oadev``'s). Returns the
+    variance (len(m), k) and the number of differences at each m."""
+    y, lengths, _, _ = _pooled(x, intervals)
+    C = np.vstack([np.zeros((1, y.shape[1])), np.cumsum(y, axis=0)])  # centred: the sums stay small
+    seg_end = np.repeat(np.cumsum(lengths), lengths)  # where each sample's interval ends, in the pooled samples
+    total = len(y)
+    avar = np.full((len(m), y.shape[1]), np.nan)
+    count = np.zeros(len(m), int)
+    for k, mm in enumerate(np.asarray(m, int)):  # octaves (tens at most), each one vectorised over samples
+        i = np.arange(max(total - 2 * mm + 1, 0))
+        i = i[seg_end[i] >= i + 2 * mm]
+        count[k] = i.size
+        if i.size:
+            d = C[i + 2 * mm] - 2.0 * C[i + mm] + C[i]
+            avar[k] = np.sum(d * d, axis=0) / (2.0 * mm * mm * i.size)
+    return avar, count
+
+
+# -- the power-law fit ---------------------------------------------------------------------------------------
+
+def fit_white_flicker(tau: np.ndarray, avar: np.ndarray, nu: np.ndarray) -> tuple[np.ndarray, float]:
+    """σ²(τ) = a/τ + b (a = N² ≥ 0, b = (0.664·B)² of either sign) fitted to one axis's points by weighted least
+    squares, each point weighted by the inverse variance of its σ², 2σ⁴/ν, with σ² from the fitted curve
+    (re-weighted :data:`FIT_PASSES` times, as :func:`optcal.noise.fit.fit_terms` fits one stretch). Returns
+    (a, b) and the standard error of b (the points taken as independent; octave-spaced, they nearly are)."""
+    X = np.column_stack([1.0 / tau, np.ones_like(tau)])
+    model = avar.copy()
+    for _ in range(FIT_PASSES):
+        sd_y = np.maximum(model, 1e-300) * np.sqrt(2.0 / nu)
+        Xw = X / sd_y[:, None]
+        coef = np.linalg.lstsq(Xw, avar / sd_y, rcond=None)[0]
+        if coef[0] < 0:  # no white term: the flicker level alone
+            coef = np.array([0.0, float(np.sum(avar / sd_y**2) / np.sum(1.0 / sd_y**2))])
+        model = np.maximum(X @ coef, np.min(avar) * 1e-6)
+    cov = np.linalg.pinv(Xw.T @ Xw)
+    return coef, float(np.sqrt(max(cov[1, 1], 0.0)))
+
+
+# -- the covariance of interval means ------------------------------------------------------------------------
+
+def _phi_flicker(x):
+    """Second antiderivative of −ln|x|/π, the flicker noise's generalised autocovariance for B = 1."""
+    ax = np.abs(x)
+    safe = np.where(ax > 0, ax, 1.0)
+    return -(0.5 * x * x * np.log(safe) - 0.75 * x * x) / math.pi
+
+
+def flicker_covariance(start: np.ndarray, length: np.ndarray) -> np.ndarray:
+    """Covariance (p, p) of the means over [start_i, start_i + length_i] (seconds) of flicker noise of B = 1
+    (two-sided PSD 1/(2π|f|)), up to a constant common to every entry (the generalised autocovariance is
+    defined up to one). Exact for the continuous process; the means of samples at a rate far above
+    1/length are the same."""
+    a = np.asarray(start, float) - float(np.min(start))  # differences only: shift for precision
+    T = np.asarray(length, float)
+    b = a + T
+    phi = _phi_flicker
+    integral = (phi(b[:, None] - a[None, :]) + phi(a[:, None] - b[None, :]) - phi(b[:, None] - b[None, :])
+                - phi(a[:, None] - a[None, :]))
+    return integral / (T[:, None] * T[None, :])
+
+
+def centred_variance(C: np.ndarray) -> np.ndarray:
+    """p/(p − 1)·diag(P C P), P = I − 11ᵀ/p: the variance of each mean about the mean of all, scaled so that
+    independent means keep their own variance."""
+    p = len(C)
+    d = np.diag(C) - 2.0 * C.mean(axis=1) + C.mean()
+    return d * p / (p - 1)
+
+
+# -- the floor -------------------------------------------------------------------------------------------------
+
+def octaves(max_m: int) -> np.ndarray:
+    """Averaging factors 1, 2, 4, … up to ``max_m``."""
+    return 2 ** np.arange(int(math.floor(math.log2(max_m))) + 1) if max_m >= 1 else np.array([], int)
+
+
+def noise_floor(N: np.ndarray, intervals: np.ndarray, start_s: np.ndarray, rate_hz: float,
+                units: str = "") -> NoiseFloor:
+    """The floor of each interval's mean (module docstring): ``N`` (n, 3) the recording's samples,
+    ``intervals`` (p, 2) [start, end) sample indices, ``start_s`` (p,) each interval's first time (s), and the
+    sample rate. Without a rate (NaN) the seconds are samples."""
+    iv = np.asarray(intervals, int).reshape(-1, 2)
+    if not len(iv) or np.any(iv[:, 1] <= iv[:, 0]):
+        raise InputError("`intervals` must be [start, end) pairs of sample indices with end > start")
+    p = len(iv)
+    n = (iv[:, 1] - iv[:, 0]).astype(float)
+    fs = float(rate_hz) if rate_hz is not None and math.isfinite(rate_hz) and rate_hz > 0 else math.nan
+    per_s = fs if math.isfinite(fs) else 1.0
+    y, _, first, _ = _pooled(N, iv)
+    sd = np.sqrt(np.add.reduceat(y * y, first, axis=0) / np.maximum(n - 1, 1)[:, None]) * (n > 1)[:, None]
+    white = sd / np.sqrt(n)[:, None]
+
+    def plain(note):
+        return NoiseFloor(white.copy(), white, "white", units, fs, notes=[note])
+
+    if p < 2:
+        return plain("one position: no other to compare its mean with")
+    if n.sum() < MIN_STATIC:
+        return plain(f"{int(n.sum())} static samples in all (fewer than {MIN_STATIC}): too few for an Allan deviation")
+    m = octaves(int(n.max()) // 2)
+    avar, count = pooled_avar(N, iv, m)
+    nu = count / m  # independent pairs of τ-averages: a low estimate of the overlapping EDF (Greenhall's 1.1-1.5×)
+    ok = (nu >= MIN_PAIRS) & np.all(np.isfinite(avar), axis=1)
+    m, avar, nu = m[ok], avar[ok], nu[ok]
+    if len(m) < 3:
+        return plain("the static intervals are too short for three τ of the Allan deviation")
+    tau = m / per_s
+    T = n / per_s
+    # each mean's flicker variance about all positions' mean, per unit B²; without a rate, times are samples
+    g = centred_variance(flicker_covariance(start_s, T))
+    coef = np.zeros((3, 2))
+    sd_b = np.zeros(3)
+    for k in range(3):  # three axes, each a fit of a few points
+        y = avar[:, k]
+        if not np.any(y > 0):
+            continue
+        adev = np.sqrt(np.maximum(y, 0))
+        slope = np.gradient(np.log(np.maximum(adev, 1e-300)), np.log(tau))
+        # from the first point on the −1/2 line (shorter τ may carry quantisation or a low-pass filter), as
+        # optcal.noise.fit.read_terms fits one stretch
+        i_min = int(np.argmin(adev))
+        on_line = np.flatnonzero((np.arange(len(tau)) <= i_min) & (np.abs(slope + 0.5) <= SLOPE_TOL))
+        first = int(on_line[0]) if on_line.size and len(tau) - on_line[0] >= 3 else 0
+        coef[k], sd_b[k] = fit_white_flicker(tau[first:], y[first:], nu[first:])
+    B2 = coef[:, 1] / FLICKER_FACTOR**2  # B², possibly negative: the unbiased estimate
+    model = coef[None, :, 0] / T[:, None] + B2[None, :] * g[:, None]
+    sem = np.sqrt(np.maximum(model, white**2))
+    # Satterthwaite: Σ sem² carries the estimation noise of each axis's B², SD sd_b/0.664²·Σ g
+    var = np.sum((sd_b / FLICKER_FACTOR**2 * g.sum()) ** 2)
+    edf = float(2.0 * np.sum(sem**2) ** 2 / var) if var > 0 else math.inf
+    at_T = np.sqrt(np.maximum(coef[None, :, 0] / T[:, None] + coef[None, :, 1], 0.0))
+    notes = []
+    if not math.isfinite(fs):
+        notes.append("the recording has no rate: τ and the coefficients' seconds are samples")
+    return NoiseFloor(sem, white, "allan", units, fs, np.sqrt(coef[:, 0]), np.sqrt(np.maximum(B2, 0.0)), tau,
+                      np.sqrt(avar), at_T, notes, edf)
