@@ -310,7 +310,9 @@ def test_plot_and_cli_raw_calibration(tmp_path, rec24, capsys):
                  "-o", str(cal)])
     assert code == 0
     out = capsys.readouterr().out
-    assert "24 static interval(s)" in out and "k searched" in out and "residual RMS" in out
+    # segmentation is the default detector (issue #20): no threshold search
+    assert "24 static interval(s)" in out and "change-point segmentation" in out and "residual RMS" in out
+    assert "k searched" not in out
     assert png.stat().st_size > 10_000 and png.read_bytes()[:4] == b"\x89PNG"
     assert json.loads(cal.read_text())["units"]["raw"] == "counts"  # format version 2 (ced30cc) names it units.raw
 
@@ -397,15 +399,21 @@ def test_bad_input_non_numeric_and_nan(tmp_path, rec24, capsys):
 
 
 def test_bad_input_no_rest_at_the_start(tmp_path, capsys):
-    """A rest period given with --init-s must be at rest; without it (issue #13) the quietest windows set
-    the threshold and the recording calibrates (tests/test_recording_formats.py checks the intervals)."""
+    """A rest period given with --init-s (which asks for the variance detector) must be at rest; without it
+    segmentation (the default since issue #20) needs no rest at the start, and the variance detector
+    without --init-s takes the quietest windows as its reference (issue #13; tests/test_recording_formats.py
+    checks the intervals)."""
     t, N, _, _ = synth(np.random.default_rng(5), start_moving=True)
     path = write(tmp_path / "moving.csv", t, N)
     code, err = _cli(["calibrate", path, "--raw", "--units", "counts", "--model", "linear9", "--init-s", "2"], capsys)
     assert code == 2 and "are not at rest" in err and "--init-s" in err
     assert main(["calibrate", path, "--raw", "--units", "counts", "--model", "linear9"]) == 0
     out = capsys.readouterr().out
-    assert "24 static interval(s)" in out and "quietest windows" in out
+    assert "24 static interval(s)" in out and "change-point segmentation" in out
+    from optcal.recording import positions_from_raw
+
+    data = positions_from_raw(path, units="counts", model="linear9", method="variance")
+    assert len(data) == 24 and "quietest windows" in describe_detection(data)
 
 
 def test_bad_input_no_static_intervals(tmp_path, capsys):
@@ -413,6 +421,8 @@ def test_bad_input_no_static_intervals(tmp_path, capsys):
     path = write(tmp_path / "turning.csv", t, N)
     code, err = _cli(["calibrate", path, "--raw", "--units", "counts", "--model", "linear9"], capsys)
     assert code == 2 and "found 1 static interval(s)" in err and "needs at least 9" in err
+    # the one interval is the rest at the start; the turning after it is named as such (issue #20)
+    assert "outside the intervals found, no part is at rest" in err and "--intervals" in err
 
 
 def test_bad_input_too_few_poses_says_how_many(tmp_path, capsys):
@@ -562,7 +572,8 @@ def test_recording_package_imports_no_cli_no_plots_and_has_no_cycle():
 
     for n in inner:
         visit(n)
-    assert len(done) == 8  # __init__, sniff, reading, detection, intervals, positions, report, workflow
+    # __init__, sniff, reading, detection, segment, synth, intervals, positions, report, workflow
+    assert len(done) == 10
 
 
 def test_recording_figure_uses_no_pyplot_and_calibrate_writes_nothing_on_a_bad_plot(tmp_path, rec24, capsys):

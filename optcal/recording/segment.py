@@ -47,7 +47,7 @@ from .reading import Recording
 
 BLOCKS_PER_POSE = 8  # blocks in the shortest pose: the block is an eighth of min_static_s (and ≤ MAX_BLOCK_S)
 MAX_BLOCK_S = 0.0625  # s: blocks never longer (an eighth of 0.5 s, the default shortest pose)
-PIECE_BLOCKS = 4096  # PELT runs on pieces of at most this many blocks (quadratic in a piece without change)
+PIECE_BLOCKS = 2048  # PELT runs on pieces of at most this many blocks (quadratic in a piece without change)
 TREND_CHI2 = 30.7  # χ²(3) upper 1e-6 quantile (scipy.stats.chi2.isf(1e-6, 3) = 30.66): a slope is a motion
 PENALTY = 16 * TREND_CHI2  # PELT's penalty (unit noise): a ramp's pieces then show a slope of χ² ≈ pen/2
 NOISE_RATIO = 3.0  # a segment whose block means scatter more than this × the recording's: shaking, not rest
@@ -320,6 +320,9 @@ def segment_recording(rec: Recording, min_static_s: float | None = None,
     Nf = np.where(np.isfinite(N), N, 0.0)
     M = Nf[: nb * b].reshape(nb, b, 3).mean(axis=1)
     good = ~bad[: nb * b].reshape(nb, b).any(axis=1)
+    fin = np.isfinite(N).all(axis=1)
+    if fin.any() and not np.ptp(N[fin], axis=0).any():
+        raise InputError(f"{rec.path}: the outputs never change; this is not a recording of a sensor being turned")
     if good.sum() < 2:
         raise InputError(f"{rec.path}: no stretch of {b} samples without a saturated or missing sample; "
                          "record within the sensor's range (or declare its range with `saturation`)")
@@ -427,17 +430,21 @@ def segment_diagnosis(det: DetectionResult, needed: int) -> tuple[str, str]:
     trend = sg.reason == "trend"
     noisy = sg.reason == "noisy"
     short_rest = sg.short
-    moving_s = int(L[~sg.rest].sum())
+    outside = len(rec) - det.n_static_samples  # samples not in a found interval
+    moving = int(L[~sg.rest].sum() + L[short_rest].sum())
     counts = (f"{int(trend.sum())} segment(s) trend (the outputs drift: the sensor turns), {int(noisy.sum())} "
               f"shake beyond {NOISE_RATIO:g} × the noise, {int(short_rest.sum())} at rest but shorter than "
               f"`min_static_s` = {sec(det.min_samples)}, {sec(sg.n_bad_blocks * b)} set aside as saturated "
               "or missing")
-    if det.n_intervals == 0 and moving_s >= 0.9 * len(rec):
-        advice = ("no part of the recording is at rest (the outputs change throughout: a continuous rotation); "
-                  "record poses held still for at least `min_static_s`, or give the intervals with `intervals`")
-    elif short_rest.sum() >= needed - det.n_intervals and short_rest.any():
-        advice = f"lower `min_static_s` to {max(np.floor(L[short_rest].max() / max(rate, 1e-9) * 10) / 10, 0.1):g} s" \
-            if np.isfinite(rate) else "lower `min_static_s`"
+    longest = int(L[short_rest].max()) if short_rest.any() else 0
+    if moving >= 0.9 * outside and longest < det.min_samples // 2:
+        where = "no part of the recording" if det.n_intervals == 0 else "outside the intervals found, no part"
+        advice = (f"{where} is at rest (the outputs change throughout: a continuous motion, not poses held "
+                  "still); record poses held still for at least `min_static_s`, or give the intervals with "
+                  "`intervals`")
+    elif short_rest.sum() >= needed - det.n_intervals and longest >= det.min_samples // 2:
+        advice = (f"lower `min_static_s` to {max(np.floor(longest / rate * 10) / 10, 0.1):g} s"
+                  if np.isfinite(rate) else "lower `min_static_s`")
     else:
         advice = ("record more poses, each held still for longer than `min_static_s`, or use the variance "
                   "detector (`method` variance) or intervals given with `intervals`")
