@@ -82,7 +82,7 @@ def calibrate_xsens(bias: str = "rests", g_sensitivity: bool = False) -> dict:
     cal = calibrate(positions_from_recording(acc, det), "linear9", g_local=g)
     data = gyro_data(acc.t, gyr[:, 1:4], acc.N, det.intervals, "linear9", cal.x, units="counts",
                      rails=(0.0, 65535.0))
-    p = GyroProblem(data, g_sensitivity=g_sensitivity, bias=bias, scale=1.0 / IMU_TK_SCALE.mean())
+    p = GyroProblem(data, g_sensitivity=g_sensitivity, bias=bias)  # nominal scale: the one-dimensional search
     res = get("scipy-lm").solve(p, rng=0, budget=2000)
     x = res.x_full
     obs = check_observable(p, x)
