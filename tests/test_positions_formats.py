@@ -136,8 +136,11 @@ def test_commented_header_lines_in_raw_recordings(tmp_path):
         rec = read_recording(tmp_path / name)
         np.testing.assert_array_equal(rec.N, A)
         assert rec.rate == pytest.approx(200.0)
-        assert list(rec.columns) == ["t", "ax", "ay", "az"]
+        assert list(rec.columns) == ["t", "ax", "ay", "az"] and rec.reading["header"] == "comment line"
     assert read_recording(tmp_path / "hash.csv").columns["ax"] == "acc_x"
+    (tmp_path / "plain.txt").write_text("# t ax ay az, but not here\n" + table.replace(",", " ") + "\n")
+    rec = read_recording(tmp_path / "plain.txt")  # a remark of another width: columns by position
+    assert rec.reading["header"] == "none" and rec.columns == {"t": 0, "ax": 1, "ay": 2, "az": 3}
 
 
 # -- positions or samples: by the data, and advice that never loops ------------------------------------------

@@ -122,7 +122,11 @@ def test_unsigned_recording_calibrates_without_flags_and_says_what_was_set_aside
     assert code == 0, err
     assert "counts uint16 (inferred from the data; rails 0 and 65535 counts)" in out
     assert "1234 saturated sample(s)" in out and "1234 sample(s) set aside as saturated" in out
-    assert "22 static interval(s)" in out and out.count("dropped:") == 2
+    assert "22 static interval(s)" in out  # the default detector (segmentation) sets the two +z rests aside
+    # the variance detector (chosen by its threshold) names the two intervals it dropped for saturation
+    code, out, err = _cli(["calibrate", uint16[0], "--raw", "--units", "counts", "--model", "linear9",
+                           "--threshold-k", "4"], capsys)
+    assert code == 0 and "22 static interval(s)" in out and out.count("dropped:") == 2, err
 
 
 def test_unsigned_recording_json_says_what_was_set_aside(uint16, capsys):
@@ -293,8 +297,9 @@ def test_detection_needs_no_rest_at_the_start(tmp_path):
 
 
 def test_too_few_intervals_says_why_and_what_to_change(tmp_path, capsys):
-    """Poses held 1.6 s: with the 1 s window, 0.6 s of each is static, under the default 1 s minimum; the
-    error counts the short candidates and names the minimum that admits enough of them."""
+    """Poses held 1.6 s, for the variance detector (k = 4): with the 1 s window, 0.6 s of each is static,
+    under the default 1 s minimum; the error counts the short candidates and names the minimum that admits
+    enough of them."""
     A, _ = turned(np.random.default_rng(10), dwell_s=1.6, move_s=1.0)
     N = counts(A, -32768, 32767)
     path = write(tmp_path / "short.csv", np.arange(len(N)) / 100.0, N)
@@ -305,10 +310,10 @@ def test_too_few_intervals_says_why_and_what_to_change(tmp_path, capsys):
     assert "0 sample(s) set aside as saturated" in msg
     assert "23 candidate(s) shorter than `min_static_s` = 1 s (the longest 0.64 s)" in msg
     assert msg.endswith("lower `min_static_s` to 0.6 s")
-    code, _, err = _cli(["calibrate", path, "--raw", "--units", "counts", "--model", "linear9"], capsys)
+    variance = ["calibrate", path, "--raw", "--units", "counts", "--model", "linear9", "--threshold-k", "4"]
+    code, _, err = _cli(variance, capsys)
     assert code == 2 and "shorter than --min-static = 1 s" in err and err.endswith("lower --min-static to 0.6 s")
-    code, out, err = _cli(["calibrate", path, "--raw", "--units", "counts", "--model", "linear9", "--min-static",
-                           "0.6"], capsys)
+    code, out, err = _cli([*variance, "--min-static", "0.6"], capsys)
     assert code == 0 and "24 static interval(s)" in out
 
 

@@ -175,8 +175,16 @@ def read_recording(path, columns=None, rate: float | None = None, units: str = "
     names = {r: (lay.header[j] if lay.header else j) for r, j in cols.items()}
     how.update(format="MAT file" if table is not None else "text", compression=compression(path),
                delimiter=None if table is not None else (lay.delimiter or "whitespace"), decimal=lay.decimal,
-               time_unit=unit)
+               time_unit=unit, header=_header_kind(lay, table is not None))
     return Recording(t, N, data.get("temp"), units, float(fs), sat, str(path), names, lab, lay.meta, how, W, gyro_sat)
+
+
+def _header_kind(lay: Layout, mat: bool) -> str:
+    """Where the columns' names came from, for the report: MAT variables, a header line, a comment line
+    (``# t ax ay az``), or none (columns by position)."""
+    if lay.header is None:
+        return "none"
+    return "variables" if mat else "comment line" if lay.commented_header else "line"
 
 
 def time_scale(step: float, rate: float | None, path) -> str:
