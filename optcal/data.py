@@ -1,4 +1,5 @@
-"""Positions data sets and the positions CSV of docs/design.md §9.1.
+"""Positions data sets and the positions CSV of docs/design.md §9.1 (any delimiter, decimal mark, header
+form or compression :mod:`optcal.tablefile` reads).
 
 One row per static position: ``position``, the mean raw output ``ax, ay, az``, and optionally ``t`` (s),
 ``temp`` (°C), ``n`` (samples averaged), ``sx, sy, sz`` (sample standard deviation per axis), ``se_x, se_y,

@@ -1,8 +1,10 @@
-"""The layout of a raw recording's file (docs/design.md §9.2), from its first lines: the delimiter (comma,
-semicolon, tab or whitespace) and decimal mark, a header, leading ``key,value`` lines (an ``Fs,100`` line
-gives the rate) and which column holds which role. Compressed files (``.gz``, ``.bz2``, ``.xz``) are read
-through the standard library's decompressors by their suffix, a UTF-8 byte-order mark is dropped, and a
-MATLAB level 5 ``.mat`` file (:func:`mat_table`, scipy.io.loadmat) gives a table of its numeric variables.
+"""The layout of a raw recording's file (docs/design.md §9.2): the text table's delimiter, decimal mark,
+header (a commented one too), ``key,value`` lines (an ``Fs,100`` line gives the rate), byte-order mark and
+compression are read by :mod:`optcal.tablefile`, which the positions reader shares; here, which column
+holds which role (time, the accelerometer's ax, ay, az, the gyroscope's gx, gy, gz, temperature), a MATLAB
+``.mat`` file's table (:func:`mat_table`: level 5 through scipy.io.loadmat, a bad zlib checksum read with a
+warning, anything unreadable one line), and whether a table holds positions or a recording's samples
+(:func:`table_kind`, by its data, one decision for both readers).
 
 Errors name the parameters of :func:`optcal.recording.read_recording` in backquotes (`` `columns` ``); the
 command line puts its option names there (optcal/commands/_dataopts.py).
