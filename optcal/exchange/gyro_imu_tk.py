@@ -1,0 +1,58 @@
+"""imu_tk's calibration file for the gyroscope (Tedaldi, Pretto & Menegatti, ICRA 2014; imu_tk writes the
+gyroscope's ``CalibratedTriad`` to its own file, ``test_imu_gyro.calib`` in its example program).
+
+The text is the accelerometer's (:mod:`optcal.exchange.imu_tk`: T 3×3, K 3×3, B 3×1) and so is the model,
+ω = T·K·(W − B) with T of unit diagonal, K diagonal in rad/s per raw unit, B in raw units. optcal's
+gyroscope (:mod:`optcal.gyro.model`) without g-sensitivity is the same map: T·K = M = T_o⁻¹·diag(1/K_o), and
+B the output offset, K_o·b (bias fitted) or the rests' mean output (bias from the rests). A calibration with
+g-sensitivity is refused: imu_tk's file cannot hold it. Both tools' misalignments are relative to their own
+accelerometer frame (docs/gyroscope.md §5), so a file moved between them keeps the frame it was made in.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..errors import InputError
+from ..gyro.calfile import CALIBRATED, GYRO_UNITS, GyroCalibration
+from ..gyro.model import MISALIGNMENT, get_gyro_model, param_units
+from .imu_tk import dumps, loads
+
+__all__ = ["dumps", "gyro_from_imu_tk", "gyro_to_imu_tk", "loads"]
+
+
+def gyro_to_imu_tk(cal: GyroCalibration) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(T, K, B) of imu_tk's ω = T·K·(W − B) for a gyroscope calibration read from an optcal IMU file."""
+    if cal.model.g_sensitivity:
+        raise InputError("imu_tk's gyroscope file has no g-sensitivity; export a calibration without it "
+                         "(optcal imu without --g-sensitivity)")
+    Ko, To, bo, _ = (a[0] for a in cal.model.matrices(cal.x[None]))
+    M = np.linalg.inv(To) / Ko[None, :]
+    k = np.diag(M).copy()
+    if np.any(k == 0):
+        raise InputError("a gyroscope axis's calibrated rate does not depend on its own output (a zero diagonal "
+                         "cell); imu_tk's T·K with a unit-diagonal T cannot hold it")
+    B = cal.offset_raw.copy() if cal.offset_raw is not None else Ko * bo
+    return M / k[None, :], np.diag(k), B
+
+
+def gyro_from_imu_tk(T, K, B, units: str) -> dict:
+    """The ``gyroscope`` block (parameters and units; :mod:`optcal.gyro.calfile`) of imu_tk's
+    ω = T·K·(W − B), W in ``units``: gyro12 with K_o = diag((T·K)⁻¹), T_o = diag(1/K_o)·(T·K)⁻¹, b = B/K_o."""
+    if units not in GYRO_UNITS:
+        raise InputError(f"unknown gyroscope units {units!r}; use one of {', '.join(GYRO_UNITS)}")
+    C = np.asarray(T, float) @ np.asarray(K, float)
+    try:
+        Ci = np.linalg.inv(C)
+    except np.linalg.LinAlgError:
+        raise InputError("imu_tk's T·K is singular: the file cannot be a gyroscope calibration") from None
+    Ko = np.diag(Ci).copy()
+    To = Ci / Ko[:, None]
+    model = get_gyro_model(False)
+    values = {f"K_{a}": float(Ko[i]) for i, a in enumerate("xyz")}
+    values.update({n: float(To["xyz".index(n[2]), "xyz".index(n[3])]) for n in MISALIGNMENT})
+    values.update({f"b_{a}": float(np.asarray(B, float).reshape(3)[i] / Ko[i]) for i, a in enumerate("xyz")})
+    return {"model": model.name, "terms": list(model.terms), "bias_mode": "fit",
+            "parameters": {n: values[n] for n in model.names},
+            "units": {"raw": units, "calibrated": CALIBRATED,
+                      "parameters": {n: u for n, u in param_units(units).items() if n in model.names}}}

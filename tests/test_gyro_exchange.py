@@ -1,0 +1,57 @@
+"""imu_tk's gyroscope file to and from optcal's gyroscope block (issue #23): exact round trips, the same
+rates from both, g-sensitivity refused."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from optcal.errors import InputError
+from optcal.exchange.gyro_imu_tk import dumps, gyro_from_imu_tk, gyro_to_imu_tk, loads
+from optcal.gyro.calfile import read_gyro_block
+from optcal.gyro.model import get_gyro_model
+
+# imu_tk's own gyroscope calibration of its Xsens pair (test_imu_gyro.calib; docs/scripts/gyro_imu_tk.py)
+XSENS = ("1 0.00593634 0.00111101\n0.00808812 1 -0.0535569\n0.0253067 -0.0025513 1\n\n"
+         "0.000209295 0 0\n0 0.000209899 0\n0 0 0.000209483\n\n32777.1\n32459.8\n32511.8\n")
+
+
+def test_imu_tk_file_round_trip_and_same_rates():
+    T, K, B = loads(XSENS, "test_imu_gyro.calib")
+    block = gyro_from_imu_tk(T, K, B, "counts")
+    cal = read_gyro_block({"gyroscope": block}, "x.json")
+    assert cal.model.name == "gyro12" and block["units"]["parameters"]["K_x"] == "counts/(rad/s)"
+    np.testing.assert_allclose(1 / np.array([block["parameters"][f"K_{a}"] for a in "xyz"]),
+                               [0.000209295, 0.000209899, 0.000209483], rtol=3e-3)
+    T2, K2, B2 = gyro_to_imu_tk(cal)
+    np.testing.assert_allclose(T2, T, atol=1e-15)
+    np.testing.assert_allclose(K2, K, rtol=1e-14)
+    np.testing.assert_allclose(B2, B, rtol=1e-14)
+    W = 32768 + 3000 * np.random.default_rng(0).standard_normal((100, 3))
+    np.testing.assert_allclose(cal.apply(W), (T @ K @ (W - B).T).T, rtol=1e-12, atol=1e-15)
+    T3, K3, B3 = loads(dumps(T2, K2, B2), "again")
+    np.testing.assert_array_equal(T3, T2)
+    np.testing.assert_array_equal(B3, B2)
+
+
+def test_bias_from_the_rests_is_exported_as_the_offset():
+    model = get_gyro_model(False, bias=False)
+    x = np.array([4780.0, 4770.0, 4775.0, 0.001, -0.002, 0.003, 0.0, 0.01, -0.005])
+    block = {"model": model.name, "terms": list(model.terms), "parameters": dict(zip(model.names, x)),
+             "units": {"raw": "counts", "calibrated": "rad/s"}, "offset_raw": [32777.2, 32459.9, 32511.9]}
+    cal = read_gyro_block({"gyroscope": block}, "x.json")
+    T, K, B = gyro_to_imu_tk(cal)
+    np.testing.assert_array_equal(B, [32777.2, 32459.9, 32511.9])
+    np.testing.assert_allclose(np.diag(T), 1.0)
+    W = np.array([[33000.0, 32000.0, 32600.0]])
+    np.testing.assert_allclose(cal.apply(W), (T @ K @ (W - B).T).T, rtol=1e-12)
+
+
+def test_g_sensitivity_cannot_be_exported_to_imu_tk():
+    model = get_gyro_model(True)
+    x = np.zeros(model.n_params)
+    x[:3] = 1000.0
+    block = {"model": model.name, "terms": list(model.terms), "parameters": dict(zip(model.names, x)),
+             "units": {"raw": "counts", "calibrated": "rad/s"}}
+    with pytest.raises(InputError, match="no g-sensitivity"):
+        gyro_to_imu_tk(read_gyro_block({"gyroscope": block}, "x.json"))
