@@ -88,15 +88,15 @@ class TimeStudy:
 
     timeout = 1800
     number = 1
-    repeat = 1
+    repeat = 3
     warmup_time = 0
 
-    def setup(self):
+    def setup_cache(self):
         from optcal.warmup import warm
 
-        warm()  # the kernel compiles (or loads) here, not inside the timing
+        warm()  # the kernel compiles once per commit here, not inside the timing
 
-    def time_study_quick(self):
+    def time_study_quick(self, _):
         from studies.execute import run_study
 
         with tempfile.TemporaryDirectory() as folder:
