@@ -7,8 +7,9 @@ With λ_1 ≤ … ≤ λ_r the eigenvalues of F_obs (natural units, noise includ
 - A: (1/r) tr F_obs⁻¹ = (1/r) Σ 1/λ_k, the mean variance;
 - E: 1/λ_1, the variance of the worst-determined combination;
 - targets: max_i SD_i / t_i over the parameters given a target t_i (every SD in the parameter's own unit),
-  ≤ 1 when every target is met. A maximum is not smooth; optimisation uses the 16-norm of the ratios, whose
-  value lies within a factor m^(1/16) of the maximum (m targets), and reports the maximum.
+  ≤ 1 when every target is met. A maximum is not smooth; optimisation uses the p-norm of the ratios (p = 16,
+  then 64 and 256 in the refinement), whose value lies within a factor m^(1/p) of the maximum (m targets), and
+  reports the maximum.
 
 A design whose F_obs is singular (relative eigenvalue below RTOL², the observability threshold) scores +inf.
 """
@@ -85,8 +86,9 @@ class Criterion:
         idx = np.array([names.index(n) for n in self.targets], int)
         return idx, np.array([self.targets[n] for n in self.targets], float)
 
-    def of_information(self, F: np.ndarray, smooth: bool = False, ridge: float = 0.0) -> np.ndarray:
-        """The criterion (S,) of F_obs (S, r, r); ``smooth``: the targets' 16-norm instead of the maximum;
+    def of_information(self, F: np.ndarray, smooth: bool | int = False, ridge: float = 0.0) -> np.ndarray:
+        """The criterion (S,) of F_obs (S, r, r); ``smooth``: the targets' p-norm instead of the maximum (True:
+        p = SMOOTH_P, an int: that p);
         ``ridge`` > 0: of F_obs + ridge·I, a prior that determines every direction (no singularity test), so
         that designs which do not yet determine the model still have an order (Bayesian design)."""
         F = np.asarray(F, float)
@@ -99,7 +101,8 @@ class Criterion:
                 return ratio.max(axis=1)
             with np.errstate(over="ignore", invalid="ignore"):
                 top = ratio.max(axis=1, keepdims=True)
-                v = top[:, 0] * np.sum((ratio / top) ** SMOOTH_P, axis=1) ** (1.0 / SMOOTH_P)
+                pn = SMOOTH_P if smooth is True else int(smooth)
+                v = top[:, 0] * np.sum((ratio / top) ** pn, axis=1) ** (1.0 / pn)
             return np.where(np.isfinite(top[:, 0]), v, np.inf)
         lam = np.linalg.eigvalsh(F)
         ok = (lam[:, 0] > RTOL**2 * np.maximum(lam[:, -1], 1e-300)) | (ridge > 0)
@@ -112,7 +115,7 @@ class Criterion:
             v = 1.0 / lam[:, 0]
         return np.where(ok, v, np.inf)
 
-    def __call__(self, directions: np.ndarray, smooth: bool = False) -> np.ndarray:
+    def __call__(self, directions: np.ndarray, smooth: bool | int = False) -> np.ndarray:
         """The criterion (S,) of designs (S, N, 3)."""
         return self.of_information(self.info.information(directions), smooth)
 
