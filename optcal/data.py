@@ -24,6 +24,10 @@ from .tablefile import COMMENT, commented_header, csv_fields, delimiter_of, head
 REQUIRED = ("ax", "ay", "az")
 OPTIONAL = ("position", "t", "temp", "n", "sx", "sy", "sz", "se_x", "se_y", "se_z", "ref_x", "ref_y", "ref_z")
 G0 = 9.80665
+# More rows than a positions file has in practice (one per pose): a table this long that the positions reader
+# cannot read is said to be perhaps a raw recording, and the raw reader's decision (optcal.recording.sniff.
+# table_kind) takes it for samples whatever its columns are called when its data say so
+MANY_POSITIONS = 1000
 
 
 
@@ -150,7 +154,7 @@ def read_positions(path: str | Path, units: str = "g") -> PositionsData:
         notes = [ln for i, ln in lines if i < first_line]
         header = commented_header(notes[-1], delim, len(first), known) if notes else None
         if header is None:
-            header = _positional_names(path, rows)
+            header = _positional_names(path, rows, _perhaps_samples(len(rows)))
         body = rows
     else:
         header, body = [h.strip() for h in first], rows[1:]
@@ -171,6 +175,7 @@ def read_positions(path: str | Path, units: str = "g") -> PositionsData:
         hint = f" (rename {', '.join(hints)})" if hints else ""
         raise InputError(
             f"{path}: missing column(s) {', '.join(missing)}; the header must name ax, ay, az{hint}"
+            + _perhaps_samples(len(body))
         )
     if not body:
         raise InputError(f"{path} has a header but no positions")
@@ -222,7 +227,14 @@ def read_positions(path: str | Path, units: str = "g") -> PositionsData:
     )
 
 
-def _positional_names(path: Path, rows: list[tuple[int, list[str]]]) -> list[str]:
+def _perhaps_samples(n: int) -> str:
+    """The end of a message for a table the positions reader cannot read: with :data:`MANY_POSITIONS` rows or
+    more, it may be a raw recording, which the raw reader reads once its columns are named."""
+    return (f" (or, if its {n} rows are a raw recording's samples, read it with `raw` and name its columns with "
+            "`columns`)") if n >= MANY_POSITIONS else ""
+
+
+def _positional_names(path: Path, rows: list[tuple[int, list[str]]], perhaps: str = "") -> list[str]:
     """The columns of a positions file without a header, by their number: three are ax, ay, az; four are
     position, ax, ay, az when the first column numbers the rows 0, 1, 2, ... or 1, 2, 3, ... Anything else
     (a time or temperature column, per-axis SDs) cannot be told apart by position: refused, asking for a
@@ -240,7 +252,7 @@ def _positional_names(path: Path, rows: list[tuple[int, list[str]]]) -> list[str
             return ["position", *REQUIRED]
     raise InputError(f"{path}: {width} columns and no header; a positions file without a header has 3 columns "
                      "(ax, ay, az) or 4 (position 0, 1, 2, ... or 1, 2, 3, ..., then ax, ay, az): add a header "
-                     "line naming the columns, e.g. position,ax,ay,az,t,temp,n,sx,sy,sz")
+                     "line naming the columns, e.g. position,ax,ay,az,t,temp,n,sx,sy,sz" + perhaps)
 
 
 UNITS = ("g", "m/s2", "counts", "volts", "mg")

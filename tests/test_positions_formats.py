@@ -289,3 +289,27 @@ def test_unreadable_mat_files_are_one_line(tmp_path, P, capsys):
             assert main(argv) == 2
             err = capsys.readouterr().err
             assert err.count("\n") == 1 and fragment in err, (name, err)
+
+
+def test_a_long_table_the_positions_reader_cannot_read_may_be_a_recording(tmp_path, capsys):
+    """Columns the readers do not recognise (six without a header, or names of their own) leave the raw or
+    positions question open; with 1000 rows or more, the positions reader's message offers both readings."""
+    rng = np.random.default_rng(7)
+    table = np.column_stack([np.arange(1500) / 100.0, rng.standard_normal((1500, 3)) * 1e-3 + [0, 0, 1],
+                             rng.standard_normal((1500, 2))])
+    six = tmp_path / "six.txt"
+    np.savetxt(six, table, fmt="%.6f")
+    named = tmp_path / "named.csv"
+    np.savetxt(named, table[:, :4], fmt="%.6f", delimiter=",", header="T,ACCELX,ACCELY,ACCELZ", comments="")
+    for path, fragment in ((six, "6 columns and no header"), (named, "missing column(s) ax, ay, az")):
+        assert main(["calibrate", str(path)]) == 2
+        err = capsys.readouterr().err
+        assert fragment in err and err.count("\n") == 1, err
+        assert err.rstrip().endswith("(or, if its 1500 rows are a raw recording's samples, read it with --raw and "
+                                     "name its columns with --columns)"), err
+        short = tmp_path / f"short_{path.name}"
+        short.write_text("\n".join(path.read_text().splitlines()[:30]) + "\n")
+        assert main(["calibrate", str(short)]) == 2
+        assert "raw recording" not in capsys.readouterr().err  # 30 rows: a positions file with a wrong header
+    rec = read_recording(named, columns="t=T,ax=ACCELX,ay=ACCELY,az=ACCELZ", refuse_positions=True)
+    assert len(rec) == 1500  # read as the message says

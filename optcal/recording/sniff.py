@@ -21,6 +21,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..data import MANY_POSITIONS
 from ..errors import InputError
 from ..tablefile import (  # noqa: F401 - the layout's names, re-exported for the recording path
     COMPRESSED,
@@ -58,7 +59,7 @@ KNOWN = {a for names in ALIASES.values() for a in names}  # the names a commente
 RATE_KEYS = ("fs", "rate", "sample rate", "sampling rate", "sample_rate", "sampling_rate", "fs_hz", "rate_hz")
 # columns only a positions file has (docs/design.md §9.1): a raw recording has one row per sample
 POSITIONS_ONLY = ("position", "n", "sx", "sy", "sz", "ref_x", "ref_y", "ref_z")
-MANY_ROWS = 1000  # a table this long is samples when its data say so, whatever its columns are called
+MANY_ROWS = MANY_POSITIONS  # a table this long is samples when its data say so, whatever its columns are called
 # Positions or samples (table_kind), from the median jump between consecutive rows as a fraction of the rows'
 # magnitude: turns between positions of 12° or more make 0.2 or more; a recording's samples at 100 Hz differ by
 # noise (1 mg of noise on each axis: 0.0022, the median of a 3-D difference being 2.2 σ) except while the
