@@ -55,3 +55,31 @@ def test_g_sensitivity_cannot_be_exported_to_imu_tk():
              "units": {"raw": "counts", "calibrated": "rad/s"}}
     with pytest.raises(InputError, match="no g-sensitivity"):
         gyro_to_imu_tk(read_gyro_block({"gyroscope": block}, "x.json"))
+
+
+def test_kalibr_gyroscope_intrinsics_reproduce_the_rates():
+    """M·C·ω + A·a equals the calibrated model's output in rad/s (deg/s raw), M lower triangular with a
+    positive diagonal, C a rotation; counts and a constant bias are refused."""
+    from optcal.exchange.gyro_kalibr import gyro_to_kalibr
+
+    model = get_gyro_model(True)
+    rng = np.random.default_rng(4)
+    x = np.concatenate([180 / np.pi * (1 + 0.01 * rng.standard_normal(3)), 0.01 * rng.standard_normal(6),
+                        np.zeros(3), 1e-3 * rng.standard_normal(9)])
+    block = {"model": model.name, "terms": list(model.terms), "parameters": dict(zip(model.names, x)),
+             "units": {"raw": "deg/s", "calibrated": "rad/s"}}
+    cal = read_gyro_block({"gyroscope": block}, "x.json")
+    M, A, C = gyro_to_kalibr(cal)
+    assert np.allclose(np.triu(M, 1), 0) and np.all(np.diag(M) > 0)
+    np.testing.assert_allclose(C @ C.T, np.eye(3), atol=1e-12)
+    assert np.linalg.det(C) == pytest.approx(1.0)
+    omega, f = rng.standard_normal((50, 3)), rng.standard_normal((50, 3))
+    expected = np.deg2rad(model.forward(x, omega, f))
+    np.testing.assert_allclose((M @ C @ omega.T).T + (A @ (9.80665 * f).T).T, expected, rtol=1e-12, atol=1e-14)
+    with pytest.raises(InputError, match="no constant bias"):
+        x2 = x.copy()
+        x2[9] = 0.01
+        gyro_to_kalibr(read_gyro_block({"gyroscope": {**block, "parameters": dict(zip(model.names, x2))}}, "y"))
+    with pytest.raises(InputError, match="no fixed value in rad/s"):
+        gyro_to_kalibr(read_gyro_block({"gyroscope": {**block, "units": {"raw": "counts",
+                                                                         "calibrated": "rad/s"}}}, "z"))
