@@ -83,3 +83,28 @@ def test_kalibr_gyroscope_intrinsics_reproduce_the_rates():
     with pytest.raises(InputError, match="no fixed value in rad/s"):
         gyro_to_kalibr(read_gyro_block({"gyroscope": {**block, "units": {"raw": "counts",
                                                                          "calibrated": "rad/s"}}}, "z"))
+
+
+def test_imucal_gyroscope_round_trip_and_same_rates():
+    """imucal's own Ferraris calibration (tests/data/imucal/example_cal.json, whose K_ga is not zero): read
+    as gyro21, written back to the same matrices, and the same rates as imucal's equation."""
+    import json
+    from pathlib import Path
+
+    from optcal.exchange.gyro_imucal import gyro_from_imucal, gyro_to_imucal
+
+    path = Path(__file__).parent / "data" / "imucal" / "example_cal.json"
+    d = json.loads(path.read_text())
+    block = gyro_from_imucal(d, "counts", path)
+    assert block["model"] == "gyro21"
+    cal = read_gyro_block({"gyroscope": block}, path)
+    back = gyro_to_imucal(cal)
+    Kg, Rg = np.array(d["K_g"]), np.array(d["R_g"])
+    # imucal's R_g rows are unit vectors up to its fit's rounding; the product K_g·R_g is what it applies
+    np.testing.assert_allclose(np.array(back["K_g"]) @ np.array(back["R_g"]), Kg @ Rg, rtol=1e-12)
+    np.testing.assert_allclose(back["K_ga"], d["K_ga"], rtol=1e-12, atol=1e-15)
+    np.testing.assert_allclose(back["b_g"], d["b_g"], rtol=1e-12)
+    rng = np.random.default_rng(2)
+    u, a = 100 * rng.standard_normal((20, 3)), 9.8 * rng.standard_normal((20, 3))
+    imucal = (np.linalg.inv(Rg) @ np.linalg.inv(Kg) @ (u - a @ np.array(d["K_ga"]).T - d["b_g"]).T).T
+    np.testing.assert_allclose(np.rad2deg(cal.apply(u, a / 9.80665)), imucal, rtol=1e-10, atol=1e-10)
