@@ -72,7 +72,8 @@ def main() -> None:
     for model in ("nonlinear12", "seed15"):
         names = get_model(model).names
         print(f"\n{model}: largest Cramér-Rao SD of each family (observable parameters), 10 µg per position")
-        head = "| scheme | N | " + " | ".join(f"{f} ({u})" for f, _, u in FAMILIES) + " | D (nonlinear12, 1e-11) | N·D |"
+        head = ("| scheme | N | " + " | ".join(f"{f} ({u})" for f, _, u in FAMILIES)
+                + " | D (nonlinear12, 1e-11) | N·D |")
         print(head)
         print("|" + "---|" * (head.count("|") - 1))
         ref, mask = bound(model, "24")
