@@ -183,19 +183,15 @@ def read_positions(path: str | Path, units: str = "g") -> PositionsData:
     cols: dict[str, np.ndarray] = {}
     for c in wanted:
         j = header.index(c)
-        vals = np.empty(len(body))
-        for r, (line, row) in enumerate(body):
-            cell = row[j].strip() if j < len(row) else ""
-            try:
-                vals[r] = float(cell.replace(",", ".") if dec == "," else cell)
-            except ValueError:
-                raise InputError(
-                    f"{path}: line {line}, column {c!r}: {cell!r} is not a number; fix or remove that row"
-                ) from None
-            if not math.isfinite(vals[r]):
-                raise InputError(
-                    f"{path}: line {line}, column {c!r} is {cell}; remove the position or re-average it"
-                )
+        cells = [row[j].strip() if j < len(row) else "" for _, row in body]
+        if dec == ",":
+            cells = [x.replace(",", ".") for x in cells]
+        try:  # the whole column at once; cell by cell only to name a bad one
+            vals = np.array(cells, dtype=float)
+        except ValueError:
+            vals = None
+        if vals is None or not np.all(np.isfinite(vals)):
+            vals = np.array([_cell(path, line, c, x) for (line, _), x in zip(body, cells)])
         cols[c] = vals
     N = np.stack([cols[c] for c in REQUIRED], 1)
     std = np.stack([cols[c] for c in ("sx", "sy", "sz")], 1) if all(c in cols for c in ("sx", "sy", "sz")) else None
@@ -225,6 +221,18 @@ def read_positions(path: str | Path, units: str = "g") -> PositionsData:
         units=units,
         extra=extra,
     )
+
+
+def _cell(path: Path, line: int, column: str, cell: str) -> float:
+    """One cell as a finite number, else the InputError that names its line and column."""
+    try:
+        value = float(cell)
+    except ValueError:
+        raise InputError(f"{path}: line {line}, column {column!r}: {cell!r} is not a number; fix or remove that "
+                         "row") from None
+    if not math.isfinite(value):
+        raise InputError(f"{path}: line {line}, column {column!r} is {cell}; remove the position or re-average it")
+    return value
 
 
 def _perhaps_samples(n: int) -> str:
