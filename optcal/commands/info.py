@@ -11,7 +11,8 @@ HELP = "observability and Cramér-Rao table for a scheme and model (default sche
 
 
 def add_arguments(p):
-    p.add_argument("--scheme", default="24", help="6, 24, 36 or random:N")
+    p.add_argument("--scheme", default="24", help="6, 24, 36, random:N, plan:D12 (planned; docs/planning.md) or a "
+                   "scheme file from optcal plan -o (default 24)")
     p.add_argument("--model", default="seed15", help="model name or sum of terms (default seed15)")
     p.add_argument("--noise-ug", type=float, help="SD of each position's mean per axis, µg (default 10)")
     add_noise_from_options(p, "dwell per position, s (needed with --noise-from)",

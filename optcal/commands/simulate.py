@@ -13,7 +13,8 @@ HELP = "simulate static positions of an accelerometer and write a positions CSV 
 
 
 def add_arguments(p):
-    p.add_argument("--scheme", default="24", help="6, 24, 36 or random:N (default 24)")
+    p.add_argument("--scheme", default="24", help="6, 24, 36, random:N, plan:D12 (planned; docs/planning.md) or a "
+                   "scheme file from optcal plan -o (default 24)")
     p.add_argument("--model", default="nonlinear12", help="model of the simulated sensor (default nonlinear12)")
     p.add_argument("--truth", help="JSON {name: value}; default: navigation-grade values drawn from --seed")
     p.add_argument("--noise-ug", type=float, default=10.0, help="SD of each position's mean per axis, µg (default 10)")
