@@ -55,6 +55,7 @@ TREND_CHI2 = 30.7  # χ²(3) upper 1e-6 quantile (scipy.stats.chi2.isf(1e-6, 3) 
 LINE_SLACK = 1.5  # a line fits when its residual χ² is at most this × its dof (+ LINE_SIGMAS SDs): flicker
 LINE_SIGMAS = 3.0  # a straight line explains a stretch when its residual χ² is within this many SDs of its dof
 HINGE_S = 2.0  # s: the stretch at each end of a rest searched for the start of a slow motion
+DRIFT_SIGMAS = 1.0  # a significant slope is a motion when it moves the outputs by more than this many SDs
 MERGE_SIGMA = 1.0  # neighbouring rests closer than this many sample-noise SDs (norm over axes) are one pose
 Q10_HALF_NORMAL = 0.12566  # the 10th percentile of |x| for x ~ N(0, 1)
 TRUNCATED_VARIANCE_3SD = 0.97334  # the variance of N(0, 1) cut to ±3, relative to 1
@@ -106,7 +107,7 @@ def _sums(x: np.ndarray) -> np.ndarray:
     return np.concatenate([np.zeros((1,) + x.shape[1:]), np.cumsum(x, axis=0)])
 
 
-def _rest_test(M: np.ndarray, seg: np.ndarray, w: int, excess=None) -> np.ndarray:
+def _rest_test(M: np.ndarray, seg: np.ndarray, w: int, excess=None, sample_sd=None) -> np.ndarray:
     """For each segment [a, b) of block means ``M`` (in units of the recording's block noise, so σ_b = 1
     per axis): "" at rest, "noisy" or "trend" (step 4 of the module docstring). Vectorised over segments
     and windows through cumulative sums."""
@@ -152,11 +153,21 @@ def _rest_test(M: np.ndarray, seg: np.ndarray, w: int, excess=None) -> np.ndarra
     rss = np.sum(syy - sy * sy / np.maximum(n, 1)[:, None], axis=1) - np.sum(slope**2, axis=1) * sxx
     dof = 3 * (n - 2)
     local = np.where(dof >= LOCAL_MIN_DOF, rss / np.maximum(dof, 1), 1.0)
-    # windows of a pose's length or more: the recording's own excess of slow noise at that scale
-    floor = np.where((n >= BLOCKS_PER_POSE)[:, None], 1.0 if excess is None else excess, 1.0)
+    # the recording's own excess of slow noise at the scale of half the window (scales F = 1, 2, 4, ...
+    # blocks; excess[j] at F = 2**j, 1 where the recording is too short to measure it)
+    if excess is None:
+        floor = np.ones((len(n), 3))
+    else:
+        j = np.clip(np.floor(np.log2(np.maximum(n, 2) / 2)).astype(int), 0, len(excess) - 1)
+        floor = excess[j]
     z2 = np.sum(slope**2 / np.maximum(local[:, None], floor), axis=1) * np.where(ok, sxx, 0.0)
+    # and large enough to matter: the line moves by more than DRIFT_SIGMAS sample-noise SDs across the
+    # window (a pose's slow wander moves its mean by a fraction of that; a turn that PELT cut into pieces
+    # moves each piece by several)
+    drift = slope * (n - 1)[:, None] / (1.0 if sample_sd is None else sample_sd)
+    moved = np.linalg.norm(drift, axis=1) > DRIFT_SIGMAS
     trend = np.zeros(k, bool)
-    np.logical_or.at(trend, seg_of, z2 > TREND_CHI2)
+    np.logical_or.at(trend, seg_of, (z2 > TREND_CHI2) & moved)
     out[trend] = "trend"
     out[noisy & ~trend] = "noisy"
     return out
@@ -173,7 +184,7 @@ def _slopes(c0, c1, lo, hi):
     return sxy / np.where(ok, sxx, 1.0)[:, None], sxx
 
 
-def _continues_motion(M: np.ndarray, seg: np.ndarray) -> np.ndarray:
+def _continues_motion(M: np.ndarray, seg: np.ndarray, excess=None, sample_sd=None) -> np.ndarray:
     """For each segment [a, b) of block means ``M`` (unit noise, segments in order): whether it is a piece
     of a smooth motion that runs on into a neighbour (step 4c). It is when, for the segment and a touching
     neighbour (the one before, the one after, or both), (i) one straight line through all of them fits
@@ -202,7 +213,15 @@ def _continues_motion(M: np.ndarray, seg: np.ndarray) -> np.ndarray:
                - np.sum(slope**2, axis=1) * sxx)
         dof = 3 * np.maximum(n - 2, 1)
         fits = rss <= LINE_SLACK * dof + LINE_SIGMAS * np.sqrt(2 * dof)
-        significant = np.sum(slope**2, axis=1) * sxx > TREND_CHI2
+        # significant against the slow noise at half the stretch's length, and moving the outputs by more
+        # than DRIFT_SIGMAS sample-noise SDs across it (as in _rest_test)
+        if excess is None:
+            floor = np.ones((k, 3))
+        else:
+            floor = excess[np.clip(np.floor(np.log2(np.maximum(n, 2) / 2)).astype(int), 0, len(excess) - 1)]
+        significant = np.sum(slope**2 / floor, axis=1) * sxx > TREND_CHI2
+        drift = slope * (n - 1)[:, None] / (1.0 if sample_sd is None else sample_sd)
+        significant &= np.linalg.norm(drift, axis=1) > DRIFT_SIGMAS
         agrees = np.sum((own - slope) ** 2, axis=1) * own_sxx <= TREND_CHI2
         out |= wider & (n >= 4) & fits & significant & agrees
     return out
@@ -252,6 +271,26 @@ def _hinge_trim(M: np.ndarray, seg: np.ndarray, H: int) -> np.ndarray:
     return out
 
 
+def _slow_noise_excess(Z: np.ndarray, good: np.ndarray, w: int) -> np.ndarray:
+    """The recording's noise variance at scales of F = 1, 2, 4, … blocks (up to half the rest test's window
+    w) relative to white noise, per axis, ≥ 1: row j is F·σ_F² for means over F = 2**j blocks (unit block
+    noise), σ_F from their quiet second differences (:func:`_noise_sd`). Flicker noise and a hand's wander
+    make it grow with F; a scale with fewer than 10 second differences repeats the one below it."""
+    rows = [np.ones(3)]
+    F = 2
+    while F <= max(w // 2, 1):
+        nB = len(Z) // F
+        goodB = good[: nB * F].reshape(nB, F).all(axis=1)
+        okB = goodB[2:] & goodB[1:-1] & goodB[:-2]
+        if okB.sum() < 10:
+            rows.append(rows[-1])
+        else:
+            ZB = Z[: nB * F].reshape(nB, F, 3).mean(axis=1)
+            rows.append(np.maximum(rows[-1], F * _noise_sd(np.diff(ZB, 2, axis=0)[okB]) ** 2))
+        F *= 2
+    return np.array(rows)
+
+
 def _change_points(Z: np.ndarray, good: np.ndarray) -> np.ndarray:
     """Segments [start, end) (blocks) of the good blocks of ``Z`` (normalised block means) by PELT with a
     linear kernel (ruptures' compiled KernelCPD) on pieces of at most :data:`PIECE_BLOCKS` blocks."""
@@ -287,7 +326,7 @@ def _merge(M: np.ndarray, seg: np.ndarray, rest: np.ndarray, w: int, gap_ok: np.
     ends = np.concatenate([starts[1:], [len(seg)]])
     merged = np.column_stack([seg[starts, 0], seg[ends - 1, 1]])
     multi = ends - starts > 1
-    passes = _rest_test(M, merged, w, excess) == ""
+    passes = _rest_test(M, merged, w, excess, step_norm) == ""
     keep_group = multi & passes  # a joined group that passes replaces its members
     take = keep_group[group]
     out = np.concatenate([merged[keep_group], seg[~take]])
@@ -342,24 +381,20 @@ def segment_recording(rec: Recording, min_static_s: float | None = None,
     w = max(3, int(round(win / b)))
     # slow noise (flicker, a hand's wander) is more at a pose's length than the blocks' white noise
     # says: its excess variance there, per axis, from second differences of means over BLOCKS_PER_POSE
-    F = BLOCKS_PER_POSE
-    nB = nb // F
-    ZB = Z[: nB * F].reshape(nB, F, 3).mean(axis=1)
-    goodB = good[: nB * F].reshape(nB, F).all(axis=1)
-    okB = goodB[2:] & goodB[1:-1] & goodB[:-2]
-    excess = (np.maximum(1.0, F * _noise_sd(np.diff(ZB, 2, axis=0)[okB]) ** 2) if okB.sum() >= 10
-              else np.ones(3))
-    reason = _rest_test(Z, seg, w, excess)
+    excess = _slow_noise_excess(Z, good, w)
+    step = np.where(sigma > 0, sigma, np.max(sigma)) / scale  # a sample's noise SD, in block-noise units
+    reason = _rest_test(Z, seg, w, excess, step)
     # neighbours are joined only across a cut of PELT's, never across a set-aside block
     gap_ok = seg[1:, 0] == seg[:-1, 1]
-    step = np.where(sigma > 0, sigma, np.max(sigma)) / scale  # a sample's noise SD, in block-noise units
     seg2, rest2 = _merge(Z, seg, reason == "", w, gap_ok, step, excess)
     if len(seg2) != len(seg):  # joined groups passed the test; the other segments keep their reasons
-        seg, reason = seg2, np.where(rest2, "", _rest_test(Z, seg2, w, excess)).astype(object)
+        seg, reason = seg2, np.where(rest2, "", _rest_test(Z, seg2, w, excess, step)).astype(object)
     # rests long enough to keep are tested against their surroundings (step 4c)
-    cand = (reason == "") & ((seg[:, 1] - seg[:, 0]) * b >= m)
-    reason[cand & _continues_motion(Z, seg)] = "trend"
-    keep = (reason == "") & ((seg[:, 1] - seg[:, 0]) * b >= m)
+    # long enough: at least min_static_s with a block at each end (a step or a motion inside a block
+    # leaves that block to neither side)
+    cand = (reason == "") & ((seg[:, 1] - seg[:, 0] + 2) * b >= m)
+    reason[cand & _continues_motion(Z, seg, excess, step)] = "trend"
+    keep = (reason == "") & ((seg[:, 1] - seg[:, 0] + 2) * b >= m)
     seg = seg.copy()
     short = (reason == "") & ~keep
     # the hinge search leaves out the end blocks (which may mix motion and rest; they are dropped at the
@@ -437,11 +472,15 @@ def segment_diagnosis(det: DetectionResult, needed: int) -> tuple[str, str]:
               f"`min_static_s` = {sec(det.min_samples)}, {sec(sg.n_bad_blocks * b)} set aside as saturated "
               "or missing")
     longest = int(L[short_rest].max()) if short_rest.any() else 0
-    if moving >= 0.9 * outside and longest < det.min_samples // 2:
-        where = "no part of the recording" if det.n_intervals == 0 else "outside the intervals found, no part"
-        advice = (f"{where} is at rest (the outputs change throughout: a continuous motion, not poses held "
-                  "still); record poses held still for at least `min_static_s`, or give the intervals with "
-                  "`intervals`")
+    moving_frac = float(L[~sg.rest].sum()) / max(len(rec), 1)
+    if det.n_intervals == 0 and moving_frac >= 0.5:
+        advice = ("no part of the recording is at rest (its outputs change throughout: a continuous motion, not "
+                  "poses held still); record poses held still for at least `min_static_s`, or give the "
+                  "intervals with `intervals`")
+    elif moving >= 0.9 * outside and longest < det.min_samples // 2:
+        advice = ("outside the intervals found, no part is at rest (the outputs change throughout: a "
+                  "continuous motion, not poses held still); record poses held still for at least "
+                  "`min_static_s`, or give the intervals with `intervals`")
     elif short_rest.sum() >= needed - det.n_intervals and longest >= det.min_samples // 2:
         advice = (f"lower `min_static_s` to {max(np.floor(longest / rate * 10) / 10, 0.1):g} s"
                   if np.isfinite(rate) else "lower `min_static_s`")
