@@ -88,6 +88,21 @@ def source(tmp_path_factory):
              scheme="random:10", noise_g=10e-6).data.to_csv(d / "l10.csv")
     simulate(lin, {**{k: v for k, v in PAPER_TRUTH.items() if k in lin.names}, "S_yz": np.radians(10.0)},
              np.random.default_rng(7), scheme="24", noise_g=10e-6).data.to_csv(d / "tilt10.csv")
+    # MAT files optcal cannot read (issue #20): a compressed variable whose deflate stream is damaged (its zlib
+    # checksum fails and it does not inflate in full; a checksum alone is read, with a warning), and v7.3 (HDF5)
+    import io
+    import struct
+
+    from scipy.io import savemat
+
+    buf = io.BytesIO()
+    savemat(buf, {"V": sim.data.N}, do_compression=True)
+    raw = bytearray(buf.getvalue())
+    end = 136 + struct.unpack("<II", raw[128:136])[1]
+    raw[150:end] = bytes(end - 150)
+    (d / "damaged.mat").write_bytes(bytes(raw))
+    (d / "v73.mat").write_bytes(b"MATLAB 7.3 MAT-file, Platform: GLNXA64, HDF5 schema 1.00 .".ljust(116) + bytes(8)
+                                + b"\x00\x02IM" + b"\x89HDF\r\n\x1a\n" + bytes(64))
     return d
 
 
@@ -167,6 +182,11 @@ CASES = [
                                                      "new.json"], "only 1 residual degree(s) of freedom"),
     row("calibrate-implausible-result", ["calibrate", "tilt10.csv", "--model", "linear9", "-o", "new.json"],
         "(10°) is beyond ±5°"),
+    row("calibrate-mat-damaged-compressed-variable", ["calibrate", "damaged.mat", "-o", "new.json"],
+        "a compressed variable is damaged"),
+    row("calibrate-raw-mat-damaged-compressed-variable", ["calibrate", "damaged.mat", "--raw", "--rate", "100"],
+        "a compressed variable is damaged"),
+    row("calibrate-mat-v7.3", ["calibrate", "v73.mat"], "MATLAB v7.3 (HDF5)"),
     # apply: units against the calibration, options that do nothing, outputs
     row("apply-counts-calibration-to-g-data", ["apply", "calc.json", "raw_g.csv", "-o", "out.csv"], "counts"),
     row("apply-declared-units-disagree", APPLY + ["--units", "counts"], "fitted to outputs in 'g'"),
