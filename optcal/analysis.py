@@ -17,8 +17,8 @@ import numpy as np
 from .gauge import RTOL, n_position_residuals, natural_units, null_space
 from .problem import CalibrationProblem
 
-__all__ = ["GoodnessOfFit", "Observability", "crlb", "floor_estimator", "goodness_of_fit", "natural_units",
-           "observability", "projected_crlb", "loss_weights", "hat_values", "PositionDiagnostics",
+__all__ = ["GoodnessOfFit", "Observability", "chi2_moments", "crlb", "floor_estimator", "goodness_of_fit",
+           "natural_units", "observability", "projected_crlb", "loss_weights", "hat_values", "PositionDiagnostics",
            "position_diagnostics", "position_sigma", "white_sigma", "ROBUST_LOSSES"]
 
 
@@ -137,10 +137,15 @@ class GoodnessOfFit:
     # measured: the floor's effective degrees of freedom (optcal.noise.floor.NoiseFloor.edf); when finite the
     # p-value is the F test's, P(F(dof, floor_dof) > χ²/dof), an estimated variance against an estimated floor
     floor_dof: float | None = None
+    # measured with a recording's floor: the mean and the effective degrees of freedom of χ² under the floor's
+    # correlated noise (Satterthwaite), against which χ² is judged: χ²/expected ~ F(effective, floor_dof)
+    expected_chi2: float | None = None
+    effective_dof: float | None = None
 
     def to_dict(self) -> dict:
         return {k: getattr(self, k) for k in ("rms_g", "cost", "dof", "noise_g", "chi2", "p_value", "noise_source",
-                                              "estimator", "white_noise_g", "floor_dof")}
+                                              "estimator", "white_noise_g", "floor_dof", "expected_chi2",
+                                              "effective_dof")}
 
 
 def floor_estimator(data) -> str | None:
@@ -157,9 +162,11 @@ def goodness_of_fit(problem: CalibrationProblem, x_full: np.ndarray, noise_g: fl
     """Residual RMS, and χ² with its p-value when the noise is known: Σ r²/σ² with ``noise_g`` or a stated
     noise level, Σ (r_i/σ_i)² with each position's own floor when the noise comes from the data
     (:func:`position_sigma`: the standard error of each mean, correlated noise included when the data have
-    se_x, se_y, se_z). A recording's floor is itself estimated (:class:`optcal.noise.floor.NoiseFloor`, its
-    ``edf``): its p-value is then the F test's, P(F(dof, edf) > χ²/dof), which tends to the χ² test's as
-    the floor's degrees of freedom grow (docs/noise.md)."""
+    se_x, se_y, se_z). With a recording's floor (:class:`optcal.noise.floor.NoiseFloor`) the means' noise is
+    correlated and the floor estimated: χ² is judged by its mean E and effective degrees of freedom ν under
+    that noise (:func:`chi2_moments`) and by the floor's degrees of freedom ``edf``, p = P(F(ν, edf) > χ²/E),
+    which is the χ² test's P(χ²_dof > χ²) for white noise and a floor of many degrees of freedom
+    (docs/noise.md)."""
     from scipy import stats  # here, not at module level: importing optcal stays light
 
     x = np.asarray(x_full, float)
@@ -173,17 +180,45 @@ def goodness_of_fit(problem: CalibrationProblem, x_full: np.ndarray, noise_g: fl
         chi2 = float(np.sum((r / sig) ** 2))
         white = white_sigma(problem, x) if problem.data.sem is not None else sig
         floor = problem.data.extra.get("noise_floor") if isinstance(problem.data.extra, dict) else None
-        edf = getattr(floor, "edf", None) if problem.data.sem is not None else None
-        finite = edf is not None and np.isfinite(edf)
-        p = float(stats.f.sf(chi2 / dof, dof, edf)) if finite else float(stats.chi2.sf(chi2, dof))
+        if problem.data.sem is None or floor is None or floor.sem.shape != problem.data.sem.shape:
+            floor = None
+        edf = None if floor is None or not np.isfinite(floor.edf) else float(floor.edf)
+        mom = None if floor is None else chi2_moments(problem, x, sig, floor)
+        expected, nu = mom if mom is not None else (float(dof), float(dof))
+        p = float(stats.f.sf(chi2 / expected, nu, edf) if edf is not None else stats.chi2.sf(chi2 * nu / expected, nu))
         w_rms = None if white is None else float(np.sqrt(np.mean(white**2)))
         return GoodnessOfFit(rms, cost, dof, float(np.sqrt(np.mean(sig**2))), chi2, p, "measured",
-                             floor_estimator(problem.data), w_rms, float(edf) if finite else None)
+                             floor_estimator(problem.data), w_rms, edf, *((expected, nu) if mom else (None, None)))
     sigma = noise_g if noise_g is not None else problem.noise_g
     if sigma is None:
         return GoodnessOfFit(rms, cost, dof, float(np.sqrt(cost / dof)), None, None)
     chi2 = cost / sigma**2
     return GoodnessOfFit(rms, cost, dof, float(sigma), chi2, float(stats.chi2.sf(chi2, dof)), "stated")
+
+
+def chi2_moments(problem: CalibrationProblem, x_full: np.ndarray, sigma: np.ndarray, floor) -> tuple[float, float]:
+    """Mean and Satterthwaite degrees of freedom of χ² = Σ (r_i/σ_i)² when the position means carry the
+    correlated noise of a recording's floor (:meth:`optcal.noise.floor.NoiseFloor.covariance`, per axis): with
+    r = (I − H)e to first order (H the hat matrix of :func:`_hat_matrix`), e the means' noise as residuals
+    (Σ_e = Σ_k D_k Σ^k D_k / K_k², D_k the specific force's direction cosines; per axis with a reference) and
+    W = diag(1/σ²), E χ² = tr(W M Σ_e M) and Var χ² = 2 tr((W M Σ_e M)²), M = I − H; the degrees of freedom
+    are 2 (E χ²)² / Var χ² (Satterthwaite 1946; Box 1954). For white noise they are m − rank."""
+    x = np.asarray(x_full, float)
+    n = len(problem.data)
+    K = problem._K0
+    if problem.reference:
+        S = np.zeros((3 * n, 3 * n))
+        for k in range(3):
+            S[k::3, k::3] = floor.covariance(k) / K[k] ** 2
+    else:
+        A = problem.specific_force(x)
+        u = A / np.linalg.norm(A, axis=1, keepdims=True)
+        S = sum(np.outer(u[:, k], u[:, k]) * floor.covariance(k) / K[k] ** 2 for k in range(3))
+    H, _ = _hat_matrix(problem, x)
+    M = np.eye(len(H)) - H
+    Q = (M @ S @ M) / np.asarray(sigma, float)[:, None] ** 2
+    expected = float(np.trace(Q))
+    return expected, float(2.0 * expected**2 / (2.0 * np.sum(Q * Q.T)))
 
 
 # -- per-position residuals, outliers and robust weights (docs/design.md §7.5) -----------------------------

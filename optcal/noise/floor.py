@@ -77,6 +77,17 @@ class NoiseFloor:
     adev_at_interval: np.ndarray | None = None  # (p, 3) the model's Allan deviation at τ = each interval's length
     notes: list = field(default_factory=list)
     edf: float = math.inf  # effective degrees of freedom of the floor's Σ sem² (Satterthwaite): its estimation noise
+    flicker: np.ndarray | None = None  # (p, p) p/(p − 1)·P C P of unit flicker (B = 1); its diagonal is g
+    b2: np.ndarray | None = None  # (3,) the flicker level B² per axis used in the covariance (≥ 0)
+
+    def covariance(self, k: int) -> np.ndarray:
+        """Covariance (p, p) of the means of axis ``k`` about their average, as the floor models it: the
+        flicker part B²·p/(p − 1)·PCP and a diagonal that makes its diagonal sem² (the white noise and the
+        guard at σ/√n); output units². Without a flicker model, diag(sem²)."""
+        if self.flicker is None:
+            return np.diag(self.sem[:, k] ** 2)
+        F = self.b2[k] * self.flicker
+        return F + np.diag(self.sem[:, k] ** 2 - np.diag(F))
 
     @property
     def ratio(self) -> float:
@@ -192,12 +203,16 @@ def flicker_covariance(start: np.ndarray, length: np.ndarray) -> np.ndarray:
     return integral / (T[:, None] * T[None, :])
 
 
-def centred_variance(C: np.ndarray) -> np.ndarray:
-    """p/(p − 1)·diag(P C P), P = I − 11ᵀ/p: the variance of each mean about the mean of all, scaled so that
+def centred_covariance(C: np.ndarray) -> np.ndarray:
+    """p/(p − 1)·P C P, P = I − 11ᵀ/p: the covariance of the means about the mean of all, scaled so that
     independent means keep their own variance."""
     p = len(C)
-    d = np.diag(C) - 2.0 * C.mean(axis=1) + C.mean()
-    return d * p / (p - 1)
+    return (C - C.mean(axis=1, keepdims=True) - C.mean(axis=0, keepdims=True) + C.mean()) * p / (p - 1)
+
+
+def centred_variance(C: np.ndarray) -> np.ndarray:
+    """The diagonal of :func:`centred_covariance`: the variance of each mean about the mean of all."""
+    return np.diag(centred_covariance(C)).copy()
 
 
 # -- the floor -------------------------------------------------------------------------------------------------
@@ -240,7 +255,8 @@ def noise_floor(N: np.ndarray, intervals: np.ndarray, start_s: np.ndarray, rate_
     tau = m / per_s
     T = n / per_s
     # each mean's flicker variance about all positions' mean, per unit B²; without a rate, times are samples
-    g = centred_variance(flicker_covariance(start_s, T))
+    G = centred_covariance(flicker_covariance(start_s, T))
+    g = np.diag(G)
     coef = np.zeros((3, 2))
     sd_b = np.zeros(3)
     for k in range(3):  # three axes, each a fit of a few points
@@ -266,4 +282,4 @@ def noise_floor(N: np.ndarray, intervals: np.ndarray, start_s: np.ndarray, rate_
     if not math.isfinite(fs):
         notes.append("the recording has no rate: τ and the coefficients' seconds are samples")
     return NoiseFloor(sem, white, "allan", units, fs, np.sqrt(coef[:, 0]), np.sqrt(np.maximum(B2, 0.0)), tau,
-                      np.sqrt(avar), at_T, notes, edf)
+                      np.sqrt(avar), at_T, notes, edf, G, np.maximum(B2, 0.0))
