@@ -431,8 +431,9 @@ def segment_static(recording: Recording, *, min_static_s: float | None = None,
     nb = len(recording) // b
     iv[:, 0] += np.where(seg[keep, 0] > 0, b, 0)
     iv[:, 1] -= np.where(seg[keep, 1] < nb, b, 0)
-    if len(iv) and seg[keep][-1, 1] == nb:  # the last rest runs to the end: keep the tail samples
-        iv[-1, 1] = len(recording)
+    if len(iv) and seg[keep][-1, 1] == nb:  # the last rest runs to the end: keep the tail samples, up to
+        tail = ~np.isfinite(recording.N[nb * b:]).all(axis=1) | recording.saturated[nb * b:]  # a bad one
+        iv[-1, 1] = nb * b + (int(np.argmax(tail)) if tail.any() else len(tail))
     iv = iv[iv[:, 1] > iv[:, 0]]
     notes = []
     n_short = int(np.sum(sg.short))
