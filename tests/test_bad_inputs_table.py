@@ -101,6 +101,19 @@ def source(tmp_path_factory):
     end = 136 + struct.unpack("<II", raw[128:136])[1]
     raw[150:end] = bytes(end - 150)
     (d / "damaged.mat").write_bytes(bytes(raw))
+    # a slow continuous tumble (3 °/s for 60 s, no rest): no pose was held still (optcal.recording.synth)
+    from optcal.recording.synth import tumble_recording
+
+    tumble = tumble_recording(np.random.default_rng(8), duration_s=60.0, turn_rate_dps=3.0).recording
+    np.savetxt(d / "tumble.csv", np.column_stack([tumble.t, tumble.N]), delimiter=",", header="t,ax,ay,az",
+               comments="", fmt="%.10g")
+    # layouts that do not say which columns are ax, ay, az: a header of other names; a positions file of five
+    # columns and a recording of six without one
+    np.savetxt(d / "uvw.csv", np.column_stack([np.arange(500) / 100.0, A]), delimiter=",", header="time,u,v,w",
+               comments="", fmt="%.10g")
+    np.savetxt(d / "five.csv", np.column_stack([np.arange(24), sim.data.N, np.ones(24)]), delimiter=",", fmt="%.10g")
+    np.savetxt(d / "six_raw.csv", np.column_stack([np.arange(6000) / 100.0, rest, rest[:, :2]]), delimiter=",",
+               fmt="%.10g")
     (d / "v73.mat").write_bytes(b"MATLAB 7.3 MAT-file, Platform: GLNXA64, HDF5 schema 1.00 .".ljust(116) + bytes(8)
                                 + b"\x00\x02IM" + b"\x89HDF\r\n\x1a\n" + bytes(64))
     return d
@@ -187,6 +200,15 @@ CASES = [
     row("calibrate-raw-mat-damaged-compressed-variable", ["calibrate", "damaged.mat", "--raw", "--rate", "100"],
         "a compressed variable is damaged"),
     row("calibrate-mat-v7.3", ["calibrate", "v73.mat"], "MATLAB v7.3 (HDF5)"),
+    row("calibrate-continuous-motion", ["calibrate", "tumble.csv", "--raw", "-o", "new.json"],
+        "a continuous motion, not poses held still"),
+    row("calibrate-continuous-motion-named-model", ["calibrate", "tumble.csv", "--raw", "--model", "linear9"],
+        "a continuous motion, not poses held still"),
+    row("calibrate-raw-ambiguous-column-names", ["calibrate", "uvw.csv", "--raw"],
+        "cannot tell which columns are ax, ay, az"),
+    row("calibrate-raw-six-columns-without-header", ["calibrate", "six_raw.csv", "--raw"],
+        "6 columns and no header; name them with --columns"),
+    row("calibrate-positions-five-columns-without-header", ["calibrate", "five.csv"], "5 columns and no header"),
     # apply: units against the calibration, options that do nothing, outputs
     row("apply-counts-calibration-to-g-data", ["apply", "calc.json", "raw_g.csv", "-o", "out.csv"], "counts"),
     row("apply-declared-units-disagree", APPLY + ["--units", "counts"], "fitted to outputs in 'g'"),
