@@ -47,7 +47,7 @@ from .reading import Recording
 
 BLOCKS_PER_POSE = 8  # blocks in the shortest pose: the block is an eighth of min_static_s (and ≤ MAX_BLOCK_S)
 MAX_BLOCK_S = 0.0625  # s: blocks never longer (an eighth of 0.5 s, the default shortest pose)
-PIECE_BLOCKS = 2048  # PELT runs on pieces of at most this many blocks (quadratic in a piece without change)
+PIECE_BLOCKS = 1024  # PELT runs on pieces of at most this many blocks (quadratic in a piece without change)
 TREND_CHI2 = 30.7  # χ²(3) upper 1e-6 quantile (scipy.stats.chi2.isf(1e-6, 3) = 30.66): a slope is a motion
 PENALTY = 16 * TREND_CHI2  # PELT's penalty (unit noise): a ramp's pieces then show a slope of χ² ≈ pen/2
 NOISE_RATIO = 3.0  # a segment whose block means scatter more than this × the recording's: shaking, not rest
@@ -359,8 +359,7 @@ def segment_recording(rec: Recording, min_static_s: float | None = None,
     Nf = np.where(np.isfinite(N), N, 0.0)
     M = Nf[: nb * b].reshape(nb, b, 3).mean(axis=1)
     good = ~bad[: nb * b].reshape(nb, b).any(axis=1)
-    fin = np.isfinite(N).all(axis=1)
-    if fin.any() and not np.ptp(N[fin], axis=0).any():
+    if not np.isfinite(N).any() or not (np.nanmax(N, axis=0) > np.nanmin(N, axis=0)).any():
         raise InputError(f"{rec.path}: the outputs never change; this is not a recording of a sensor being turned")
     if good.sum() < 2:
         raise InputError(f"{rec.path}: no stretch of {b} samples without a saturated or missing sample; "
@@ -373,7 +372,7 @@ def segment_recording(rec: Recording, min_static_s: float | None = None,
     ok_block = good[2:] & good[1:-1] & good[:-2]
     dm = np.diff(M, 2, axis=0)[ok_block]
     sigma_b = np.maximum(_noise_sd(dm) if len(dm) else sigma, sigma / np.sqrt(b))
-    if not np.any(sigma > 0) or not np.ptp(Nf[~bad], axis=0).any():
+    if not np.any(sigma > 0):
         raise InputError(f"{rec.path}: the outputs never change; this is not a recording of a sensor being turned")
     scale = np.where(sigma_b > 0, sigma_b, np.max(sigma_b))  # an axis that never moves keeps unit scale
     Z = M / scale
