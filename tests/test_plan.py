@@ -197,9 +197,9 @@ def test_placement_robustness_flags_a_fragile_design():
 
 def test_next_best_and_enough_yet():
     """10 µg per position, targets 20 ppm and 30 µg: following the advice, from nothing or from the six faces
-    (which leave K, b and K2 inseparable), meets them within 14 positions (12 is the model's minimum; the first
-    poses, chosen by the prior alone, are ties that rounding can order either way); the 24-position scheme
-    taken in its own order needs 18."""
+    (which leave K, b and K2 inseparable), meets them within 14 positions (12 is the model's minimum: until the
+    model is determined the advice takes the poses of plan:D12); the 24-position scheme taken in its own order
+    needs 18."""
     info = InformationModel.of("nonlinear12", 10e-6)
     crit = Criterion(info, "targets", parse_targets("scale<=20ppm,bias<=30ug", info.names))
     assert not np.isfinite(progress(crit, OCTAHEDRON).value)  # the six faces do not determine nonlinear12

@@ -27,7 +27,7 @@ from optcal.schemes import random_orientations, scheme, tilt
 SESSIONS = 100
 NOISE = 10e-6
 PLACEMENT_DEG = 3.0
-TARGETS = "scale<=20ppm,bias<=30ug"
+TARGETS = "scale<=8ppm,bias<=12ug"
 MAX_POSITIONS = 60
 POLICIES = ("advised", "random", "habitual")
 HABIT = np.vstack([scheme("24"), scheme("36")])

@@ -5,7 +5,9 @@ solver), the next pose is the candidate whose information, added to what is reco
 criterion: F(c) = F₀ + f_c f_cᵀ for every candidate at once, then (hand-held) refined on the sphere with the
 recorded directions held. Before the model is determined (F₀ singular) a ridge of RIDGE of the mean
 information per position stands in for the missing information, so the first poses still have an order
-(the regularised criterion of Bayesian design). "Enough yet?" compares the Cramér-Rao SD of the recorded
+(the regularised criterion of Bayesian design); hand-held, the first poses then come from the D-optimal
+design of r positions (r the observable dimension, ``plan:D<r>``): the pose of that design farthest from
+every recorded direction, until the model is determined. "Enough yet?" compares the Cramér-Rao SD of the recorded
 directions, each parameter against its target.
 """
 
@@ -61,11 +63,22 @@ def next_best(crit: Criterion, recorded: np.ndarray, fixture: str = "free", grid
               refine: bool = True) -> tuple[np.ndarray, float]:
     """The next direction (3,) and the criterion after adding it (with the ridge while undetermined)."""
     cands, continuous = candidates(fixture, grid)
+    d0 = np.asarray(recorded, float).reshape(-1, 3)
+    if continuous and not np.isfinite(progress(crit, d0).value):
+        from ..schemes import planned
+
+        base = planned(f"plan:D{crit.info.n_observable}:{crit.info.model.name}")
+        if len(d0):
+            gap = np.min(np.arccos(np.clip(base @ d0.T, -1.0, 1.0)), axis=1)
+            pick = base[int(np.argmax(gap))]
+        else:
+            pick = base[int(np.argmax(base[:, 2]))]  # start with the pose closest to "z up"
+        F = crit.info.information(np.vstack([d0, pick])[None])
+        return pick, float(crit.of_information(F, smooth=True, ridge=_ridge(crit, cands))[0])
     R = crit.info.projected_rows(cands)
     outer = R[:, :, None] * R[:, None, :]
     r = R.shape[1]
     ridge = RIDGE * np.trace(outer.mean(axis=0)) / r
-    d0 = np.asarray(recorded, float).reshape(-1, 3)
     F0 = crit.info.information(d0[None])[0] if len(d0) else np.zeros((r, r))
     vals = crit.of_information(F0 + outer, smooth=True, ridge=ridge)
     c = int(np.argmin(vals))
@@ -89,6 +102,11 @@ def next_best(crit: Criterion, recorded: np.ndarray, fixture: str = "free", grid
         if np.isfinite(res.fun) and np.exp(res.fun) < val:
             best, val = moved(best[None], e1, e2, res.x[None])[0, 0], float(np.exp(res.fun))
     return best, val
+
+
+def _ridge(crit: Criterion, cands: np.ndarray) -> float:
+    R = crit.info.projected_rows(cands)
+    return RIDGE * float(np.sum(R * R)) / len(R) / R.shape[1]
 
 
 def check_reachable(crit: Criterion, n_max: int = 200, fixture: str = "free") -> None:
