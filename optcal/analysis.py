@@ -142,6 +142,22 @@ class GoodnessOfFit:
     expected_chi2: float | None = None
     effective_dof: float | None = None
 
+    def describe(self) -> str:
+        """One line: the noise floor (where from, its value in µg, σ/√n beside a recording's) and the χ² verdict."""
+        if self.chi2 is None:
+            return (f"noise floor unknown (no n and sx, sy, sz or se_x, se_y, se_z in the data): residual SD "
+                    f"{self.noise_g * 1e6:.4g} µg on {self.dof} dof, no χ² test")
+        how = {"allan": "each mean's SD with the sensor's correlated noise (Allan model of the static intervals)",
+               "white": "σ/√n, the within-interval scatter", "stated": "the data's se_x, se_y, se_z"}
+        src = ("stated" if self.noise_source == "stated" else how.get(self.estimator, str(self.estimator)))
+        white = (f"; σ/√n alone {self.white_noise_g * 1e6:.4g} µg" if self.white_noise_g is not None
+                 and self.estimator != "white" else "")
+        law = ("" if self.expected_chi2 is None else
+               f", judged against E = {self.expected_chi2:.3g} on {self.effective_dof:.3g} effective dof"
+               + ("" if self.floor_dof is None else f" and the floor's {self.floor_dof:.3g}"))
+        return (f"noise floor {self.noise_g * 1e6:.4g} µg RMS ({src}{white}); χ²/dof = {self.chi2 / self.dof:.3g} "
+                f"on {self.dof} dof{law}: p = {self.p_value:.2g}")
+
     def to_dict(self) -> dict:
         return {k: getattr(self, k) for k in ("rms_g", "cost", "dof", "noise_g", "chi2", "p_value", "noise_source",
                                               "estimator", "white_noise_g", "floor_dof", "expected_chi2",

@@ -156,6 +156,12 @@ def test_positions_from_a_recording_carry_the_floor_and_the_csv_its_se_columns(t
     cal = calibrate(data, MODEL)
     assert cal.fit.noise_source == "measured" and cal.fit.estimator == "allan" and cal.fit.floor_dof > 0
     assert cal.fit.noise_g / cal.fit.white_noise_g == pytest.approx(f.ratio, rel=0.1)
+    line = cal.fit.describe()
+    assert line.startswith(f"noise floor {cal.fit.noise_g * 1e6:.4g} µg RMS (each mean's SD with the sensor's "
+                           "correlated noise (Allan model")
+    assert f"σ/√n alone {cal.fit.white_noise_g * 1e6:.4g} µg" in line
+    assert f"effective dof and the floor's {cal.fit.floor_dof:.3g}: p = {cal.fit.p_value:.2g}" in line
+    assert f.describe().startswith(f"noise floor of a position {math.sqrt(np.mean(f.sem**2)):.4g} g RMS (Allan")
     # the file's se columns are the floor too (stated: no degrees of freedom known, the χ² test)
     fb = calibrate(back, MODEL).fit
     assert fb.estimator == "stated" and fb.floor_dof is None and fb.chi2 == pytest.approx(cal.fit.chi2, rel=1e-6)

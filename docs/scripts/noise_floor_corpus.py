@@ -3,9 +3,15 @@
 optcal.recording, positions, optcal.fit.calibrate), its verdicts against the white-noise floor σ/√n (the old
 one) and against the noise floor of optcal.noise.floor (the new one).
 
-    .venv/bin/python docs/scripts/noise_floor_corpus.py
+    .venv/bin/python docs/scripts/noise_floor_corpus.py [--simulate SEEDS]
 
-Prints one markdown row per recording: positions, residual RMS, the two floors (RMS over positions of each
+With ``--simulate`` it prints instead the false-alarm table: SEEDS simulated recordings per noise (linear9
+truth, scheme 24, poses of 5 s with 3 s between, 100 Hz, optcal.noise.colored_noise), each calibrated with the
+true model through positions_from_recording and optcal.fit.calibrate, and the share of χ² tests that reject at
+5 % against σ/√n, against the model's Allan deviation at τ = each interval's length (never below σ/√n; the
+χ² test) and against the new floor (about 15 s per 200 seeds and noise).
+
+Otherwise it prints one markdown row per recording: positions, residual RMS, the two floors (RMS over positions of each
 residual's σ, input-referred, µg), residual / floor, χ²/dof with its p-value (χ² test against σ/√n; F test
 against the estimated floor), the positions flagged as outliers, and the Allan deviation at τ = each
 interval's length (the model's, RMS) for comparison.
@@ -79,7 +85,64 @@ def row(name, rec, model, g_local) -> str:
             f"{out_old or '—'} | {out_new or '—'} | {'—' if at_T is None else f'{at_T * U:.4g}'} |")
 
 
+# (name, N in g/√Hz, B in g); flicker dominates beyond τ = N²/(0.664·B)²
+NOISES = (("white only", 100e-6, 0.0), ("flicker beyond τ = 14 s", 100e-6, 40e-6),
+          ("flicker beyond τ = 4 s", 100e-6, 75e-6), ("MEMS: flicker beyond τ = 1 s", 100e-6, 150e-6),
+          ("flicker beyond τ = 0.09 s", 60e-6, 300e-6))
+
+
+def simulated(seed: int, white: float, flicker: float):
+    """One simulated recording calibrated with the true linear9 model: the new fit and the old χ² test."""
+    from optcal.model import get_model
+    from optcal.noise.colored import colored_noise
+    from optcal.presets import PAPER_TRUTH
+    from optcal.recording import given_intervals
+    from optcal.recording.reading import Recording
+    from optcal.schemes import scheme
+
+    model = get_model("linear9")
+    truth = model.from_dict({k: v for k, v in PAPER_TRUTH.items() if k in model.names})
+    rng = np.random.default_rng(seed)
+    A = scheme("24", rng)
+    rate, ns, ng = 100.0, 500, 300
+    n = len(A) * (ns + ng)
+    K = np.abs(truth[model.groups()["scale"]])
+    N = np.repeat(model.forward(truth, A)[0], ns + ng, axis=0) + K * colored_noise(n, rate, rng, white=white,
+                                                                                   flicker=flicker)
+    rec = Recording(t=np.arange(n) / rate, N=N, temp=None, units="g", rate=rate, saturated=np.zeros(n, bool))
+    start = np.arange(len(A)) * (ns + ng)
+    data = positions_from_recording(rec, given_intervals(rec, np.column_stack([start, start + ns])))
+    cal = calibrate(data, model)
+    old = goodness_of_fit(CalibrationProblem(model, replace(data, sem=None)), cal.x)
+    fl = data.extra["noise_floor"]
+    adev = goodness_of_fit(CalibrationProblem(model, replace(data, sem=np.maximum(fl.adev_at_interval, fl.white),
+                                                             extra={})), cal.x)
+    return cal.fit, old, fl, adev
+
+
+def false_alarms(seeds: int) -> None:
+    print("| noise (N µg/√Hz, B µg) | floor / (σ/√n) | rejected at 5 %: σ/√n | rejected at 5 %: σ_A(τ = T) | "
+          "rejected at 5 %: new floor |")
+    print("|---|---|---|---|---|")
+    for name, white, flicker in NOISES:
+        runs = [simulated(s, white, flicker) for s in range(seeds)]
+        old = sum(o.p_value < 0.05 for _, o, _, _ in runs)
+        adev = sum(a.p_value < 0.05 for _, _, _, a in runs)
+        new = sum(f.p_value < 0.05 for f, _, _, _ in runs)
+        ratio = np.mean([fl.ratio for _, _, fl, _ in runs])
+        print(f"| {name} ({white * 1e6:g}, {flicker * 1e6:g}) | {ratio:.3g} | {old}/{seeds} | {adev}/{seeds} | "
+              f"{new}/{seeds} |", flush=True)
+
+
 def main() -> None:
+    import argparse
+
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--simulate", type=int, metavar="SEEDS", help="the false-alarm table over SEEDS seeds per noise")
+    args = ap.parse_args()
+    if args.simulate:
+        false_alarms(args.simulate)
+        return
     print("| recording, model | positions | residual RMS µg | old floor σ/√n µg | new floor µg | residual / old | "
           "residual / new | χ²/dof old | χ²/dof new | outliers old | outliers new | ADEV(τ = T) µg |")
     print("|---|---|---|---|---|---|---|---|---|---|---|---|")
