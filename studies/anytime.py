@@ -1,8 +1,9 @@
 """Anytime performance of a study's solvers, as optimisation benchmarks report it.
 
 Every in-field trial records, at the evaluation grid 1, 1.26, 1.58, ... (ten points per decade), its best
-cost so far, the accuracy of the best point so far and the solver time at which that point was found (:func:`studies.trial.anytime_on_grid`), and the
-optimum cost ``f_opt`` of its data set (a reference least-squares fit). From these:
+cost so far, the accuracy of the best point so far and the solver time at which that point was found
+(:func:`studies.scoring.anytime_on_grid`, :func:`studies.scoring.seconds_on_grid`), and the optimum cost
+``f_opt`` of its data set (a reference least-squares fit). From these:
 
 *Targets.* A trial reaches
 

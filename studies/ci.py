@@ -124,7 +124,8 @@ def check(measured: dict, baseline: dict, here: str | None = None, runtime: bool
                 continue
             if metric == "runtime_median_s" and not same_machine:
                 why = "from another machine" if runtime else "reported, not checked"
-                out.append(Result(name, metric, v, (lo, hi), b, "reported", f"{name}: {metric} = {iv}; baseline {b:.4g} {why}"))
+                out.append(Result(name, metric, v, (lo, hi), b, "reported",
+                                  f"{name}: {metric} = {iv}; baseline {b:.4g} {why}"))
                 continue
             if not math.isfinite(v):
                 bad = True

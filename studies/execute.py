@@ -254,7 +254,8 @@ def run_study(spec: Spec, folder: str | Path, *, executor: str | None = None, wo
               scheduler: str | None = None, progress: bool | None = None, limit: int | None = None) -> RunSummary:
     """Run every trial of ``spec`` not yet in ``folder``'s store; return a summary of this session.
 
-    ``progress=None`` shows the bar on a terminal and progress lines otherwise (a CI log). ``limit`` runs at most that many pending trials
+    ``progress=None`` shows the bar on a terminal and progress lines otherwise (a CI log). ``limit`` runs at
+    most that many pending trials
     (for tests and partial runs).
     """
     ex = executor or spec.executor["kind"]

@@ -167,7 +167,7 @@ def accuracy_runtime(cells: dict, title: str, path: Path) -> Path:
             else:
                 clusters.append([x, y, [name]])
         clusters.sort(key=lambda c: c[1])  # numbered from the most accurate
-        for k, (x, y, names) in enumerate(clusters, 1):
+        for k, (x, y, _) in enumerate(clusters, 1):
             ax.annotate(str(k), (x, y), fontsize=6.5, xytext=(3, 2), textcoords="offset points", zorder=4)
         key = "\n".join(f"{k:>2}  {', '.join(names)}" for k, (_, _, names) in enumerate(clusters, 1))
         ax.text(1.02, 1.0, key, transform=ax.transAxes, fontsize=5.5, va="top", ha="left", family="monospace")

@@ -51,7 +51,8 @@ def _summary_rows(gs: list[Group], nav: bool, cis: dict | None = None) -> list[l
             f"{fmt(s['ver_mean_ug'], '.2f')} ({fmt(s['ver_sd_ug'], '.2f')})",
             f"{fmt(s['cost_median'], '.2e')} [{fmt(s['cost_min'], '.2e')}, {fmt(s['cost_max'], '.2e')}]",
             (with_ci(s["runtime_median_s"], ci.get("runtime_median_s"), ".3g") if cis is not None else
-             f"{fmt(s['runtime_median_s'], '.3g')} [{fmt(s['runtime_p10_s'], '.3g')}, {fmt(s['runtime_p90_s'], '.3g')}]"),
+             f"{fmt(s['runtime_median_s'], '.3g')} "
+             f"[{fmt(s['runtime_p10_s'], '.3g')}, {fmt(s['runtime_p90_s'], '.3g')}]"),
             fmt(s["nfev_median"], ",.0f"),
             fmt(s["evals_per_s"], ",.0f"),
         ]

@@ -172,8 +172,8 @@ def anytime_section(rows: list[dict], order: list[str], spec: dict, figdir: Path
     p3 = figures.performance_profiles(at, f"{name}: performance profiles", figdir / "performance_profiles.png", order)
     L += [f"![runtime ECDFs](figures/{p1.name})", ""]
     if at.hits_s and any(np.isfinite(h).any() for h in at.hits_s.values()):
-        pt = figures.runtime_ecdf_time(at, f"{name}: runtime ECDFs against solver time", figdir / "anytime_ecdf_time.png",
-                                       order)
+        pt = figures.runtime_ecdf_time(at, f"{name}: runtime ECDFs against solver time",
+                                       figdir / "anytime_ecdf_time.png", order)
         L += ["The same (trial, target) pairs against solver time, each met at the time its point was found "
               "(a solver's own overhead per evaluation counts here; the number in the legend is the share reached):",
               "", f"![runtime ECDFs against time](figures/{pt.name})", ""]

@@ -553,6 +553,7 @@ def test_progress_is_printed_as_lines_when_the_output_is_not_a_terminal(monkeypa
         bar.update(1)
     lines = out.getvalue().splitlines()
     # every 10 % (4 trials: the 4th update reads the clock at 9 s) and at the end; the rate and the time left
-    assert len(lines) == 10 and lines[0] == "study demo: 4/40 trials (10 %), 0.4 trials/s, 9 s elapsed, about 1.4 min left"
+    assert len(lines) == 10
+    assert lines[0] == "study demo: 4/40 trials (10 %), 0.4 trials/s, 9 s elapsed, about 1.4 min left"
     assert lines[-1].startswith("study demo: 40/40 trials (100 %)")
     assert not isinstance(execute._progress(40, False, "demo", io.StringIO()), execute.ProgressLines)
