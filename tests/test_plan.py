@@ -241,6 +241,7 @@ def test_cli_plan_writes_a_scheme_that_info_and_simulate_read(tmp_path, capsys):
     (["plan", "--n", "24", "--criterion", "targets", "--targets", "bias<=0.01ug"], "out of reach"),
     (["plan", "--n", "24", "--targets", "bias<=3ppm"], "bias"),
     (["plan", "--n", "24", "--fixture", "head:7"], "divide 90"),
+    (["plan", "--n", "12", "--fixture", "faces"], "inseparable"),
     (["plan"], "--n N"),
     (["info", "--scheme", "nothere.csv"], "not found"),
     (["info", "--scheme", "plan:Q12"], "plan:<D|A|E>"),

@@ -154,8 +154,9 @@ def run(args) -> int:
     print(comments[0])
     if args.solver != "exchange":
         starts = ", ".join(f"{v:.6g}" for v in record["starts"])
-        print(f"  {args.solver} from {len(record['starts'])} random starts: {starts}; refined "
-              f"{record['solver_value']:.6g}; exchange check: {record['exchange']:.6g}")
+        print(f"  {args.solver} from {len(record['starts'])} random starts: {starts}; "
+              f"{'refined' if record['refined'] else 'best'} {record['solver_value']:.6g}; exchange check: "
+              f"{record['exchange']:.6g}")
     print(f"positions in handling order (total turn {turn_angle_deg(d):.0f}°); A_i = sin β, A_j = cos β sin α, "
           "±A_k = cos β cos α:")
     print(f"{'#':>3} {'face down':>9} {'α °':>7} {'β °':>7}   {'dx':>9} {'dy':>9} {'dz':>9}")

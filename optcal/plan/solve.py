@@ -29,10 +29,14 @@ def solve_design(crit: Criterion, n: int, *, fixture: str = "free", solver: str 
         raise InputError(f"`starts` = {starts!r}: give 1 to 100 starts of the solver")
     cands, continuous = candidates(fixture, grid)
     ex_idx, ex_val = exchange(crit, cands, n, rng, starts=3)
+    if not np.isfinite(ex_val):
+        raise InputError(f"no {n} positions of fixture {fixture!r} determine model {crit.info.model.name}: its "
+                         "candidate directions leave parameters inseparable; use a finer fixture (e.g. faces:15 or "
+                         "free) or a smaller model")
     ex_dirs = cands[ex_idx]
     if continuous and np.isfinite(ex_val):
         ex_dirs, ex_val = refine(crit, ex_dirs)
-    record: dict = {"solver": solver, "exchange": float(ex_val), "starts": []}
+    record: dict = {"solver": solver, "exchange": float(ex_val), "starts": [], "refined": continuous}
     if solver == "exchange":
         chosen, method = ex_dirs, f"exchange over {len(cands)} candidates" + (", refined" if continuous else "")
     else:
