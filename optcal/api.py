@@ -73,7 +73,7 @@ def _positions(data, units: str | None, raw: bool, g_local: float, model, readin
 
 # the keyword arguments of optcal.recording.positions_from_raw that describe a raw recording
 _READING = ("columns", "rate", "saturation", "adc", "time_unit", "labels", "label_values", "intervals",
-            "threshold_k", "window_s", "min_static_s", "init_s")
+            "method", "threshold_k", "window_s", "min_static_s", "init_s")
 
 
 def calibrate(data, model=None, *, solver: str = "scipy-lm", units: str | None = None, raw: bool = False,
@@ -89,7 +89,8 @@ def calibrate(data, model=None, *, solver: str = "scipy-lm", units: str | None =
     units (g, m/s2, counts, volts, mg; default g). Keyword arguments for a raw recording, as
     :func:`optcal.recording.positions_from_raw` takes them: ``columns``, ``rate`` (Hz), ``saturation``, ``adc``
     (the counts' format, e.g. "uint16"), ``time_unit`` (of the time column),
-    ``labels`` (a label column) and ``label_values``, ``intervals`` (a file), ``threshold_k`` ("2:10"),
+    ``labels`` (a label column) and ``label_values``, ``intervals`` (a file), ``method`` ("segment", the
+    default, or "variance"), ``threshold_k`` ("2:10"),
     ``window_s``, ``min_static_s`` and ``init_s`` (s). ``g_local``: local gravity in g
     (``optcal.gravity.local_gravity_g`` converts m/s² or a latitude). The rest is :func:`optcal.fit.calibrate`'s:
     the registered solver and its options, turntable ``reference``, ``presets``, the solver's ``seed``, the

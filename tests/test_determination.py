@@ -269,19 +269,20 @@ def _data_folder():
 
 
 def test_a_raw_recording_with_too_few_poses_for_the_default_falls_back(tmp_path, capsys):
-    """The MPU-6050's ten poses: no threshold finds intervals nonlinear12 or linear9 can be fitted to, so
-    the default's intervals are found for diag6, which is fitted and said (CLI and API alike)."""
+    """The MPU-6050's ten poses found by the variance detector (its threshold searched over 2…9): no threshold
+    finds intervals nonlinear12 or linear9 can be fitted to, so the default's intervals are found for diag6,
+    which is fitted and said (CLI and API alike)."""
     import optcal
 
     path = _data_folder() / "mpu6050" / "example_data_calibration.csv"
-    cal = optcal.calibrate(path, raw=True, units="counts")
+    cal = optcal.calibrate(path, raw=True, units="counts", threshold_k="2:9")
     assert cal.model.name == "diag6" and len(cal.problem.data) == 10 and cal.requested_model == "nonlinear12"
     assert cal.notes[0].startswith("nonlinear12 (the default model) is not determined by these positions: 10 "
                                    "positions give 10 residuals")
-    assert main(["calibrate", str(path), "--raw", "--units", "counts", "--json"]) == 0
+    assert main(["calibrate", str(path), "--raw", "--units", "counts", "--threshold-k", "2:9", "--json"]) == 0
     out = json.loads(capsys.readouterr().out)
     assert out["model"] == "diag6" and out["requested_model"] == "nonlinear12" and out["n_positions"] == 10
     np.testing.assert_allclose([out["parameters"][f"K_{a}"] for a in "xyz"], cal.x[:3], rtol=1e-12)
     # a named model is not replaced: its recording error stands
     with pytest.raises(InputError, match="linear9"):
-        optcal.calibrate(path, "linear9", raw=True, units="counts")
+        optcal.calibrate(path, "linear9", raw=True, units="counts", threshold_k="2:9")
