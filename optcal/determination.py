@@ -3,8 +3,7 @@ judges a calibration before anything is written, for any model and any output un
 
 Four classes of refusal, each one line naming the reason and the way out:
 
-- ``too_few``: fewer residuals than the model's parameters plus :data:`MIN_DOF` (the model cannot be fitted
-  with any check left);
+- ``too_few``: fewer residuals than the model has parameters;
 - ``rank``: directions of the parameters that these positions do not see (:func:`optcal.analysis.observability`);
 - ``dof``, ``exact`` and ``exact_data``: fewer than :data:`MIN_DOF` residual degrees of freedom, none at all
   (an exact fit), or residuals at rounding level (below :data:`ROUNDING_G`, or χ²/dof below
