@@ -147,6 +147,7 @@ def accuracy_runtime(cells: dict, title: str, path: Path) -> Path:
     ncol = min(2, n)
     nrow = int(np.ceil(n / ncol))
     fig, axes = plt.subplots(nrow, ncol, figsize=(10.5 * ncol, 6.5 * nrow), squeeze=False)
+    numbered = []
     for ax, ((model, scheme), gs) in zip(axes.flat, cells.items()):
         pts = []
         for g in gs:
@@ -167,14 +168,13 @@ def accuracy_runtime(cells: dict, title: str, path: Path) -> Path:
             else:
                 clusters.append([x, y, [name]])
         clusters.sort(key=lambda c: c[1])  # numbered from the most accurate
-        for k, (x, y, _) in enumerate(clusters, 1):
-            ax.annotate(str(k), (x, y), fontsize=6.5, xytext=(3, 2), textcoords="offset points", zorder=4)
         key = "\n".join(f"{k:>2}  {', '.join(names)}" for k, (_, _, names) in enumerate(clusters, 1))
-        ax.text(1.02, 1.0, key, transform=ax.transAxes, fontsize=5.5, va="top", ha="left", family="monospace")
+        ax.text(1.02, 1.0, key, transform=ax.transAxes, fontsize=6, va="top", ha="left", family="monospace")
         ax.set_xscale("log")
         ax.set_yscale("log")
         lo, hi = ax.get_ylim()
         ax.set_ylim(min(lo, 0.5), max(hi * 1.3, 2.0))
+        numbered.append((ax, [(x, y, str(k)) for k, (x, y, _) in enumerate(clusters, 1)]))
         ax.axhline(1.0, color="k", lw=0.8, ls="--")
         ax.set_xlabel("median runtime per calibration (s)")
         ax.set_ylabel("RMSE / CRLB (RMS over parameters)")
@@ -185,7 +185,44 @@ def accuracy_runtime(cells: dict, title: str, path: Path) -> Path:
     fig.suptitle(title, fontsize=10)
     fig.tight_layout()
     fig.subplots_adjust(wspace=0.55)
+    for ax, labels in numbered:  # placed in the final layout, where the pixel distances are the saved ones
+        _place_numbers(ax, labels)
     return _save(fig, path)
+
+
+def _place_numbers(ax, labels: list[tuple[float, float, str]]) -> None:
+    """Write each number beside its point at the first of eight offsets where it overlaps neither an earlier
+    number nor another point (in display pixels, the axes' scales and limits already set), else at the
+    offset of least overlap."""
+    fig = ax.figure
+    scale = fig.dpi / 72.0
+    w_char, h = 4.2 * scale, 7.0 * scale  # the digits' box at font size 6.5, in pixels
+    offsets = [(3, 2), (3, -9), (-4, 5), (-4, -11), (6, -3), (-9, -3), (0, 7), (0, -13)]
+    pts = ax.transData.transform([(x, y) for x, y, _ in labels]) if labels else np.zeros((0, 2))
+    boxes: list[tuple[float, float, float, float]] = []
+
+    def overlap(b) -> float:
+        area = 0.0
+        for c in boxes:
+            area += max(0.0, min(b[2], c[2]) - max(b[0], c[0])) * max(0.0, min(b[3], c[3]) - max(b[1], c[1]))
+        for px, py in pts:
+            area += max(0.0, min(b[2], px + 3 * scale) - max(b[0], px - 3 * scale)) * \
+                max(0.0, min(b[3], py + 3 * scale) - max(b[1], py - 3 * scale))
+        return area
+
+    for (x, y, text), (px, py) in zip(labels, pts):
+        w = w_char * len(text)
+        best = None
+        for dx, dy in offsets:
+            b = (px + dx * scale, py + dy * scale, px + dx * scale + w, py + dy * scale + h)
+            o = overlap(b)
+            if best is None or o < best[0]:
+                best = (o, dx, dy, b)
+            if o == 0:
+                break
+        _, dx, dy, b = best
+        boxes.append(b)
+        ax.annotate(text, (x, y), fontsize=6.5, xytext=(dx, dy), textcoords="offset points", zorder=4)
 
 
 def ranking(groups: list[Group], title: str, path: Path) -> Path:

@@ -111,3 +111,31 @@ def test_the_report_has_the_paired_table_settings_units_and_its_own_time(ci_repo
     assert "and this report" in head and f"{doc['study']['report_s']:.1f} s." in head
     assert "![runtime ECDFs against time](figures/anytime_ecdf_time.png)" in text
     assert "Computed by commit" in text
+
+
+def test_accuracy_runtime_numbers_do_not_overlap_in_a_crowded_row():
+    """The staged solvers crowd one row of accuracy_runtime.png (same accuracy, runtimes a few % apart): the
+    numbers written beside them must not overlap one another."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from studies.figures import _place_numbers
+
+    fig, ax = plt.subplots(figsize=(10.5, 6.5))
+    x = 0.01 * 1.12 ** np.arange(14)  # fourteen points, 12 % apart in runtime, on two nearby rows
+    y = np.where(np.arange(14) % 2, 0.86, 0.87)
+    ax.scatter(x, y)
+    ax.set_xscale("log")
+    ax.set_yscale("log")
+    ax.set_xlim(3e-4, 3)
+    ax.set_ylim(0.5, 12)
+    _place_numbers(ax, [(a, b, str(k)) for k, (a, b) in enumerate(zip(x, y), 1)])
+    fig.canvas.draw()
+    r = fig.canvas.get_renderer()
+    boxes = [t.get_window_extent(r) for t in ax.texts]
+    assert len(boxes) == 14
+    overlaps = [(i, j) for i in range(14) for j in range(i + 1, 14) if boxes[i].overlaps(boxes[j])]
+    plt.close(fig)
+    assert overlaps == []
