@@ -6,7 +6,7 @@
   (``bigger_is_better.json``), in the ``customSmallerIsBetter`` / ``customBiggerIsBetter`` JSON of
   github-action-benchmark, so that a hosted CI service charts them per commit and gates on them; each value
   carries its 95 % bootstrap interval over the runs as its range;
-- ``junit``: the baseline check of :mod:`studies.ci` (``--baseline FILE``; the committed
+- ``junit``: the baseline check of :mod:`studies.baseline` (``--baseline FILE``; the committed
   studies/ci_tolerances.toml for the CI spec) as JUnit XML (``tolerances.xml``): a test case per solver and
   metric, failed when the baseline lies outside the study's interval on the bad side.
 
@@ -137,7 +137,7 @@ def write_ioh(rows: list[dict], spec: dict, spec_hash: str, folder: Path) -> dic
 def write_benchmark_action(rows: list[dict], spec: dict, folder: Path, commit: str | None) -> dict:
     """Write github-action-benchmark's two custom JSON files into ``folder``; return counts."""
     from .anytime import collect
-    from .ci import measure
+    from .baseline import measure
 
     measured = measure(rows, spec["seed"])
     extra = f"study {spec['name']}, {spec['runs']} runs, seed {spec['seed']}" + (f", code {commit}" if commit else "")
@@ -170,7 +170,7 @@ def write_benchmark_action(rows: list[dict], spec: dict, folder: Path, commit: s
 
 def write_junit(rows: list[dict], spec: dict, folder: Path, baseline: str | Path | None) -> dict:
     """Write the baseline check (:mod:`studies.ci`) as JUnit XML into ``folder``; return counts."""
-    from .ci import TOLERANCES, check, junit_xml, load_baseline, measure, regressions
+    from .baseline import TOLERANCES, check, junit_xml, load_baseline, measure, regressions
 
     if baseline is None:
         if spec["name"] not in ("ci", "ci-quick"):
