@@ -139,7 +139,11 @@ def test_counts_data_needs_units(tmp_path, capsys):
     path = _write(tmp_path, "position,ax,ay,az\n" + rows)
     code, _, err = _run(capsys, "calibrate", path, "--model", "linear9")
     assert code == 2 and "--units counts" in err
-    code, out, err = _run(capsys, "calibrate", path, "--model", "linear9", "--units", "counts", "--json")
+    # the hand-written counts are exact (residual ~1e-17 g): an exact fit is refused unless forced
+    code, _, err = _run(capsys, "calibrate", path, "--model", "linear9", "--units", "counts")
+    assert code == 2 and "--force-weak" in err
+    code, out, err = _run(capsys, "calibrate", path, "--model", "linear9", "--units", "counts", "--json",
+                          "--force-weak")
     assert code == 0, err
     assert json.loads(out)["parameters"]["K_x"] == pytest.approx(16384, rel=1e-9)
     assert np.isclose(json.loads(out)["parameters"]["b_x"], 20 / 16384, rtol=1e-6)

@@ -5,6 +5,7 @@ an exported file as ``optcal apply`` does; the commands' one-line errors and the
 from __future__ import annotations
 
 import json
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -252,7 +253,7 @@ def test_imucal_applies_an_exported_fit_as_optcal_apply_does(tmp_path, capsys):
     rng = np.random.default_rng(8)
     truth = get_model("linear9").to_dict(random_linear(rng, "linear9", "counts"))
     sim = simulate("linear9", truth, rng, noise_g=20e-6)
-    fit = calibrate(sim.data, "linear9")
+    fit = calibrate(replace(sim.data, units="counts"), "linear9")
     cal = tmp_path / "cal.json"
     write_calibration(fit, cal, units_out="counts")
     assert main(["export", str(cal), "--format", "imucal", "-o", str(tmp_path / "imucal.json")]) == 0
