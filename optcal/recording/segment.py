@@ -230,8 +230,8 @@ def _continues_motion(M: np.ndarray, seg: np.ndarray, excess=None, sample_sd=Non
 def _hinge_trim(M: np.ndarray, seg: np.ndarray, H: int) -> np.ndarray:
     """Each rest [a, b) (blocks, unit noise) without the start of a slow motion that PELT left in it
     (step 6): over its last H blocks (mirrored, its first H) a hinge, constant up to block c and a
-    straight line from there, is fitted for every c; when the best hinge fits better than one straight
-    line through the stretch by more than :data:`TREND_CHI2`, the rest ends at c. Vectorised over rests and hinge points."""
+    straight line from there, is fitted for every c; when the best hinge fits better than a constant by
+    more than :data:`TREND_CHI2`, the rest ends at c (only rests that passed the rest test are trimmed). Vectorised over rests and hinge points."""
     out = seg.copy()
     if not len(seg):
         return out
@@ -262,13 +262,7 @@ def _hinge_trim(M: np.ndarray, seg: np.ndarray, H: int) -> np.ndarray:
         rss = rss0[:, None] - np.sum(beta1 * (sxy - sx[..., None] * ybar[:, None, :]), axis=2)
         rss = np.where(ok & (c[None, :] < n[:, None] - 2), rss, np.inf)  # a slope over 2+ blocks
         best = np.argmin(rss, axis=1)
-        # against one straight line through the whole stretch: a hinge that is only a slope (a piece of a
-        # steady turn) gains nothing and cuts nothing
-        jc = (j[None, :] - (n[:, None] - 1) / 2.0) * valid
-        sjj = np.sum(jc * jc, axis=1)
-        sjy = np.einsum("kh,kha->ka", jc, Y)
-        rss_line = rss0 - np.sum(sjy**2, axis=1) / np.maximum(sjj, 1e-9)
-        gain = rss_line - rss[np.arange(len(seg)), best]
+        gain = rss0 - rss[np.arange(len(seg)), best]
         cut = gain > TREND_CHI2
         if end:
             out[cut, 1] = seg[cut, 1] - h[cut] + best[cut] + 1
