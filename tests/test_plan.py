@@ -257,3 +257,26 @@ def test_a_malformed_scheme_file_is_one_line(tmp_path, capsys):
     f.write_text("dx,dy,dz\n0.5,0.5,0.5\n")
     code, _, err = _run(capsys, "simulate", "--scheme", str(f), "-o", str(tmp_path / "o.csv"))
     assert code == 2 and "not 1" in err and len(err.strip().splitlines()) == 1
+
+
+def test_design_problem_counts_and_keeps_the_best():
+    """The design problem's budget and best point behave as CalibrationProblem's (CONTRIBUTING.md): past the
+    budget candidates cost inf and the next call raises; the best point evaluated is kept; the equal-area map
+    inverts."""
+    from optcal.errors import BudgetExhausted
+    from optcal.plan.problem import DesignProblem, coordinates_of, directions_of
+
+    crit = make_criterion("linear9")
+    dp = DesignProblem(crit, 12)
+    dp.start(50)
+    Z = np.random.default_rng(0).uniform(-1, 1, (60, 24))
+    f = dp.cost_batch(Z)
+    assert np.all(np.isfinite(f[:50])) and np.all(np.isinf(f[50:])) and dp.nfev == 50
+    x, fb = dp.best
+    assert fb == f[:50].min() and np.array_equal(x, Z[int(np.argmin(f[:50]))])
+    with pytest.raises(BudgetExhausted):
+        dp.cost_batch(Z[:1])
+    ico = icosahedron()
+    np.testing.assert_allclose(directions_of(coordinates_of(ico)[None], 12)[0], ico, atol=1e-12)
+    dp.start(None)
+    assert dp.cost(coordinates_of(ico)) == pytest.approx(crit(ico[None])[0], rel=1e-12)
