@@ -1,7 +1,8 @@
 """The table of docs/noise.md, "The noise floor of a position": each raw recording of the real corpus
-(tests/data/, each folder with its licence and README) calibrated by the default path (the threshold search of
-optcal.recording, positions, optcal.fit.calibrate), its verdicts against the white-noise floor σ/√n (the old
-one) and against the noise floor of optcal.noise.floor (the new one).
+(tests/data/, each folder with its licence and README) calibrated by the default path of ``optcal calibrate
+--raw`` (optcal.recording.positions_from_raw: the default segmentation, positions; optcal.fit.calibrate), its
+verdicts against the white-noise floor σ/√n (the old one) and against the noise floor of optcal.noise.floor
+(the new one).
 
     .venv/bin/python docs/scripts/noise_floor_corpus.py [--simulate SEEDS]
 
@@ -31,27 +32,29 @@ from optcal.analysis import goodness_of_fit, position_diagnostics
 from optcal.errors import InputError
 from optcal.fit import calibrate
 from optcal.problem import CalibrationProblem
-from optcal.recording import choose_threshold, positions_from_recording, read_recording
+from optcal.recording import choose_threshold, positions_from_raw, positions_from_recording, read_recording
 
 DATA = Path(__file__).resolve().parents[2] / "tests" / "data"
 G0 = 9.80665
 
 
 def recordings(tmp: Path):
-    """(name, recording, model, g_local): the corpus's raw recordings as tests/test_real_data.py and
+    """(name, path, reading options, model, g_local): the corpus's raw recordings as tests/test_real_data.py and
     tests/test_corpus.py read them."""
     xsens = tmp / "xsens_acc.mat"
     xsens.write_bytes(gzip.decompress((DATA / "imu_tk" / "xsens_acc.mat.gz").read_bytes()))
-    yield ("imu_tk Xsens MTi", read_recording(xsens, units="counts", saturation=65535), "linear9", 9.81744 / G0)
+    yield "imu_tk Xsens MTi", xsens, dict(units="counts", saturation=65535), "linear9", 9.81744 / G0
+    yield ("imu_tk Xsens MTi, variance detector", xsens, dict(units="counts", saturation=65535), "linear9",
+           9.81744 / G0)
     m = loadmat(DATA / "hassan_bao" / "MobileAccData30orientationRawSample01.mat")
     (a,) = [v for k, v in m.items() if not k.startswith("__")]
     phone = tmp / "phone.csv"
     np.savetxt(phone, a.T if a.shape[0] == 3 else a, delimiter=",", header="ax,ay,az", comments="", fmt="%.17g")
-    yield "Hassan & Bao phone", read_recording(phone, rate=50.0, units="m/s2"), "linear9", 1.0
-    yield ("ImuCalibration MPU-6050", read_recording(DATA / "mpu6050" / "example_data_calibration.csv",
-                                                     units="counts"), "diag6", 1.0)
-    yield ("imucal Ferraris session", read_recording(DATA / "imucal" / "example_ferraris_session.csv", rate=102.4,
-                                                     units="m/s2"), "diag6", 1.0)
+    yield "Hassan & Bao phone", phone, dict(rate=50.0, units="m/s2"), "linear9", 1.0
+    yield ("ImuCalibration MPU-6050", DATA / "mpu6050" / "example_data_calibration.csv", dict(units="counts"),
+           "diag6", 1.0)
+    yield ("imucal Ferraris session", DATA / "imucal" / "example_ferraris_session.csv",
+           dict(rate=102.4, units="m/s2"), "diag6", 1.0)
 
 
 def fit(data, model, g_local):
@@ -62,9 +65,12 @@ def fit(data, model, g_local):
         return calibrate(data, model, g_local=g_local, force_weak=True), f" (weak, forced: {str(exc)[:40]}…)"
 
 
-def row(name, rec, model, g_local) -> str:
-    det = choose_threshold(rec, model, g_local=g_local)
-    data = positions_from_recording(rec, det)
+def row(name, path, reading, model, g_local) -> str:
+    if name.endswith("variance detector"):  # Tedaldi's detector and the threshold search, as tests/test_noise_floor.py
+        rec = read_recording(path, **reading)
+        data = positions_from_recording(rec, choose_threshold(rec, model, g_local=g_local))
+    else:
+        data = positions_from_raw(path, **reading, model=model, g_local=g_local)
     cal, weak = fit(data, model, g_local)
     new = cal.fit
     old_problem = CalibrationProblem(model, replace(data, sem=None), g_local=g_local)
