@@ -101,7 +101,7 @@ def calibrate_xsens(bias: str = "rests", g_sensitivity: bool = False) -> dict:
         J = np.zeros((3, x.size))
         J[:, 0:3] = np.diag(b)
         J[:, p.model.slice_of("bias")] = np.diag(K)
-        bias_counts = K * b
+        bias_counts = data_offset(p) + K * b
         se_bias = np.sqrt(np.diag(J @ cov @ J.T))
     else:  # the first rest's mean output and its SE (white noise; Birge-scaled as the rest)
         bias_counts = data.rest_W[0]
@@ -118,6 +118,11 @@ def calibrate_xsens(bias: str = "rests", g_sensitivity: bool = False) -> dict:
             "n_motions": data.n_motions, "angles_before": before, "angles_after": after,
             "angles_imu_tk": p.motion_angles(imu_tk_x), "frame_rotation": R, "cost": res.fun, "nfev": res.nfev,
             "solver_s": res.runtime_s, "chi2_motions_rests": chi2_parts, "total_s": time.perf_counter() - t0}
+
+
+def data_offset(p) -> np.ndarray:
+    """The raw offset the problem's data are fitted minus (the bias parameters are the rate beyond it)."""
+    return np.asarray(p.data.extra["offset_raw"], float)
 
 
 def _covariance(p, x, chi2_dof: float) -> np.ndarray:
@@ -144,7 +149,7 @@ def _imu_tk_vector(p, R) -> np.ndarray:
     for k, n in enumerate(("T_xy", "T_xz", "T_yx", "T_yz", "T_zx", "T_zy")):
         x[3 + k] = T["xyz".index(n[2]), "xyz".index(n[3])]
     if p.model.bias:
-        x[p.model.slice_of("bias")] = IMU_TK_BIAS / K
+        x[p.model.slice_of("bias")] = (IMU_TK_BIAS - data_offset(p)) / K
     return x
 
 

@@ -26,14 +26,13 @@ def gyro_to_imu_tk(cal: GyroCalibration) -> tuple[np.ndarray, np.ndarray, np.nda
     if cal.model.g_sensitivity:
         raise InputError("imu_tk's gyroscope file has no g-sensitivity; export a calibration without it "
                          "(optcal imu without --g-sensitivity)")
-    Ko, To, bo, _ = (a[0] for a in cal.model.matrices(cal.x[None]))
+    Ko, To, _, _ = (a[0] for a in cal.model.matrices(cal.x[None]))
     M = np.linalg.inv(To) / Ko[None, :]
     k = np.diag(M).copy()
     if np.any(k == 0):
         raise InputError("a gyroscope axis's calibrated rate does not depend on its own output (a zero diagonal "
                          "cell); imu_tk's T·K with a unit-diagonal T cannot hold it")
-    B = cal.offset_raw.copy() if cal.offset_raw is not None else Ko * bo
-    return M / k[None, :], np.diag(k), B
+    return M / k[None, :], np.diag(k), cal.output_offset()
 
 
 def gyro_from_imu_tk(T, K, B, units: str) -> dict:

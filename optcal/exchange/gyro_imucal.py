@@ -23,10 +23,10 @@ RAD_PER_DEG = np.pi / 180.0
 
 def gyro_to_imucal(cal: GyroCalibration) -> dict:
     """imucal's gyroscope fields (K_g, R_g, K_ga, b_g as nested lists; gyr_unit deg/s)."""
-    K, T, b, G = (a[0] for a in cal.model.matrices(cal.x[None]))
+    K, T, _, G = (a[0] for a in cal.model.matrices(cal.x[None]))
     C = RAD_PER_DEG * K[:, None] * T
     k = np.linalg.norm(C, axis=1)
-    b_g = cal.offset_raw if cal.offset_raw is not None else K * b
+    b_g = cal.output_offset()
     return {"K_g": np.diag(k).tolist(), "R_g": (C / k[:, None]).tolist(), "K_ga": (K[:, None] * G / G0).tolist(),
             "b_g": [float(v) for v in b_g], "gyr_unit": "deg/s"}
 

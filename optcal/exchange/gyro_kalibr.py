@@ -29,8 +29,8 @@ def gyro_to_kalibr(cal: GyroCalibration, *, bias_online: bool = False) -> tuple[
         raise InputError(f"Kalibr's gyroscope measurements are in rad/s, and this calibration's outputs are in "
                          f"{cal.units_raw}, which have no fixed value in rad/s; use the imu_tk format")
     s = RAD_PER_UNIT[cal.units_raw]
-    K, T, b, G = (a[0] for a in cal.model.matrices(cal.x[None]))
-    offset = cal.offset_raw if cal.offset_raw is not None else K * b
+    K, T, _, G = (a[0] for a in cal.model.matrices(cal.x[None]))
+    offset = cal.output_offset()
     if np.any(offset != 0) and not bias_online:
         raise InputError("Kalibr's gyroscope model has no constant bias (it estimates one online); pass "
                          "bias_online to leave this calibration's bias to Kalibr, or use the imu_tk format")

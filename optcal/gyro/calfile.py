@@ -4,9 +4,10 @@
 The block: ``model`` (``gyro9``: scale and misalignment, bias from the rests; ``gyro12`` with the bias;
 ``gyro21`` with g-sensitivity), ``terms``, ``bias_mode`` (``rests`` or ``fit``), ``parameters`` and
 ``stderr`` {name: value}, ``units`` {``raw``: the gyroscope's output units, ``calibrated``: ``rad/s``,
-``parameters``: {name: unit}}, ``offset_raw`` (with the bias from the rests: the rests' mean output per
-axis, raw units, which :meth:`GyroCalibration.apply` subtracts; ``offset_spread_raw`` their SD across the
-rests, the drift the file cannot follow), ``data`` {``n_rests``, ``n_motions``, ``rms_motion_angle_rad``,
+``parameters``: {name: unit}}, ``offset_raw`` (the rests' mean output per axis, raw units, which
+:meth:`GyroCalibration.apply` subtracts before the model: the bias parameters, when fitted, are the rate
+bias beyond it; with the bias from the rests ``offset_spread_raw`` is its SD across the rests, the drift
+the file cannot follow), ``data`` {``n_rests``, ``n_motions``, ``rms_motion_angle_rad``,
 ``chi2_per_dof``}, ``solver``, ``observability`` and, when it was run, ``g_sensitivity_test``.
 """
 
@@ -54,8 +55,8 @@ def gyro_block(problem, x, stderr, *, solver: str, observability: dict, g_test: 
         "observability": observability,
     }
     out["units"]["parameters"] = {n: out["units"]["parameters"][n] for n in model.names}
+    out["offset_raw"] = [float(v) for v in problem.data.extra["offset_raw"]]
     if problem.bias_mode == "rests":
-        out["offset_raw"] = [float(v) for v in np.mean(problem.data.rest_W + _offsets(problem), axis=0)]
         out["offset_spread_raw"] = [float(v) for v in np.std(problem.data.rest_W + _offsets(problem), axis=0)]
     if g_test is not None:
         out["g_sensitivity_test"] = g_test
@@ -88,8 +89,13 @@ class GyroCalibration:
     model: GyroModel
     x: np.ndarray
     units_raw: str
-    offset_raw: np.ndarray | None  # bias from the rests: subtracted before the model
+    offset_raw: np.ndarray | None  # raw units, subtracted before the model
     meta: dict
+
+    def output_offset(self) -> np.ndarray:
+        """The raw output (3,) at zero rate and zero specific force: the offset plus K·b."""
+        K, _, b, _ = (a[0] for a in self.model.matrices(self.x[None]))
+        return (0.0 if self.offset_raw is None else self.offset_raw) + K * b
 
     def apply(self, W: np.ndarray, F: np.ndarray | None = None) -> np.ndarray:
         """Body rates (n, 3) in rad/s of raw outputs ``W`` (n, 3), under specific force ``F`` (n, 3, g; needed
@@ -130,8 +136,8 @@ def read_gyro_block(d: dict, path) -> GyroCalibration:
         raise InputError(f"{path}: gyroscope.units must have raw in {', '.join(GYRO_UNITS)} and calibrated "
                          f"{CALIBRATED}; re-create the file")
     offset = None
-    if not model.bias:
+    if "offset_raw" in g or not model.bias:
         offset = np.asarray(g.get("offset_raw", []), float)
         if offset.shape != (3,) or not np.all(np.isfinite(offset)):
-            raise InputError(f"{path}: gyroscope.offset_raw (three numbers) is missing; re-create the file")
+            raise InputError(f"{path}: gyroscope.offset_raw must be three numbers; re-create the file")
     return GyroCalibration(model, x, units["raw"], offset, g)

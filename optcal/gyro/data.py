@@ -26,6 +26,53 @@ from ..errors import InputError
 MIN_TURN_RAD = np.deg2rad(5.0)
 
 
+# A rest is trimmed to where the gyroscope is still: its rate, averaged over STILL_WINDOW_S, within
+# STILL_Z standard deviations of that average of the rest's central half.
+STILL_WINDOW_S = 0.05
+STILL_Z = 5.0
+
+
+def still_rests(W: np.ndarray, t: np.ndarray, rests: np.ndarray) -> np.ndarray:
+    """The rests (r, 2) cut to where the gyroscope is still.
+
+    The accelerometer's detection finds a rest by the specific force, which changes slowly at the start
+    and end of a turn; samples of a turn inside a rest would give its first degrees to the rest's gravity
+    direction instead of to the integration (a bias of a few 1e-3 rad on a hand-turned 90°). The
+    gyroscope sees those samples directly: a sample is still when its rate, as a centred moving average
+    over ``STILL_WINDOW_S``, lies within ``STILL_Z`` noise SDs (SD/√window for the average) of the rest's
+    level on every axis (the line through the medians of its two halves, so that a slow bias drift is
+    not taken for a movement), the noise SD from the median absolute first difference (robust to the
+    movement itself); each rest is cut to the span from its first to its last still sample. A movement
+    inside a rest is left in it (keeping the longest still run instead cut imu_tk's 50 s initial rest at
+    a disturbance and made its first motion worse), so a detector that joins two poses into one rest
+    still costs accuracy."""
+    dt = float(np.median(np.diff(t))) if len(t) > 1 else 1.0
+    w = max(1, int(round(STILL_WINDOW_S / dt)))
+    out = rests.copy()
+    for k, (a, b) in enumerate(rests):
+        seg = W[a:b]
+        n = b - a
+        # a slow bias drift over a long rest is not a movement: the level is the line through the two
+        # halves' medians
+        m1, m2 = np.median(seg[: n // 2 + 1], axis=0), np.median(seg[n // 2:], axis=0)
+        s_ = (np.arange(n) - (n // 2) / 2.0)[:, None] / max(n / 2.0, 1.0)
+        med = m1 + (m2 - m1) * s_
+        d = np.diff(seg, axis=0)
+        mad = 1.4826 * np.median(np.abs(d - np.median(d, axis=0)), axis=0) / np.sqrt(2.0)
+        sd = np.maximum.reduce([mad, 0.5 * d.std(axis=0) / np.sqrt(2.0), 1e-12 * (1.0 + np.abs(m1))])
+        z = (seg - med) / sd
+        if w > 1:
+            kernel = np.ones(w) / w
+            z = np.column_stack([np.convolve(z[:, i], kernel, mode="same") for i in range(3)])
+        still = np.concatenate([[False], np.all(np.abs(z) < STILL_Z / np.sqrt(w), axis=1), [False]])
+        edges = np.flatnonzero(np.diff(still.astype(np.int8)))
+        starts, stops = edges[0::2], edges[1::2]
+        if starts.size == 0 or np.max(stops - starts) < 2:
+            continue  # no still run to keep: the rest as detected
+        out[k] = (a + starts[0], a + stops[-1])
+    return out
+
+
 def tangent_basis(u: np.ndarray) -> np.ndarray:
     """Two unit vectors (m, 2, 3) orthogonal to each unit vector of u (m, 3) and to each other."""
     a = np.where(np.abs(u[:, [0]]) < 0.9, np.array([[1.0, 0.0, 0.0]]), np.array([[0.0, 1.0, 0.0]]))
@@ -39,7 +86,8 @@ def tangent_basis(u: np.ndarray) -> np.ndarray:
 class GyroData:
     """Samples and their rests. ``t`` (n,) s, ``W`` (n, 3) raw gyroscope outputs in ``units``, ``F`` (n, 3)
     calibrated specific force in g, ``rests`` (r, 2) sample ranges [start, stop) of the static intervals in
-    time order. ``saturated`` (n,) marks gyroscope samples at a rail."""
+    time order, trimmed to where the gyroscope is still (:func:`still_rests`; ``detected_rests`` keeps them
+    as given). ``saturated`` (n,) marks gyroscope samples at a rail."""
 
     t: np.ndarray
     W: np.ndarray
@@ -68,6 +116,8 @@ class GyroData:
                              "rests with rotations between them")
         if np.any(r[:, 1] - r[:, 0] < 2) or np.any(r[1:, 0] <= r[:-1, 1] - 1) or r[0, 0] < 0 or r[-1, 1] > n:
             raise InputError("the rests must be ordered, non-overlapping sample ranges of at least 2 samples each")
+        self.detected_rests = self.rests
+        self.rests = still_rests(self.W, self.t, self.rests)
         self._derive()
 
     def _derive(self) -> None:
@@ -105,7 +155,21 @@ class GyroData:
         mid = np.array([self.t[a:b].mean() for a, b in self.rests])
         offset = np.column_stack([np.interp(self.t, mid, self.rest_W[:, i]) for i in range(3)])
         out = GyroData(self.t, self.W - offset, self.F, self.rests, units=self.units, saturated=self.saturated,
-                       extra=dict(self.extra, bias_from_rests=offset))
+                       extra=dict(self.extra, bias_from_rests=offset,
+                                  offset_raw=np.array([offset[a:b].mean(axis=0) for a, b in self.rests]).mean(axis=0)))
+        out.detected_rests = self.detected_rests
+        return out
+
+    def centred(self) -> GyroData:
+        """The same recording minus one constant, the rests' mean output (``extra["offset_raw"]``): with the
+        bias fitted, the bias parameters are then what the rests' mean leaves (rad/s). An unsigned ADC's
+        offset (32,768 counts, tens of rad/s for a MEMS gyroscope) would otherwise make a relative change
+        of the scale and the bias nearly the same direction, and the observability's relative threshold
+        would name them undetermined."""
+        offset = np.mean(self.rest_W, axis=0)
+        out = GyroData(self.t, self.W - offset, self.F, self.rests, units=self.units, saturated=self.saturated,
+                       extra=dict(self.extra, offset_raw=offset))
+        out.detected_rests = self.detected_rests
         return out
 
     @property

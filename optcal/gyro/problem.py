@@ -99,7 +99,9 @@ class GyroProblem:
     :mod:`optcal.gyro.model` (``g_sensitivity`` adds G). ``bias``: ``fit`` (parameters, determined by
     the rests' residuals and the motions together) or ``rests`` (taken from the rests before fitting,
     interpolated between them, :meth:`GyroData.debiased`: the model then has no bias parameters and the
-    problem no rest residuals; G needs ``fit``). ``scale``: nominal scale factor (output units per
+    problem no rest residuals; G needs ``fit``). Either way the data are fitted minus an offset in raw
+    units (``data.extra["offset_raw"]``: with ``fit`` the rests' mean output, :meth:`GyroData.centred`),
+    and the bias parameters are the rate bias beyond it. ``scale``: nominal scale factor (output units per
     rad/s, one number or three); without it, :func:`common_scale` finds one. ``presets``: a
     :class:`GyroPresets` to centre the search elsewhere."""
 
@@ -114,8 +116,7 @@ class GyroProblem:
             raise InputError("g-sensitivity needs the bias fitted (`bias` fit): the rests' outputs hold both")
         self.bias_mode = bias
         self.model = get_gyro_model(g_sensitivity, bias=bias == "fit")
-        if bias == "rests":
-            data = data.debiased()
+        data = data.debiased() if bias == "rests" else data.centred()
         self.data = data
         if data.n_motions < 1:
             raise InputError("no motion between rests: record rotations between the rests")
@@ -268,6 +269,17 @@ class GyroProblem:
         reads: unwhitened)."""
         R = self.residuals_full(x_full)[0][: self.n_motion_residuals].reshape(-1, 2) * self.sd_motion[:, None]
         return np.linalg.norm(R, axis=1)
+
+    def from_sensor(self, x_sensor) -> np.ndarray:
+        """This problem's parameter vector of a sensor whose bias b includes the whole output offset (the
+        model of :mod:`optcal.gyro.model` on the raw data): b − offset/K, the bias dropped without a bias
+        term (a simulation's truth in the problem's coordinates)."""
+        x = np.asarray(x_sensor, float).copy()
+        full = get_gyro_model(self.model.g_sensitivity)
+        if len(x) != full.n_params:
+            raise ValueError(f"expected the {full.n_params} parameters of {full.name}, got {len(x)}")
+        x[9:12] -= np.asarray(self.data.extra["offset_raw"], float) / x[:3]
+        return x if self.model.bias else np.delete(x, np.s_[9:12])
 
     def rotation(self, x_full, start: int, stop: int) -> np.ndarray:
         """Rotation vector (3,) in rad, body frame, of the attitude change from sample ``start`` to ``stop``

@@ -35,6 +35,7 @@ def _fit(data, *, g_sensitivity, bias, scale, solver, options, seed, budget) -> 
     from solvers.registry import get
 
     p = GyroProblem(data, g_sensitivity=g_sensitivity, bias=bias, scale=scale)
+    check_observable(p, p.centre)  # before solving: a solver wanders along an undetermined direction
     res = get(solver, **(options or {})).solve(p, rng=np.random.default_rng(seed), budget=budget)
     if not np.isfinite(res.fun):
         raise InputError(f"the gyroscope fit found no finite cost ({res.message}); check the gyroscope's columns "
