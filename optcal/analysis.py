@@ -132,9 +132,9 @@ class GoodnessOfFit:
     # where the noise comes from: "stated" (given), "measured" (the data's standard error of each mean: χ² is
     # Σ (r_i/σ_i)² over the positions' own floors, docs/noise.md) or "residuals" (no noise known: no test)
     noise_source: str = "residuals"
-    estimator: str | None = None  # measured: how the data's floor was found (optcal.noise.floor.ESTIMATORS)
+    estimator: str | None = None  # measured: how the data's floor was found (optcal.recording.floor.ESTIMATORS)
     white_noise_g: float | None = None  # measured: the RMS of the white-noise floor σ/√n alone, for comparison
-    # measured: the floor's effective degrees of freedom (optcal.noise.floor.NoiseFloor.edf); when finite the
+    # measured: the floor's effective degrees of freedom (optcal.recording.floor.NoiseFloor.edf); when finite the
     # p-value is the F test's, P(F(dof, floor_dof) > χ²/dof), an estimated variance against an estimated floor
     floor_dof: float | None = None
     # measured with a recording's floor: the mean and the effective degrees of freedom of χ² under the floor's
@@ -166,7 +166,7 @@ class GoodnessOfFit:
 
 def floor_estimator(data) -> str | None:
     """How the standard errors of ``data``'s means were found: the estimator of the recording's noise floor
-    (a key of :data:`optcal.noise.floor.ESTIMATORS`), "stated" for se_x, se_y, se_z read from a file, "white"
+    (a key of :data:`optcal.recording.floor.ESTIMATORS`), "stated" for se_x, se_y, se_z read from a file, "white"
     for sx, sy, sz over √n, None without them."""
     if data.sem is not None:
         floor = data.extra.get("noise_floor") if isinstance(data.extra, dict) else None
@@ -178,7 +178,7 @@ def goodness_of_fit(problem: CalibrationProblem, x_full: np.ndarray, noise_g: fl
     """Residual RMS, and χ² with its p-value when the noise is known: Σ r²/σ² with ``noise_g`` or a stated
     noise level, Σ (r_i/σ_i)² with each position's own floor when the noise comes from the data
     (:func:`position_sigma`: the standard error of each mean, correlated noise included when the data have
-    se_x, se_y, se_z). With a recording's floor (:class:`optcal.noise.floor.NoiseFloor`) the means' noise is
+    se_x, se_y, se_z). With a recording's floor (:class:`optcal.recording.floor.NoiseFloor`) the means' noise is
     correlated and the floor estimated: χ² is judged by its mean E and effective degrees of freedom ν under
     that noise (:func:`chi2_moments`) and by the floor's degrees of freedom ``edf``, p = P(F(ν, edf) > χ²/E),
     which is the χ² test's P(χ²_dof > χ²) for white noise and a floor of many degrees of freedom
@@ -214,7 +214,7 @@ def goodness_of_fit(problem: CalibrationProblem, x_full: np.ndarray, noise_g: fl
 
 def chi2_moments(problem: CalibrationProblem, x_full: np.ndarray, sigma: np.ndarray, floor) -> tuple[float, float]:
     """Mean and Satterthwaite degrees of freedom of χ² = Σ (r_i/σ_i)² when the position means carry the
-    correlated noise of a recording's floor (:meth:`optcal.noise.floor.NoiseFloor.covariance`, per axis): with
+    correlated noise of a recording's floor (:meth:`optcal.recording.floor.NoiseFloor.covariance`, per axis): with
     r = (I − H)e to first order (H the hat matrix of :func:`_hat_matrix`), e the means' noise as residuals
     (Σ_e = Σ_k D_k Σ^k D_k / K_k², D_k the specific force's direction cosines; per axis with a reference) and
     W = diag(1/σ²), E χ² = tr(W M Σ_e M) and Var χ² = 2 tr((W M Σ_e M)²), M = I − H; the degrees of freedom

@@ -19,11 +19,12 @@ from optcal.errors import InputError
 from optcal.fit import calibrate
 from optcal.model import get_model
 from optcal.noise.colored import colored_noise
-from optcal.noise.fit import FLICKER_FACTOR
-from optcal.noise.floor import centred_variance, flicker_covariance, noise_floor, octaves, pooled_avar
+from optcal.noise.fit import FLICKER_FACTOR, SLOPE_TOL
 from optcal.presets import PAPER_TRUTH
 from optcal.problem import CalibrationProblem
+from optcal.recording import floor as floor_module
 from optcal.recording import given_intervals, positions_from_recording, read_recording
+from optcal.recording.floor import centred_variance, flicker_covariance, noise_floor, octaves, pooled_avar
 from optcal.recording.reading import Recording
 from optcal.schemes import scheme
 
@@ -35,6 +36,11 @@ MEMS = dict(white=100e-6, flicker=150e-6)
 
 
 # -- the pieces ------------------------------------------------------------------------------------------------
+def test_the_floor_spells_the_constants_of_the_noise_fit_alike():
+    """optcal.recording.floor cannot import optcal.noise (which reads recordings); its copies must agree."""
+    assert floor_module.FLICKER_FACTOR == FLICKER_FACTOR and floor_module.SLOPE_TOL == SLOPE_TOL
+
+
 def test_pooled_avar_is_allantools_oadev_on_one_interval_and_pools_the_differences_of_several():
     import allantools
 

@@ -1,7 +1,7 @@
 """The table of docs/noise.md, "The noise floor of a position": each raw recording of the real corpus
 (tests/data/, each folder with its licence and README) calibrated by the default path of ``optcal calibrate
 --raw`` (optcal.recording.positions_from_raw: the default segmentation, positions; optcal.fit.calibrate), its
-verdicts against the white-noise floor σ/√n (the old one) and against the noise floor of optcal.noise.floor
+verdicts against the white-noise floor σ/√n (the old one) and against the noise floor of optcal.recording.floor
 (the new one).
 
     .venv/bin/python docs/scripts/noise_floor_corpus.py [--simulate SEEDS]

@@ -12,7 +12,7 @@ import numpy as np
 
 from ..data import PositionsData
 from ..errors import InputError
-from ..noise.floor import noise_floor
+from .floor import noise_floor
 from .sniff import mat_table
 
 if TYPE_CHECKING:
@@ -22,9 +22,9 @@ if TYPE_CHECKING:
 
 def positions_from_recording(recording: Recording, detection: DetectionResult) -> PositionsData:
     """One position per interval: mean output, n, per-axis SD, the standard error of the mean ``sem``
-    (:func:`optcal.noise.floor.noise_floor`: the Allan model of the recording's static intervals, never below
+    (:func:`optcal.recording.floor.noise_floor`: the Allan model of the recording's static intervals, never below
     SD/√n), middle time and mean temperature. The detection, the recording's path and the noise floor
-    (:class:`optcal.noise.floor.NoiseFloor`) are kept in ``extra`` (``detection``, ``source``, ``noise_floor``)."""
+    (:class:`optcal.recording.floor.NoiseFloor`) are kept in ``extra`` (``detection``, ``source``, ``noise_floor``)."""
     iv = detection.intervals
     if not len(iv):
         raise InputError("no static intervals to average into positions")

@@ -49,7 +49,11 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..errors import InputError
-from .fit import FLICKER_FACTOR, SLOPE_TOL
+
+# The constants of optcal.noise.fit, spelled here because optcal.noise reads recordings (optcal.recording),
+# so this module may not import it (no import cycles); tests/test_noise_floor.py checks that they agree.
+FLICKER_FACTOR = math.sqrt(2.0 * math.log(2.0) / math.pi)  # σ_A = 0.664·B on the flicker plateau
+SLOPE_TOL = 0.1  # a point is on the −1/2 line when its local log-log slope is within this of −1/2
 
 MIN_PAIRS = 8.0  # a τ is fitted when the pooled intervals hold this many independent pairs of τ-averages at it
 FIT_PASSES = 6  # iterative re-weighting of the power-law fit (as optcal.noise.fit.fit_terms)
