@@ -11,7 +11,7 @@ from optcal.cli import main
 from optcal.errors import InputError
 from optcal.recording import Recording, interval_scores, positions_from_raw, segment_static
 from optcal.recording.segment import segment_diagnosis
-from optcal.recording.synth import arc, poses_recording, random_directions, tumble_recording
+from optcal.synthetic_recording import arc, poses_recording, random_directions, tumble_recording
 from optcal.recording.workflow import detection_method
 
 RATE = 100.0
@@ -49,7 +49,7 @@ def test_one_second_poses_back_to_back_and_steps_calibrate(tmp_path, capsys):
     assert main(["calibrate", path, "--raw", "--model", "diag6", "--min-static", "0.5", "--json"]) == 0
     out = json.loads(capsys.readouterr().out)
     K = np.array([out["parameters"][f"K_{a}"] for a in "xyz"])
-    np.testing.assert_allclose(K, [1.012, 0.991, 1.004], rtol=2e-3)  # synth.SCALE
+    np.testing.assert_allclose(K, [1.012, 0.991, 1.004], rtol=2e-3)  # optcal.synthetic_recording.SCALE
     assert out["n_positions"] == 15
 
 

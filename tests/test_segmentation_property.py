@@ -10,7 +10,7 @@ from hypothesis import strategies as st
 
 from optcal.errors import InputError
 from optcal.recording import interval_scores, segment_static
-from optcal.recording.synth import poses_recording
+from optcal.synthetic_recording import poses_recording
 
 TOL = 30  # samples at 100 Hz (0.3 s)
 SETTINGS = settings(max_examples=40, deadline=None, derandomize=True,

@@ -4,7 +4,7 @@ recordings with known poses and on the real corpus of tests/data. Prints the tab
 
     .venv/bin/python docs/scripts/segmentation_scores.py
 
-Simulated: optcal.recording.synth, 100 Hz, 12 random poses, five seeds per case. A found interval is a true
+Simulated: optcal.synthetic_recording, 100 Hz, 12 random poses, five seeds per case. A found interval is a true
 positive when it overlaps one true rest by at least half its own length and lies inside it but for 0.3 s
 (30 samples) at each end; a rest is recalled when a true positive lies in it; IoU is that of the static
 samples. Real: the references are sections people chose inside their poses (shorter than the rests), so
@@ -32,7 +32,7 @@ from optcal.recording import (
     read_recording,
     segment_static,
 )
-from optcal.recording.synth import poses_recording, tumble_recording
+from optcal.synthetic_recording import poses_recording, tumble_recording
 
 ROOT = Path(__file__).resolve().parents[2]
 DATA = ROOT / "tests" / "data"

@@ -5,11 +5,11 @@ The package spans two layers (CONTRIBUTING.md, "Layers"). Core:
 - :mod:`~optcal.recording.sniff`: the file's layout (delimiter, header, ``key,value`` lines, columns);
 - :mod:`~optcal.recording.reading`: :func:`read_recording` → :class:`Recording`;
 - :mod:`~optcal.recording.segment`: the default detector, change points (ruptures' PELT) and a rest test,
-  :func:`segment_static` → :class:`DetectionResult` (docs/segmentation.md);
+  :func:`segment_static` → :class:`DetectionResult` (docs/segmentation.md), with the precision and recall
+  of detected intervals, :func:`interval_scores` (the simulated recordings they are measured on:
+  :mod:`optcal.synthetic_recording`);
 - :mod:`~optcal.recording.detection`: the variance detector (Tedaldi et al. 2014, §IV-A),
   :func:`detect_static` → :class:`DetectionResult`, and :func:`parse_ks` for its threshold multipliers;
-- :mod:`~optcal.recording.synth`: simulated recordings of known poses and tumbles, and the precision and
-  recall of detected intervals (:func:`interval_scores`);
 - :mod:`~optcal.recording.intervals`: intervals given by hand or by a label column;
 - :mod:`~optcal.recording.positions`: averaging intervals into positions, :func:`positions_from_recording`;
 - :mod:`~optcal.recording.report`: what detection found, as text, :func:`describe_detection`.
@@ -39,8 +39,7 @@ from .positions import positions_from_recording
 from .reading import _NOT_LOADED as _NOT_LOADED  # the reader's "pyarrow not imported yet" marker
 from .reading import INT16_RAILS, Recording, read_recording
 from .report import describe_detection, detection_summary
-from .segment import segment_static
-from .synth import interval_scores
+from .segment import interval_scores, segment_static
 from .sniff import ALIASES, POSITIONAL, RATE_KEYS, ROLES, SNIFF_LINES
 
 _WORKFLOW = ("choose_threshold", "fit_score", "positions_from_raw")

@@ -488,3 +488,29 @@ def segment_diagnosis(det: DetectionResult, needed: int) -> tuple[str, str]:
         advice = ("record more poses, each held still for longer than `min_static_s`, or use the variance "
                   "detector (`method` variance) or intervals given with `intervals`")
     return counts, advice
+
+
+def interval_scores(found: np.ndarray, truth: np.ndarray, n: int, tol: int) -> dict:
+    """Precision and recall of found intervals against true rests ([start, end) samples): a found interval
+    is a true positive when it overlaps one true rest by at least half its own length and lies inside that
+    rest but for ``tol`` samples at each end; a true rest is recalled when some true positive lies in it.
+    Also the intersection over union of the static samples."""
+    found = np.asarray(found, np.int64).reshape(-1, 2)
+    truth = np.asarray(truth, np.int64).reshape(-1, 2)
+    ov = np.clip(np.minimum(found[:, None, 1], truth[None, :, 1])
+                 - np.maximum(found[:, None, 0], truth[None, :, 0]), 0, None)
+    length = (found[:, 1] - found[:, 0])[:, None]
+    inside = (found[:, None, 0] >= truth[None, :, 0] - tol) & (found[:, None, 1] <= truth[None, :, 1] + tol)
+    tp_pair = (2 * ov >= length) & inside
+    tp = tp_pair.any(axis=1)
+    recalled = tp_pair.any(axis=0)
+    a, b = np.zeros(n + 1, int), np.zeros(n + 1, int)
+    for iv, arr in ((found, a), (truth, b)):
+        np.add.at(arr, iv[:, 0], 1)
+        np.add.at(arr, iv[:, 1], -1)
+    ma, mb = np.cumsum(a)[:n] > 0, np.cumsum(b)[:n] > 0
+    union = int((ma | mb).sum())
+    return {"precision": float(tp.mean()) if len(found) else 1.0,
+            "recall": float(recalled.mean()) if len(truth) else 1.0,
+            "iou": float((ma & mb).sum() / union) if union else 1.0,
+            "n_found": len(found), "n_true": len(truth), "n_false": int((~tp).sum())}

@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from optcal.recording import detect_static, interval_scores, segment_static
-from optcal.recording.synth import poses_recording
+from optcal.synthetic_recording import poses_recording
 
 N_HOUR = 360_000
 

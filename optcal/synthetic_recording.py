@@ -3,7 +3,9 @@ poses held for given durations, joined by rotations at a given rate (spherical l
 gravity direction) or by instantaneous steps, a diagonal sensor (scale and offset per axis), white and
 flicker noise (:func:`optcal.noise.colored.colored_noise`), optional clipping at a range and dropped (NaN)
 samples; and slow continuous tumbles with no true rest, with or without pauses. Every draw comes from the
-``rng`` given. The true rests are returned as [start, end) sample indices.
+``rng`` given. The true rests are returned as [start, end) sample indices; their precision and recall is
+:func:`optcal.recording.segment.interval_scores`. A top-level core module rather than part of
+``optcal.recording``: it draws its noise with :mod:`optcal.noise`, which reads recordings.
 """
 
 from __future__ import annotations
@@ -12,9 +14,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..errors import InputError
-from ..noise.colored import colored_noise
-from .reading import Recording
+from .errors import InputError
+from .noise.colored import colored_noise
+from .recording.reading import Recording
 
 SCALE = np.array([1.012, 0.991, 1.004])  # output per g of the simulated sensor (diagonal)
 OFFSET = np.array([0.021, -0.013, 0.034])  # g
@@ -138,29 +140,3 @@ def tumble_recording(rng: np.random.Generator, *, duration_s: float = 60.0, rate
     rec = _sensor(rng, A, rate, noise_g, flicker_g, None, 0.0, "simulated tumble")
     dirs = A[rests[:, 0]] if len(rests) else np.zeros((0, 3))
     return Synthetic(rec, rests, dirs)
-
-
-def interval_scores(found: np.ndarray, truth: np.ndarray, n: int, tol: int) -> dict:
-    """Precision and recall of found intervals against true rests ([start, end) samples): a found interval
-    is a true positive when it overlaps one true rest by at least half its own length and lies inside that
-    rest but for ``tol`` samples at each end; a true rest is recalled when some true positive lies in it.
-    Also the intersection over union of the static samples."""
-    found = np.asarray(found, np.int64).reshape(-1, 2)
-    truth = np.asarray(truth, np.int64).reshape(-1, 2)
-    ov = np.clip(np.minimum(found[:, None, 1], truth[None, :, 1])
-                 - np.maximum(found[:, None, 0], truth[None, :, 0]), 0, None)
-    length = (found[:, 1] - found[:, 0])[:, None]
-    inside = (found[:, None, 0] >= truth[None, :, 0] - tol) & (found[:, None, 1] <= truth[None, :, 1] + tol)
-    tp_pair = (2 * ov >= length) & inside
-    tp = tp_pair.any(axis=1)
-    recalled = tp_pair.any(axis=0)
-    a, b = np.zeros(n + 1, int), np.zeros(n + 1, int)
-    for iv, arr in ((found, a), (truth, b)):
-        np.add.at(arr, iv[:, 0], 1)
-        np.add.at(arr, iv[:, 1], -1)
-    ma, mb = np.cumsum(a)[:n] > 0, np.cumsum(b)[:n] > 0
-    union = int((ma | mb).sum())
-    return {"precision": float(tp.mean()) if len(found) else 1.0,
-            "recall": float(recalled.mean()) if len(truth) else 1.0,
-            "iou": float((ma & mb).sum() / union) if union else 1.0,
-            "n_found": len(found), "n_true": len(truth), "n_false": int((~tp).sum())}
