@@ -23,6 +23,7 @@ from .analysis import (
     natural_units,
     observability,
     position_diagnostics,
+    position_sigma,
 )
 from .data import PositionsData
 from .errors import InputError
@@ -100,6 +101,7 @@ class Calibration:
             "stderr": {n: (None if not np.isfinite(s) else float(s)) for n, s in zip(self.model.names, self.stderr)},
             "rms_residual_g": self.fit.rms_g,
             "cost": self.fit.cost,
+            "goodness_of_fit": self.fit.to_dict(),  # noise in g; chi2 and p-value only when the noise is known
             "n_positions": len(self.problem.data),
             "g_local": self.problem.g_local,
             "solver": self.solver,
@@ -165,11 +167,13 @@ def calibrate(data: PositionsData, model: str | Model | None = None, *, solver: 
     if gof.p_value is not None and gof.p_value < MISFIT_P:
         # The residuals are larger than the noise of the position means (the within-interval scatter of a
         # recording, or the given noise): the model misses an effect, or the positions were not static.
-        # Bounds from that noise would be too small; scale them by the Birge ratio sqrt(χ²/dof), which
-        # is the residual-based noise estimate (Birge 1932; the usual practice in metrology).
-        birge = float(np.sqrt(gof.chi2 / gof.dof))
+        # Bounds from that noise would be too small; scale them by the Birge ratio sqrt(χ²/E), which is the
+        # residual-based noise estimate (Birge 1932; the usual practice in metrology). E, the mean of χ² under
+        # the floor's correlated noise, is the dof for white noise (docs/noise.md).
+        expected = gof.expected_chi2 or gof.dof
+        birge = float(np.sqrt(gof.chi2 / expected))
         sigma = gof.noise_g * birge
-        notes.append(f"chi2/dof = {gof.chi2 / gof.dof:.3g} (p = {gof.p_value:.2g}): the residuals exceed the noise "
+        notes.append(f"chi2/E = {gof.chi2 / expected:.3g} (p = {gof.p_value:.2g}): the residuals exceed the noise "
                      f"of the position means, so the standard errors are scaled by the Birge ratio {birge:.3g}; "
                      "the model may miss an effect (try optcal discover)"
                      + ("; or the outlying position(s) named below are the cause" if diag.outlier.any() else ""))
@@ -213,17 +217,24 @@ def _richest_determined(data: PositionsData, model: Model, g_local: float, refer
 
 def _gof_without(problem: CalibrationProblem, x: np.ndarray, drop: np.ndarray, rank: int,
                  gof: GoodnessOfFit) -> GoodnessOfFit:
-    """Goodness of fit over the positions not in ``drop`` (a robust fit's rejected positions)."""
+    """Goodness of fit over the positions not in ``drop`` (a robust fit's rejected positions): χ² over the kept
+    positions' own floors when the noise comes from the data (as :func:`~optcal.analysis.goodness_of_fit`)."""
     from scipy import stats
 
     d = problem.rows_per_position
-    r = problem.position_residuals(x).reshape(-1, d)[~drop].ravel()
+    keep = ~np.asarray(drop, bool)
+    r = problem.position_residuals(x).reshape(-1, d)[keep].ravel()
     dof = max(len(r) - rank, 1)
     cost = float(r @ r)
     if problem.noise_g is None:
         return GoodnessOfFit(gof.rms_g, gof.cost, dof, float(np.sqrt(cost / dof)), None, None)
-    chi2 = cost / problem.noise_g**2
-    return GoodnessOfFit(gof.rms_g, gof.cost, dof, gof.noise_g, chi2, float(stats.chi2.sf(chi2, dof)))
+    if problem.noise_from_data:
+        sig = position_sigma(problem, x).reshape(-1, d)[keep].ravel()
+        chi2 = float(np.sum((r / sig) ** 2))
+    else:
+        chi2 = cost / problem.noise_g**2
+    return GoodnessOfFit(gof.rms_g, gof.cost, dof, gof.noise_g, chi2, float(stats.chi2.sf(chi2, dof)),
+                         gof.noise_source, gof.estimator, gof.white_noise_g)
 
 
 def _outlier_notes(diag: PositionDiagnostics, loss: str) -> list[str]:

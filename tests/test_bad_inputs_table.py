@@ -101,8 +101,8 @@ def source(tmp_path_factory):
     end = 136 + struct.unpack("<II", raw[128:136])[1]
     raw[150:end] = bytes(end - 150)
     (d / "damaged.mat").write_bytes(bytes(raw))
-    # a slow continuous tumble (3 °/s for 60 s, no rest): no pose was held still (optcal.recording.synth)
-    from optcal.recording.synth import tumble_recording
+    # a slow continuous tumble (3 °/s for 60 s, no rest): no pose was held still (optcal.synthetic_recording)
+    from optcal.synthetic_recording import tumble_recording
 
     tumble = tumble_recording(np.random.default_rng(8), duration_s=60.0, turn_rate_dps=3.0).recording
     np.savetxt(d / "tumble.csv", np.column_stack([tumble.t, tumble.N]), delimiter=",", header="t,ax,ay,az",

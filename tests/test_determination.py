@@ -224,7 +224,7 @@ def test_means_of_a_slow_tumble_taken_as_static_positions_are_refused():
     the sensor frame, so the 13 means lie on one circle, which leaves even diag6's ellipsoid undetermined:
     refused for every model of the chain, naming the directions (at most 3, each by its 3 largest weights)."""
     from optcal.data import PositionsData
-    from optcal.recording.synth import tumble_recording
+    from optcal.synthetic_recording import tumble_recording
 
     N = tumble_recording(np.random.default_rng(1), duration_s=120, turn_rate_dps=3.0).recording.N
     starts = np.linspace(0, len(N) - 300, 13).astype(int)

@@ -330,8 +330,10 @@ def test_noise_from_sets_calibrates_standard_errors(positions_with_n, capsys, tm
     jrec = tmp_path / "rec.json"
     jrec.write_text(out)
     code, out_j, err = _run(capsys, "calibrate", positions_with_n, "--noise-from", jrec, "--json")
-    code2, out_r, err2 = _run(capsys, "calibrate", positions_with_n, "--noise-from", path, "--units", "m/s2",
-                              "--json")
+    # --units names the units of DATA and of the noise recording alike: the recording in g, as the positions are
+    samples = np.loadtxt(path, delimiter=",", skiprows=1)
+    rec_g = write_recording(tmp_path / "rest_g.csv", samples[:, 1:] / G0)
+    code2, out_r, err2 = _run(capsys, "calibrate", positions_with_n, "--noise-from", rec_g, "--json")
     assert code == code2 == 0, (err, err2)
     assert json.loads(out_j)["stderr"] == pytest.approx(json.loads(out_r)["stderr"], rel=1e-9)
 

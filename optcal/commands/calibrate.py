@@ -127,6 +127,9 @@ def run(args) -> int:
     if args.json:
         units = cal.model.units(data.units)  # beside "parameters", in the same order (docs/design.md §2)
         extra = {"noise_from": noise} if noise else {}
+        floor = data.extra.get("noise_floor") if isinstance(data.extra, dict) else None
+        if floor is not None:
+            extra["noise_floor"] = floor.to_dict()
         if detection is not None:
             from ..recording.report import detection_summary
 
@@ -141,6 +144,10 @@ def run(args) -> int:
           f"g_local = {cal.problem.g_local:.9f} g, solver {cal.solver}")
     print(f"residual RMS {cal.fit.rms_g * 1e6:.3f} µg, cost {cal.fit.cost:.6e}, "
           f"{cal.result.nfev} evaluations, {cal.result.runtime_s * 1e3:.1f} ms ({cal.result.message})")
+    print(cal.fit.describe())
+    floor = data.extra.get("noise_floor") if isinstance(data.extra, dict) else None
+    if floor is not None and data.sem is not None:
+        print(floor.describe())
     print("observability: " + cal.observability.describe())
     if noise:
         print(describe_noise(noise))
