@@ -12,8 +12,6 @@ The direction primitives live in :mod:`optcal.plan.sphere` (below both this modu
 
 from __future__ import annotations
 
-from functools import lru_cache
-
 import numpy as np
 
 from .errors import InputError
@@ -30,13 +28,6 @@ MAX_RANDOM_POSITIONS = 1_000_000
 PLAN_MAX_POSITIONS = 200
 
 
-@lru_cache(maxsize=32)
-def _planned(kind: str, n: int, model: str) -> np.ndarray:
-    from .plan.design import make_criterion, plan
-
-    return plan(make_criterion(model, kind), n, rng=np.random.default_rng(0)).directions
-
-
 def planned(spec: str) -> np.ndarray:
     """The directions of ``plan:<D|A|E><N>[:<model>]`` (hand-held, nominal parameters, seed 0)."""
     parts = spec.split(":")
@@ -50,7 +41,9 @@ def planned(spec: str) -> np.ndarray:
     if n > PLAN_MAX_POSITIONS:
         raise InputError(f"scheme {spec!r}: plan at most {PLAN_MAX_POSITIONS} positions by name; use optcal plan "
                          "for more")
-    return _planned(kind, n, model).copy()
+    from .plan.design import planned_directions
+
+    return planned_directions(kind, n, model)
 
 
 def scheme(spec: str | int, rng: np.random.Generator | None = None) -> np.ndarray:

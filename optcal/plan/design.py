@@ -17,6 +17,7 @@ offsets (of the criterion's logarithm), with central-difference gradients evalua
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from functools import lru_cache
 
 import numpy as np
 
@@ -169,3 +170,14 @@ def plan(crit: Criterion, n: int, *, fixture: str = "free", rng: np.random.Gener
         d, _ = refine(crit, d)
         method += ", refined on the sphere"
     return design_of(crit, d, fixture, method)
+
+
+@lru_cache(maxsize=32)
+def _planned(kind: str, n: int, model: str) -> np.ndarray:
+    return plan(make_criterion(model, kind), n, rng=np.random.default_rng(0)).directions
+
+
+def planned_directions(kind: str, n: int, model: str = "nonlinear12") -> np.ndarray:
+    """The hand-held ``kind``-optimal N positions for ``model`` at nominal parameters, seeded 0: what the
+    scheme name ``plan:<kind><N>[:<model>]`` means (:func:`optcal.schemes.planned`); computed once per process."""
+    return _planned(kind, int(n), model).copy()

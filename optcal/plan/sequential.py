@@ -65,9 +65,9 @@ def next_best(crit: Criterion, recorded: np.ndarray, fixture: str = "free", grid
     cands, continuous = candidates(fixture, grid)
     d0 = np.asarray(recorded, float).reshape(-1, 3)
     if continuous and not np.isfinite(progress(crit, d0).value):
-        from ..schemes import planned
+        from .design import planned_directions
 
-        base = planned(f"plan:D{crit.info.n_observable}:{crit.info.model.name}")
+        base = planned_directions("D", crit.info.n_observable, crit.info.model.name)
         if len(d0):
             gap = np.min(np.arccos(np.clip(base @ d0.T, -1.0, 1.0)), axis=1)
             pick = base[int(np.argmax(gap))]
