@@ -37,7 +37,7 @@ def trial(scheme: int, run: int, walk: float = 0.0, bias: str = "fit"):
     x = draw_truth(model, rng, 1000.0)
     sim = simulate_imu(model, x, poses=scheme, bias_walk=walk, rng=rng)
     p = GyroProblem(sim.data, scale=1000.0, bias=bias)
-    x = x[: p.model.n_params]
+    x = p.from_sensor(x)  # the truth in the problem's coordinates (bias beyond the offset, or none)
     sd, _ = analysis.crlb(p, x, noise_g=1.0)
     return p, x, sd
 
