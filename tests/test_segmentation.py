@@ -11,8 +11,8 @@ from optcal.cli import main
 from optcal.errors import InputError
 from optcal.recording import Recording, interval_scores, positions_from_raw, segment_static
 from optcal.recording.segment import segment_diagnosis
-from optcal.synthetic_recording import arc, poses_recording, random_directions, tumble_recording
 from optcal.recording.workflow import detection_method
+from optcal.synthetic_recording import arc, poses_recording, random_directions, tumble_recording
 
 RATE = 100.0
 TOL = 30  # samples (0.3 s at 100 Hz): how far a found interval may reach beyond its true rest

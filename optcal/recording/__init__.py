@@ -16,7 +16,8 @@ The package spans two layers (CONTRIBUTING.md, "Layers"). Core:
 
 Application: :mod:`~optcal.recording.workflow`, what fits a model and so runs a solver: the variance
 detector's threshold search :func:`choose_threshold` (scored by :func:`fit_score`) and
-:func:`positions_from_raw`, a recording file to positions in one call. The figure of a recording is :func:`optcal.plots.recording.recording_figure`.
+:func:`positions_from_raw`, a recording file to positions in one call. The figure of a recording is
+:func:`optcal.plots.recording.recording_figure`.
 
 This file re-exports both: the core names here, the workflow's at first use (PEP 562) through a plain
 ``from . import workflow``, so importing a core submodule (which runs this file first) never imports the

@@ -1,38 +1,30 @@
 """Static intervals of a raw recording by change-point segmentation and a rest test (docs/segmentation.md;
 docs/design.md §9.2). The default detector; the variance detector of Tedaldi et al. (2014) stays in
-:mod:`optcal.recording.detection` (``method="variance"``).
+:mod:`optcal.recording.detection` (``method="variance"``). No model is fitted.
 
-1. **Blocks.** The samples are averaged in blocks of ``b`` samples (``b`` = a fifth of the shortest pose,
-   :data:`BLOCKS_PER_POSE`); a block holding a saturated or non-finite sample is set aside and breaks any
-   interval there.
-2. **Noise, from the recording itself.** Per axis, the white noise σ of the samples and the noise σ_b of
-   the block means (which includes flicker noise and hand tremor at the block's time scale) are robust
-   estimates from second differences Δ², which cancel a constant rate of turn (a slow tumble cannot pass
-   for noise): the RMS of the quiet Δ² (within 3 SDs of a first guess from the 10th percentile of |Δ²|),
-   scaled to an SD (for white noise Δ² has SD σ√6); neither is allowed below the quantisation step's q/√12.
-3. **Change points.** The block means, divided by σ_b, are cut into segments of constant mean by PELT
-   with the linear-kernel cost (ruptures' ``KernelCPD``, compiled; Killick, Fearnhead & Eckley, JASA 2012)
-   with penalty :data:`PENALTY_PER_DIM`·3·ln(blocks), a BIC-like choice for 3 dimensions of unit noise. A
-   step of the outputs (a pose that follows another without motion between them) is a change point like
-   the edges of a motion. PELT is quadratic in a segment's length when nothing changes, so the series is
-   cut into pieces of at most :data:`PIECE_BLOCKS` blocks first (the cut is healed by step 5).
-4. **Rest test, per segment.** A segment is at rest when (a) the spread of its block-mean differences is
-   at most :data:`NOISE_RATIO` times the recording's σ_b (no shaking), and (b) in each consecutive test
-   window of ``window_s`` inside it the least-squares slope of the block means is not significant:
-   Σ_axes (slope/SE)² ≤ :data:`TREND_CHI2` (χ² with 3 degrees of freedom at p = 1e-6), the SE taken with
-   the larger of the segment's own and the recording's block noise. A slow continuous rotation is cut by
-   PELT into pieces of the length that balances the penalty against a constant's misfit of the ramp,
-   L³·r²/12 ≈ pen/2 per piece (slope r per block), so each piece's slope is about √(pen/2) standard errors,
-   on the order of the threshold, so (c) each segment is also tested with its contiguous neighbours (both,
-   and each one alone): if one straight line through them fits within the noise (residual χ² within :data:`LINE_SIGMAS` SDs
-   of its degrees of freedom) and its slope is significant, the segment is a piece of a smooth motion.
-   A slow continuous rotation is refused as motion whatever its rate; a pose between steps or motions
-   is not on one line with its neighbours.
-5. **Merging.** Neighbouring rest segments whose means differ by less than :data:`MERGE_SIGMA` white-noise
-   SDs (per axis, as a norm) are joined when the joined segment passes the rest test too: PELT splits a
-   rest at a piece boundary or where flicker noise moves its mean; a new pose differs by far more.
-6. **Intervals.** A rest segment of at least ``min_static_s`` becomes an interval, less one block at each
-   end that borders another segment (a block where a step or a motion starts mixes both sides).
+1. **Blocks.** The samples are averaged in blocks of ``b`` samples (an eighth of the shortest pose,
+   :data:`BLOCKS_PER_POSE`, at most :data:`MAX_BLOCK_S`); a block holding a saturated or non-finite sample
+   is set aside and breaks any interval there.
+2. **Noise, from the recording itself** (:func:`_noise_sd`): per axis, the white noise SD of a sample and
+   of a block mean from second differences, which cancel a constant rate of turn (a slow tumble does not
+   pass for noise), over the quiet part of the recording; never below the quantisation step's q/√12. The
+   same over means of 2, 4, 8, … blocks gives the slow-noise excess per scale (:func:`_slow_noise_excess`).
+3. **Change points** (:func:`_change_points`): the block means in units of their noise are cut into
+   segments of constant mean by PELT (Killick, Fearnhead & Eckley, JASA 2012) with ruptures' compiled
+   linear-kernel cost, penalty :data:`PENALTY`, on pieces of at most :data:`PIECE_BLOCKS` blocks (PELT is
+   quadratic in a stretch without change). A step of the outputs is a change point like a motion's edge.
+4. **Rest test** (:func:`_rest_test`, :func:`_continues_motion`): (a) the block differences scatter at most
+   :data:`NOISE_RATIO` × the recording's; (b) in every window of up to ``window_s`` the slope is not a
+   motion, i.e. not both significant (χ² > :data:`TREND_CHI2` against the larger of the window's own
+   scatter and the slow-noise excess at its scale) and larger than :data:`DRIFT_SIGMAS` sample SDs across
+   the window; (c) the segment does not continue a straight motion into a touching neighbour. PELT cuts a
+   steady turn into pieces whose own slope is only about √(pen/2) standard errors (each balances the
+   penalty against a constant's misfit of the ramp, L³r²/12 ≈ pen/2); (c) sees the turn through them.
+5. **Merging** (:func:`_merge`): neighbouring rests closer than :data:`MERGE_SIGMA` sample SDs are joined
+   when the joined segment passes the rest test.
+6. **Intervals** (:func:`segment_static`): a rest of at least ``min_static_s`` (counting its two end blocks)
+   less one block at each end that borders another segment, and less the start of a slow motion that a
+   hinge finds within :data:`HINGE_S` of either end (:func:`_hinge_trim`).
 """
 
 from __future__ import annotations
@@ -51,7 +43,6 @@ PIECE_BLOCKS = 1024  # PELT runs on pieces of at most this many blocks (quadrati
 TREND_CHI2 = 30.7  # χ²(3) upper 1e-6 quantile (scipy.stats.chi2.isf(1e-6, 3) = 30.66): a slope is a motion
 PENALTY = 16 * TREND_CHI2  # PELT's penalty (unit noise): a ramp's pieces then show a slope of χ² ≈ pen/2
 NOISE_RATIO = 3.0  # a segment whose block means scatter more than this × the recording's: shaking, not rest
-TREND_CHI2 = 30.7  # χ²(3) upper 1e-6 quantile (scipy.stats.chi2.isf(1e-6, 3) = 30.66): a slope is a motion
 LINE_SLACK = 1.5  # a line fits when its residual χ² is at most this × its dof (+ LINE_SIGMAS SDs): flicker
 LINE_SIGMAS = 3.0  # a straight line explains a stretch when its residual χ² is within this many SDs of its dof
 HINGE_S = 2.0  # s: the stretch at each end of a rest searched for the start of a slow motion
@@ -231,7 +222,8 @@ def _hinge_trim(M: np.ndarray, seg: np.ndarray, H: int) -> np.ndarray:
     """Each rest [a, b) (blocks, unit noise) without the start of a slow motion that PELT left in it
     (step 6): over its last H blocks (mirrored, its first H) a hinge, constant up to block c and a
     straight line from there, is fitted for every c; when the best hinge fits better than a constant by
-    more than :data:`TREND_CHI2`, the rest ends at c (only rests that passed the rest test are trimmed). Vectorised over rests and hinge points."""
+    more than :data:`TREND_CHI2`, the rest ends at c (only rests that passed the rest test are trimmed).
+    Vectorised over rests and hinge points."""
     out = seg.copy()
     if not len(seg):
         return out
@@ -440,7 +432,7 @@ def segment_static(recording: Recording, *, min_static_s: float | None = None,
         notes.append(f"{n_short} rest segment(s) shorter than {m} samples ignored")
     moving = ~rest
     if moving.any():
-        blocks = int(np.sum((seg[moving, 1] - seg[moving, 0])))
+        blocks = int(np.sum(seg[moving, 1] - seg[moving, 0]))
         notes.append(f"{int(moving.sum())} segment(s) ({blocks * b} samples) not at rest: "
                      f"{int(np.sum(sg.reason == 'trend'))} trend, {int(np.sum(sg.reason == 'noisy'))} too noisy")
     if sg.n_bad_blocks:

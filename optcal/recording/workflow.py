@@ -25,10 +25,10 @@ from ..data import PositionsData, check_units
 from ..errors import InputError
 from ..model import get_model
 from .detection import DEFAULT_KS, DetectionResult, Detector, detect_static, parse_ks, too_few
-from .segment import segment_diagnosis, segment_static
 from .intervals import given_intervals, label_intervals, read_intervals
 from .positions import positions_from_recording
 from .reading import Recording, read_recording
+from .segment import segment_diagnosis, segment_static
 
 
 def fit_score(data: PositionsData, model, g_local: float = 1.0, solver: str = "scipy-lm",
