@@ -141,8 +141,10 @@ def run(args) -> int:
         save_figure(plan_figure(d, f"{args.n} positions, {crit.label()}-optimal for {crit.info.model.name} "
                                    f"({args.fixture})"), args.plot)
     if args.json:
+        unit = ("1 (largest SD/target)" if crit.kind == "targets" else
+                "variance in natural units, squared (relative for K, g for b, rad for S, 1/g for K2)")
         out = {"n_positions": args.n, "model": crit.info.model.name, "criterion": crit.kind,
-               "criterion_value": design.value, "criterion_unit": "variance in natural units (g², 1 for K)",
+               "criterion_value": design.value, "criterion_unit": unit,
                "noise_ug": crit.info.noise_g * 1e6, "fixture": args.fixture, "method": design.method,
                "solver_record": record, "turn_deg": turn_angle_deg(d),
                "positions": [{"position": i + 1, "dx": float(x), "dy": float(y), "dz": float(z), "face_down": f,
