@@ -41,6 +41,9 @@ class Option:
             value = float(value)
         if isinstance(value, str) and str not in kinds:
             value = _parse(value, kinds, name, solver)
+        if value is None and self.default is not None:  # null for an option that has a value: not its default
+            raise InputError(f"solver {solver}: option {name} cannot be null; leave it out for its default "
+                             f"{self.default!r}")
         if value is not None and not isinstance(value, kinds) or (isinstance(value, bool) and bool not in kinds):
             raise InputError(
                 f"solver {solver}: option {name}={value!r} must be {'/'.join(k.__name__ for k in kinds)}"

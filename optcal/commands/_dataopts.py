@@ -25,6 +25,7 @@ FLAGS = {
     "time_unit": "--time-unit",
     "labels": "--labels",
     "intervals": "--intervals",
+    "method": "--method",
     "window_s": "--window",
     "min_static_s": "--min-static",
     "init_s": "--init-s",
@@ -62,13 +63,19 @@ def add_data_options(p: argparse.ArgumentParser, *, units_default: str | None = 
                    "sample indices (end exclusive), or imucal's section list")
     r.add_argument("--labels", metavar="COLUMN[=L1,L2,...]",
                    help="static intervals from a label column: runs of the listed labels (all if none)")
-    r.add_argument("--min-static", type=float, default=1.0, metavar="S", help="shortest static interval, s (1)")
-    r.add_argument("--window", type=float, default=1.0, metavar="S", help="variance window, s (default 1)")
+    r.add_argument("--method", choices=("segment", "variance"),
+                   help="static-interval detector: change points and a rest test (default) or Tedaldi's variance "
+                   "threshold (docs/segmentation.md)")
+    r.add_argument("--min-static", type=float, metavar="S",
+                   help="shortest pose, s (default: segmentation 0.5, variance detector 1)")
+    r.add_argument("--window", type=float, metavar="S", help="segmentation: longest rest-test window, s (default "
+                   "10); variance detector: its window, s (default 1)")
     r.add_argument("--init-s", type=float, metavar="S",
-                   help="initial rest period whose variance sets the threshold, s (default: the first 2 s if "
-                   "they are at rest, else the noise floor of the quietest windows)")
-    r.add_argument("--threshold-k", metavar="K|A:B", help="threshold multiplier(s) of the initial-rest variance; "
-                   "a range is searched and the best fit kept (default 2:10, as imu_tk)")
+                   help="the variance detector's initial rest period, s (selects that detector; default: the first "
+                   "2 s if they are at rest, else the noise floor of the quietest windows)")
+    r.add_argument("--threshold-k", metavar="K|A:B", help="the variance detector's threshold multiplier(s) of the "
+                   "initial-rest variance (selects that detector); a range is searched and the best fit kept "
+                   "(2:10, as imu_tk)")
     add_gravity_options(p)
 
 
@@ -117,8 +124,9 @@ def raw_options(args) -> dict:
         "adc": getattr(args, "adc", None), "time_unit": getattr(args, "time_unit", None),
         "labels": column, "label_values": None if values is None else values.split(","),
         "intervals": getattr(args, "intervals", None) or None,
-        "threshold_k": parse_ks(getattr(args, "threshold_k", None)),
-        "window_s": getattr(args, "window", 1.0), "min_static_s": getattr(args, "min_static", 1.0),
+        "method": getattr(args, "method", None),
+        "threshold_k": None if getattr(args, "threshold_k", None) is None else parse_ks(args.threshold_k),
+        "window_s": getattr(args, "window", None), "min_static_s": getattr(args, "min_static", None),
         "init_s": getattr(args, "init_s", None),
         "model": getattr(args, "model", None) or getattr(args, "base", None) or "diag6",
         "g_local": gravity_from_args(args),

@@ -45,7 +45,7 @@ def write_csv(path: Path, columns: dict[str, np.ndarray], fmt: dict[str, str]) -
 # Options of add_data_options that only the static-interval detector reads: apply converts every sample.
 DETECTOR_OPTIONS = {"raw": ("--raw", False), "intervals": ("--intervals", None), "labels": ("--labels", None),
                     "init_s": ("--init-s", None), "threshold_k": ("--threshold-k", None),
-                    "window": ("--window", 1.0), "min_static": ("--min-static", 1.0)}
+                    "method": ("--method", None), "window": ("--window", None), "min_static": ("--min-static", None)}
 # The median magnitude of the raw outputs against the calibration's at rest (|K|·g_local): beyond this factor
 # either way the data are not in the calibration's units (docs/design.md §9.3).
 MAGNITUDE_FACTOR = 4.0
