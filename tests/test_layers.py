@@ -50,6 +50,10 @@ FACADES = {
     "optcal.discovery": "re-exports discovery's core names, and discover/fit_model/score from its workflow",
     "optcal.recording": "re-exports the recording path's core names, and choose_threshold/fit_score/"
                         "positions_from_raw from its workflow",
+    # packages whose modules sit in two layers; their __init__ imports only the core ones
+    "optcal.gyro": "the gyroscope's core names (data, model, problem, simulation); optcal.gyro.workflow, which runs "
+                   "a solver, is imported by name",
+    "optcal.plan": "imports nothing; optcal.plan.solve, which runs a registry solver, is imported by name",
 }
 
 
