@@ -14,7 +14,7 @@ $(STAMP): pyproject.toml
 	$(PY) -m optcal.warmup
 	touch $(STAMP)
 
-# The headline comparison study (studies/specs/compare.toml: 50 runs, 7,200 trials) and its report,
+# The headline comparison study (studies/specs/compare.toml: 41 configurations × 2 models × 2 schemes × 50 runs = 8,200 trials) and its report,
 # out/compare/report.md, on every core (docs/performance.md gives its wall time). A study that is stopped
 # resumes where it stopped when run again. `make run-quick` runs its 10-run variant.
 run: $(STAMP)
