@@ -44,7 +44,10 @@ def check_observable(problem, x_full: np.ndarray) -> analysis.Observability:
     leave undetermined, and the way out, when any are."""
     obs = analysis.observability(problem, x_full)
     if obs.rank < obs.n_parameters:
-        names = [n for n, ok in zip(obs.names, obs.observable_mask(), strict=True) if not ok]
+        # the parameters that carry each undetermined direction (weight 0.1 or more of its unit vector; the
+        # others in it move by a few thousandths, through the correlations of the fit)
+        lead = {w["name"] for d in obs.unobservable for w in d if abs(w["weight"]) >= 0.1}
+        names = [n for n in obs.names if n in lead]
         raise InputError(f"the motions do not determine gyroscope parameter(s) {', '.join(names)} "
                          f"(rank {obs.rank} of {obs.n_parameters}): rotate the sensor about all three axes "
                          "between rests")
