@@ -183,7 +183,7 @@ def goodness_of_fit(problem: CalibrationProblem, x_full: np.ndarray, noise_g: fl
     that noise (:func:`chi2_moments`) and by the floor's degrees of freedom ``edf``, p = P(F(ν, edf) > χ²/E),
     which is the χ² test's P(χ²_dof > χ²) for white noise and a floor of many degrees of freedom
     (docs/noise.md)."""
-    from scipy import stats  # here, not at module level: importing optcal stays light
+    from .distributions import chi2_sf, f_sf
 
     x = np.asarray(x_full, float)
     r = problem.position_residuals(x)
@@ -201,7 +201,7 @@ def goodness_of_fit(problem: CalibrationProblem, x_full: np.ndarray, noise_g: fl
         edf = None if floor is None or not np.isfinite(floor.edf) else float(floor.edf)
         mom = None if floor is None else chi2_moments(problem, x, sig, floor)
         expected, nu = mom if mom is not None else (float(dof), float(dof))
-        p = float(stats.f.sf(chi2 / expected, nu, edf) if edf is not None else stats.chi2.sf(chi2 * nu / expected, nu))
+        p = float(f_sf(chi2 / expected, nu, edf) if edf is not None else chi2_sf(chi2 * nu / expected, nu))
         w_rms = None if white is None else float(np.sqrt(np.mean(white**2)))
         return GoodnessOfFit(rms, cost, dof, float(np.sqrt(np.mean(sig**2))), chi2, p, "measured",
                              floor_estimator(problem.data), w_rms, edf, *((expected, nu) if mom else (None, None)))
@@ -209,7 +209,7 @@ def goodness_of_fit(problem: CalibrationProblem, x_full: np.ndarray, noise_g: fl
     if sigma is None:
         return GoodnessOfFit(rms, cost, dof, float(np.sqrt(cost / dof)), None, None)
     chi2 = cost / sigma**2
-    return GoodnessOfFit(rms, cost, dof, float(sigma), chi2, float(stats.chi2.sf(chi2, dof)), "stated")
+    return GoodnessOfFit(rms, cost, dof, float(sigma), chi2, float(chi2_sf(chi2, dof)), "stated")
 
 
 def chi2_moments(problem: CalibrationProblem, x_full: np.ndarray, sigma: np.ndarray, floor) -> tuple[float, float]:
@@ -370,7 +370,7 @@ def _scan(r, H, sigma, d, dof, alpha1, sequential):
     residual, or None: then σ is the RMS of the fit without the set-aside positions and the candidate
     (externally studentised, Student's t / F). Returns the set-aside positions, each position's statistic
     (in σ), p-value, its prediction error from the other positions (g) and the noise used (per residual)."""
-    from scipy import stats
+    from .distributions import chi2_sf, f_sf
 
     m = len(r)
     n = m // d
@@ -396,18 +396,18 @@ def _scan(r, H, sigma, d, dof, alpha1, sequential):
             with np.errstate(divide="ignore", invalid="ignore"):  # s = 0: no degrees of freedom left
                 q = np.add.reduceat(e2 / sig**2, np.arange(0, m, d))
             with np.errstate(invalid="ignore"):
-                pv = stats.f.sf(q / d, d, nu - d) if nu - d >= 1 else np.full(n, np.nan)
+                pv = f_sf(q / d, d, nu - d) if nu - d >= 1 else np.full(n, np.nan)
         else:
             sig = sigma
             q = np.add.reduceat(e2 / sig**2, np.arange(0, m, d))
-            pv = stats.chi2.sf(q, d)
+            pv = chi2_sf(q, d)
         pv = np.where(np.isfinite(q), pv, np.nan)
         if D:  # the set-aside positions: their prediction errors from the others, e_D = (I − H_DD)⁻¹ r_D
             eD = A @ r[rows]
             sD = np.full(rows.size, np.sqrt(rss / max(nu, 1))) if sigma is None else sigma[rows]
             qD = (eD**2 / (np.diag(A) * sD**2)).reshape(-1, d).sum(axis=1)
             q[D] = qD
-            pv[D] = stats.f.sf(qD / d, d, max(nu, 1)) if sigma is None else stats.chi2.sf(qD, d)
+            pv[D] = f_sf(qD / d, d, max(nu, 1)) if sigma is None else chi2_sf(qD, d)
             sig = sig.copy()
             sig[rows] = sD
         cand = [i for i in range(n) if i not in D and np.isfinite(pv[i])]
@@ -459,14 +459,14 @@ def position_diagnostics(problem: CalibrationProblem, x_full: np.ndarray, noise_
         out = np.isfinite(pv) & (pv < alpha1)
     tested = bool(np.any(np.isfinite(pv)))
     h = np.diag(H)
-    from scipy import stats  # here, not at module level: importing optcal stays light
+    from .distributions import chi2_isf, norm_isf, t_isf
 
     if d == 1:
-        thr = (float(stats.t.isf(alpha1 / 2, max(dof - 2, 1))) if source == "leave-one-out"
-               else float(stats.norm.isf(alpha1 / 2)))
+        thr = (float(t_isf(alpha1 / 2, max(dof - 2, 1))) if source == "leave-one-out"
+               else float(norm_isf(alpha1 / 2)))
         res, sg, lev, wt, offp = r, sig, h, w, off
     else:
-        thr = float(np.sqrt(stats.chi2.isf(alpha1, 3)))
+        thr = float(np.sqrt(chi2_isf(alpha1, 3)))
         res = np.linalg.norm(r.reshape(n, 3), axis=1)
         offp = np.linalg.norm(off.reshape(n, 3), axis=1)
         sg = np.sqrt(np.mean(sig.reshape(n, 3) ** 2, axis=1))

@@ -118,7 +118,7 @@ class Calibration:
 def calibrate(data: PositionsData, model: str | Model | None = None, *, solver: str = "scipy-lm",
               options: dict | None = None, g_local: float = 1.0, reference: bool = False,
               presets: Presets | None = None, seed: int | None = 0, budget=None, x0=None,
-              noise_g: float | None = None, force_weak: bool = False) -> Calibration:
+              noise_g: float | None = None, force_weak: bool = False, backend: str | None = None) -> Calibration:
     """Fit ``model`` to ``data`` with the named solver and report parameters with standard errors.
 
     A calibration is returned only when the data determine it (:mod:`optcal.determination`, docs/design.md
@@ -127,13 +127,18 @@ def calibrate(data: PositionsData, model: str | Model | None = None, *, solver: 
     the reason and the way out. ``model`` None is the default, ``nonlinear12``: when the positions do not
     determine it, the richest model of nonlinear12 → linear9 → diag6 that they do determine is fitted, and
     the first note says so. ``force_weak`` fits and returns a weak calibration anyway; its ``forced`` lists
-    the reasons it would have been refused for (the calibration file records them)."""
+    the reasons it would have been refused for (the calibration file records them). ``backend`` is the
+    problem's evaluation (:data:`optcal.problem.BACKENDS`); by default NumPy for a solver that needs few
+    evaluations (``few_evaluations``: least squares), the compiled kernel otherwise."""
     requested = get_model(determination.DEFAULT_MODEL if model is None else model)
+    slv = get_solver(solver, **(options or {}))
+    if backend is None:
+        backend = "numpy" if getattr(slv, "few_evaluations", False) else "kernel"
     first, fallback = None, None
     for name in determination.chain(model):
         m = get_model(name)
         problem = CalibrationProblem(m, data, g_local=g_local, reference=reference, presets=presets,
-                                     noise_g=noise_g, check=False)
+                                     noise_g=noise_g, check=False, backend=backend)
         obs = observability(problem)
         refused = determination.structure(problem, obs, gauge=presets is not None or m.name == "seed15")
         if not refused:
@@ -149,7 +154,6 @@ def calibrate(data: PositionsData, model: str | Model | None = None, *, solver: 
             smaller = _richest_determined(data, problem.model, g_local, reference, presets, noise_g)
             raise InputError(determination.line(refused, problem.model, smaller, chain_tried=model is None))
     model = problem.model
-    slv = get_solver(solver, **(options or {}))
     rng = np.random.default_rng(seed)
     result = slv.solve(problem, x0=x0, budget=budget, rng=rng)
     x = problem.to_full(result.x)[0]
@@ -219,7 +223,7 @@ def _gof_without(problem: CalibrationProblem, x: np.ndarray, drop: np.ndarray, r
                  gof: GoodnessOfFit) -> GoodnessOfFit:
     """Goodness of fit over the positions not in ``drop`` (a robust fit's rejected positions): χ² over the kept
     positions' own floors when the noise comes from the data (as :func:`~optcal.analysis.goodness_of_fit`)."""
-    from scipy import stats
+    from .distributions import chi2_sf
 
     d = problem.rows_per_position
     keep = ~np.asarray(drop, bool)
@@ -233,7 +237,7 @@ def _gof_without(problem: CalibrationProblem, x: np.ndarray, drop: np.ndarray, r
         chi2 = float(np.sum((r / sig) ** 2))
     else:
         chi2 = cost / problem.noise_g**2
-    return GoodnessOfFit(gof.rms_g, gof.cost, dof, gof.noise_g, chi2, float(stats.chi2.sf(chi2, dof)),
+    return GoodnessOfFit(gof.rms_g, gof.cost, dof, gof.noise_g, chi2, float(chi2_sf(chi2, dof)),
                          gof.noise_source, gof.estimator, gof.white_noise_g)
 
 

@@ -44,6 +44,10 @@ def _kernel():
     return evaluate
 
 
+# How a problem evaluates itself (CalibrationProblem's ``backend``)
+BACKENDS = ("kernel", "numpy")
+
+
 # Every static position sees the same specific force, 1 g: output magnitudes of a sensor differ by its
 # scale-factor differences and biases (a few per cent; up to ~1.4x for raw counts around an offset), never by
 # this factor. A position beyond it is a typo, a unit mix-up or a sensor that moved.
@@ -79,11 +83,17 @@ class CalibrationProblem:
         noise included, or else ``sx, sy, sz`` over √n: :meth:`PositionsData.noise_of_mean`), and
         ``noise_from_data`` is True (the χ² test then takes each position's own floor)
     fix_gauge : hold the unobservable directions (if any) at the centre with one extra residual each
+    backend : ``"kernel"``, the compiled kernel (:mod:`optcal.kernels`), or ``"numpy"``, the NumPy model
+        (:mod:`optcal.oracle`): the same residuals and Jacobian to rounding, without loading numba, whose start
+        (most of a second per process) outweighs the tens of evaluations of one least-squares fit
     """
 
     def __init__(self, model, data: PositionsData, *, g_local: float = 1.0, reference: bool = False,
                  presets: Presets | None = None, noise_g: float | None = None, check: bool = True,
-                 fix_gauge: bool = True):
+                 fix_gauge: bool = True, backend: str = "kernel"):
+        if backend not in BACKENDS:
+            raise InputError(f"`backend` {backend!r}: use one of {', '.join(BACKENDS)}")
+        self.backend = backend
         self.model: Model = get_model(model)
         self.data = data
         self.g_local = float(g_local)
@@ -146,7 +156,7 @@ class CalibrationProblem:
         # The compiled kernel serves this class's own residuals and Jacobian; a subclass that overrides
         # them (to inject faults, or to log what is evaluated) is evaluated through its overrides.
         cls = type(self)
-        self._compiled = (cls.residuals_full is CalibrationProblem.residuals_full
+        self._compiled = (backend == "kernel" and cls.residuals_full is CalibrationProblem.residuals_full
                           and cls.jacobian_full is CalibrationProblem.jacobian_full)
         self._gauge = None
         self._full_buffers = self._view_buffers = None
@@ -267,6 +277,8 @@ class CalibrationProblem:
         if X_full.ndim != 2 or X_full.shape[1] != self.model.n_params:
             raise ValueError(f"parameters have {X_full.shape[-1]} columns, model {self.model.name} has "
                              f"{self.model.n_params}")
+        if self.backend == "numpy":
+            return oracle.residuals(self, X_full)
         if self._full_buffers is None:
             self._full_buffers = self._pack(full=True)
         R = np.empty((len(X_full), self.n_residuals))
@@ -368,6 +380,8 @@ class CalibrationProblem:
         x_full = np.ascontiguousarray(x_full, dtype=float)
         if x_full.shape != (self.model.n_params,):
             raise ValueError(f"expected {self.model.n_params} parameters, got shape {x_full.shape}")
+        if self.backend == "numpy":
+            return oracle.jacobian(self, x_full)
         if self._full_buffers is None:
             self._full_buffers = self._pack(full=True)
         J = np.empty((self.n_residuals, self.model.n_params))

@@ -150,6 +150,10 @@ class Solver:
     options: ClassVar[dict[str, Option]] = {}
     requires: ClassVar[tuple[str, ...]] = ()  # optional Python packages
     default_budget: ClassVar[int] = 20000
+    # A solver that needs only tens of evaluations (least squares with the Jacobian) is best served by the
+    # problem's NumPy evaluation in a one-off calibration: loading the compiled kernel costs more than its fit
+    # (optcal.fit.calibrate chooses the problem's backend by this; studies always use the kernel).
+    few_evaluations: ClassVar[bool] = False
 
     def __init__(self, **options):
         unknown = sorted(set(options) - set(self.options))

@@ -21,6 +21,7 @@ TUNING = {"soft_l1": 1.287, "huber": 1.345, "cauchy": 2.385, "arctan": 2.571}
 
 class ScipyLeastSquares(Solver):
     family = "local"
+    few_evaluations = True  # a Levenberg-Marquardt or trust-region fit takes tens of residuals and Jacobians
     method = "lm"
     options = {
         "ftol": Option(1e-15, float, "relative change of the cost to stop", check=positive, check_doc="> 0"),

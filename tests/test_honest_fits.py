@@ -131,7 +131,8 @@ def test_weak_fit_notes_name_undetermined_parameters():
     m = get_model("linear9")
     truth = {k: v for k, v in PAPER_TRUTH.items() if k in m.names}
     sim = simulate(m, truth, np.random.default_rng(0), scheme="24", noise_g=1e-3)
-    cal = calibrate(sim.data.subset([0, 1, 2, 4, 6, 8, 9, 12, 17, 21]), m, force_weak=True)  # 1 dof: refused unless forced
+    # one residual degree of freedom: refused unless forced
+    cal = calibrate(sim.data.subset([0, 1, 2, 4, 6, 8, 9, 12, 17, 21]), m, force_weak=True)
     print("\n".join(cal.notes))
     assert cal.fit.dof == 1
     assert any(n.startswith("only 1 residual degree(s) of freedom") for n in cal.notes)

@@ -35,6 +35,7 @@ import numpy as np
 
 from ..errors import InputError
 from .detection import DetectionResult
+from .pelt import RUPTURES_FROM_BLOCKS, pelt_l2
 from .reading import Recording
 
 BLOCKS_PER_POSE = 8  # blocks in the shortest pose: the block is an eighth of min_static_s (and ≤ MAX_BLOCK_S)
@@ -285,12 +286,19 @@ def _slow_noise_excess(Z: np.ndarray, good: np.ndarray, w: int) -> np.ndarray:
 
 def _change_points(Z: np.ndarray, good: np.ndarray) -> np.ndarray:
     """Segments [start, end) (blocks) of the good blocks of ``Z`` (normalised block means) by PELT with a
-    linear kernel (ruptures' compiled KernelCPD) on pieces of at most :data:`PIECE_BLOCKS` blocks."""
-    import ruptures  # here: importing optcal.recording stays light
-
+    linear kernel on pieces of at most :data:`PIECE_BLOCKS` blocks: :func:`optcal.recording.pelt.pelt_l2`, or
+    ruptures' compiled KernelCPD (the same change points) for a series long enough to pay for its import."""
     d = np.diff(np.concatenate([[0], good.astype(np.int8), [0]]))
     runs = np.column_stack([np.flatnonzero(d == 1), np.flatnonzero(d == -1)])
     pen = PENALTY
+    if len(Z) >= RUPTURES_FROM_BLOCKS:
+        import ruptures  # here: its import costs a second, repaid only on long recordings
+
+        def changes(X):
+            return ruptures.KernelCPD(kernel="linear", min_size=1, jump=1).fit(X).predict(pen=pen)
+    else:
+        def changes(X):
+            return pelt_l2(X, pen)
     bounds = []
     for s, e in runs:  # runs of good blocks (one without drops), each cut into pieces
         cuts = np.linspace(s, e, -(-(e - s) // PIECE_BLOCKS) + 1).round().astype(int)
@@ -298,8 +306,7 @@ def _change_points(Z: np.ndarray, good: np.ndarray) -> np.ndarray:
             if pe - ps < 4:
                 bounds.append([ps, pe])
                 continue
-            bk = ruptures.KernelCPD(kernel="linear", min_size=1, jump=1).fit(Z[ps:pe]).predict(pen=pen)
-            edges = np.concatenate([[0], bk]) + ps
+            edges = np.concatenate([[0], changes(Z[ps:pe])]) + ps
             bounds.extend(np.column_stack([edges[:-1], edges[1:]]).tolist())
     return np.array(bounds, dtype=np.int64).reshape(-1, 2)
 

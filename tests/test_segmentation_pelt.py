@@ -1,0 +1,50 @@
+"""optcal.recording.pelt against ruptures' compiled PELT (KernelCPD, linear kernel, min_size 1, jump 1): the same
+change points on random piecewise-constant series with noise, at many penalties, and on the block series that
+segmentation builds from every raw recording in tests/data (docs/segmentation.md)."""
+
+import numpy as np
+import pytest
+import ruptures
+from conftest import REAL_DATA
+
+import optcal.recording.segment as segment
+from optcal.recording.pelt import RUPTURES_FROM_BLOCKS, VECTOR_FROM, pelt_l2
+from optcal.recording.reading import read_recording
+
+
+def _ruptures(Z, pen):
+    return ruptures.KernelCPD(kernel="linear", min_size=1, jump=1).fit(Z).predict(pen=pen)
+
+
+def test_same_change_points_as_ruptures_on_random_series():
+    rng = np.random.default_rng(7)
+    for _ in range(300):
+        lens = rng.integers(1, 120, size=rng.integers(1, 14))
+        Z = np.concatenate([rng.normal(rng.normal(0, 3, 3), 1, (n, 3)) for n in lens])
+        pen = float(rng.uniform(1, 60))
+        assert pelt_l2(Z, pen) == _ruptures(Z, pen)
+
+
+def test_long_rest_takes_the_vector_pass_and_agrees():
+    """A rest long enough that PELT keeps more than VECTOR_FROM candidates (the NumPy pass), then a step."""
+    rng = np.random.default_rng(3)
+    Z = np.concatenate([rng.normal(0, 1, (6 * VECTOR_FROM, 3)), rng.normal(5, 1, (40, 3))])
+    assert pelt_l2(Z, 123.0) == _ruptures(Z, 123.0) == [6 * VECTOR_FROM, len(Z)]
+
+
+@pytest.mark.parametrize("path, units, rate", [
+    ("imu_tk/xsens_acc.mat.gz", "counts", None), ("mpu6050/example_data_calibration.csv", "counts", None),
+    ("imucal/annotated_session.csv", "counts", 204.8), ("imucal/example_ferraris_session.csv", "m/s2", 102.4)])
+def test_segmentation_of_real_recordings_is_the_same_with_either(path, units, rate, monkeypatch):
+    rec = read_recording(REAL_DATA / path, units=units, rate=rate)
+    ours = segment.segment_static(rec).intervals
+    assert len(ours) >= 6
+    monkeypatch.setattr(segment, "RUPTURES_FROM_BLOCKS", 0)  # every series through ruptures
+    theirs = segment.segment_static(rec).intervals
+    np.testing.assert_array_equal(ours, theirs)
+    assert RUPTURES_FROM_BLOCKS > 10_000  # the corpus' recordings are below it: pelt_l2 served them above
+
+
+def test_shape_is_checked():
+    with pytest.raises(ValueError, match="an \\(n, 3\\) series"):
+        pelt_l2(np.zeros((10, 2)), 1.0)
