@@ -10,8 +10,6 @@ from __future__ import annotations
 
 import json
 
-import numpy as np
-
 from ..errors import InputError
 from ._common import check_output_folder, check_seed, parameter_table, parse_options, refuse_overwrite, refuse_same_file
 from ._dataopts import add_data_options, gravity_from_args, load_positions
@@ -75,6 +73,8 @@ def _gyro_recording(args, acc_rec):
 
 
 def run(args) -> int:
+    import numpy as np  # here: building the command line imports no numpy (tests/test_startup.py)
+
     from ..calfile import calibration_to_dict
     from ..fit import calibrate
     from ..gyro.calfile import NOMINAL_SCALE, gyro_block, write_imu_calibration
