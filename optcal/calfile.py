@@ -248,6 +248,7 @@ class _CalibrationRecord(_Record):
     context: _Context | None = None
     forced: bool | None = None
     forced_reasons: list[str] | None = None
+    gyroscope: dict | None = None  # an IMU file's gyroscope (optcal imu; optcal.gyro.calfile checks it)
     _model: Model = PrivateAttr()
 
     @model_validator(mode="after")
@@ -344,6 +345,10 @@ def read_calibration(path) -> CalibrationFile:
         rec = _CalibrationRecord.model_validate(d)
     except ValidationError as exc:
         raise InputError(f"{path}: {_error_line(exc)}") from None
+    if rec.gyroscope is not None:
+        from .gyro.calfile import read_gyro_block
+
+        read_gyro_block(d, path)  # a damaged gyroscope block: one line naming its field
     model = rec._model
     x = model.from_dict(rec.parameters)
     stderr = np.array([np.nan if rec.stderr.get(n) is None else float(rec.stderr[n]) for n in model.names])

@@ -12,6 +12,7 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 from optcal.cli import main
+from optcal.errors import InputError
 from optcal.gyro import draw_truth, get_gyro_model, simulate_imu
 from optcal.gyro.calfile import read_gyro_block
 
@@ -67,6 +68,14 @@ def test_one_file_gives_one_calibration_file_with_both_sensors(tmp_path, capsys)
     w = cal.apply((x[:3] * x[9:12])[None])  # a rest's output: K·b
     assert np.all(np.abs(w) < 1e-3)
     assert "gyroscope: model gyro9" in text and f"wrote {out}" in text
+    # the IMU file is a calibration file like any other: its accelerometer part reads back, its gyroscope checked
+    from optcal.calfile import read_calibration
+
+    assert read_calibration(out).model.name == "linear9"
+    broken = tmp_path / "broken.json"
+    broken.write_text(json.dumps({**d, "gyroscope": {**g, "terms": 7}}))
+    with pytest.raises(InputError):
+        read_calibration(broken)
 
 
 def test_two_files_sharing_times_as_imu_tk(tmp_path, capsys):
