@@ -236,8 +236,67 @@ def _structure(problem) -> tuple:
     return (problem.model.terms, len(problem.data), problem.reference, cols, 0 if gauge is None else len(gauge))
 
 
+class _Numeric:
+    """A problem's own residuals and Jacobian (NumPy, uncounted: the gates count) behind the methods
+    :class:`_Gate` uses of a CasADi Function, for problems whose model is not the accelerometer's term
+    table and so has no CasADi symbols (the gyroscope's, :mod:`optcal.gyro`). ``kind``: f, grad, hess or
+    jac, with the outputs of the symbolic functions of :func:`build` (JᵀJ as its upper triangle)."""
+
+    def __init__(self, kind: str, problem):
+        self.kind, self.problem, self.p = kind, problem, problem.model.n_params
+        p = self.p
+        self._in = [ca.Sparsity.dense(p, 1), ca.Sparsity.dense(0, 1)] + {
+            "f": [], "grad": [], "hess": [ca.Sparsity.dense(1, 1), ca.Sparsity.dense(0, 1)],
+            "jac": [ca.Sparsity.dense(1, 1)]}[kind]
+        self._out = {"f": [ca.Sparsity.dense(1, 1)],
+                     "grad": [ca.Sparsity.dense(1, 1), ca.Sparsity.dense(p, 1), ca.Sparsity.upper(p)],
+                     "hess": [ca.Sparsity.upper(p)],
+                     "jac": [ca.Sparsity.dense(1, p), ca.Sparsity.dense(1, 0)]}[kind]
+
+    def n_in(self):
+        return len(self._in)
+
+    def sparsity_in(self, i):
+        return self._in[i]
+
+    def sparsity_out(self, i):
+        return self._out[i]
+
+    def name_in(self, i):
+        return ("x", "p", "lam_f", "lam_g")[i] if self.kind != "jac" else ("x", "p", "out_f")[i]
+
+    def name_out(self, i):
+        return {"f": ("f",), "grad": ("f", "grad_f_x", "JtJ"), "hess": ("hess_gamma_x_x",),
+                "jac": ("jac_f_x", "jac_f_p")}[self.kind][i]
+
+    def call(self, arg):
+        pr = self.problem
+        z = np.asarray(arg[0], float).ravel()
+        x = pr.centre + pr.halfwidth * z
+        r = pr.residuals_full(x)[0]
+        f = 0.5 * float(r @ r)
+        if self.kind == "f":
+            return [ca.DM(f)]
+        J = pr.jacobian_full(x) * pr.halfwidth
+        if self.kind == "jac":
+            return [ca.DM(r @ J).T, ca.DM(1, 0)]
+        JtJ = ca.triu(ca.DM(J.T @ J))
+        if self.kind == "hess":
+            return [float(arg[2]) * JtJ]
+        return [ca.DM(f), ca.DM(J.T @ r), JtJ]
+
+
+def _numeric_entry(problem, options: dict) -> dict:
+    """The NLP solver of a problem without CasADi symbols, on its NumPy residuals and Jacobian; built for
+    each solve (it holds the problem), which costs a few milliseconds."""
+    funs = {k: _Numeric(k, problem) for k in ("f", "grad", "hess", "jac")}
+    return _assemble(funs, problem.model.n_params, 0, options)
+
+
 def build(problem, options: dict) -> dict:
     """The NLP solver for ``problem``'s structure and these Ipopt options: built on first use, then cached."""
+    if not isinstance(problem.model, Model):
+        return _numeric_entry(problem, options)
     key = _structure(problem) + tuple(sorted(options.items()))
     if key in _CACHE:
         return _CACHE[key]
@@ -277,11 +336,19 @@ def build(problem, options: dict) -> dict:
                             ["hess_gamma_x_x"]),
         "jac": ca.Function("gn_jac", [z, par, ca.SX.sym("out_f")], [ca.jacobian(f, z), ca.jacobian(f, par)]),
     }
+    entry = _assemble(funs, p, par.shape[0], options)
+    _CACHE[key] = entry
+    return entry
+
+
+def _assemble(funs: dict, p: int, n_par: int, options: dict) -> dict:
+    """Ipopt behind the gates on the functions ``funs`` (f, grad, hess, jac) of p variables and n_par NLP
+    parameters."""
     state = {"H": (None, None)}
     jac = _Gate("jac", funs["jac"], state, 2)
     gates = {"f": _Gate("f", funs["f"], state, 1, jac=jac), "grad": _Gate("grad", funs["grad"], state, 2),
              "hess": _Gate("hess", funs["hess"], state, 1), "jac": jac}
-    Z, PAR = ca.MX.sym("z", p), ca.MX.sym("p", par.shape[0])
+    Z, PAR = ca.MX.sym("z", p), ca.MX.sym("p", n_par)
     LF, LG = ca.MX.sym("lam_f"), ca.MX.sym("lam_g", 0)
     grad_f = ca.Function("nlp_grad_f", [Z, PAR], gates["grad"](Z, PAR), ["x", "p"], ["f", "grad_f_x"])
     hess_lag = ca.Function("nlp_hess_l", [Z, PAR, LF, LG], [gates["hess"](Z, PAR, LF, LG)],
@@ -294,13 +361,14 @@ def build(problem, options: dict) -> dict:
                         "error_on_fail": False, "calc_lam_p": False, "calc_lam_x": False,
                         "show_eval_warnings": False})
     # the gates share one state per cached solver: one solve at a time on it
-    entry = {"solver": solver, "state": state, "gates": gates, "funs": funs, "lock": threading.Lock()}
-    _CACHE[key] = entry
-    return entry
+    return {"solver": solver, "state": state, "gates": gates, "funs": funs, "lock": threading.Lock()}
 
 
 def parameters(problem) -> np.ndarray:
-    """The NLP parameter vector of :func:`build` for ``problem``'s data (CasADi's vec is column-major)."""
+    """The NLP parameter vector of :func:`build` for ``problem``'s data (CasADi's vec is column-major); none
+    for a problem without CasADi symbols, whose functions hold their data."""
+    if not isinstance(problem.model, Model):
+        return np.zeros(0)
     d = problem.data
     parts = [np.ravel(d.N, order="F"), problem.centre, problem.halfwidth, [problem.g_local]]
     cols = _structure(problem)[3]

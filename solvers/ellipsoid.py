@@ -8,6 +8,9 @@ one-shot initialiser, not an optimiser.
 
 from __future__ import annotations
 
+from optcal.errors import InputError
+from optcal.model import Model
+
 from ._ellipsoid_fit import (
     LINEAR,
     check_ellipsoid,
@@ -39,6 +42,9 @@ class Ellipsoid(Solver):
         """The method needs no starting point (``x0`` is ignored). Data that cannot be an ellipsoid are
         refused here, before the run, with an InputError (one line from the CLI) rather than reported as
         a failed run; the check is exact and cheap (:func:`check_ellipsoid`), the fit itself is timed."""
+        if not isinstance(problem.model, Model):  # the gyroscope's problem (optcal.gyro) has no ‖A‖ to fit
+            raise InputError("the ellipsoid fit is the accelerometer's convex fit of ‖A‖; use a least-squares or "
+                             "search solver for this problem")
         if problem.reference:
             fit_problem(problem)  # raises: the fit needs the norm cost
         check_ellipsoid(problem.data.N, problem.g_local, misalignment="misalignment" in problem.model.groups())

@@ -165,7 +165,7 @@ def test_unknown_scale_found_by_the_common_scale_search():
     assert res.fun == pytest.approx(ref.fun, rel=1e-8)
 
 
-@pytest.mark.parametrize("solver", ["scipy-trf", "nlopt-bobyqa", "cmaes", "bsas", "staged:scipy-lm"])
+@pytest.mark.parametrize("solver", ["scipy-trf", "casadi-ipopt", "nlopt-bobyqa", "cmaes", "bsas", "staged:scipy-lm"])
 def test_registry_solvers_reach_the_least_squares_optimum_unchanged(solver):
     """The registry's solvers, local and metaheuristic and the staged wrapper, run on the gyroscope
     problem without any change and end at scipy-lm's cost. The cost is a χ² (whitened residuals): a gap
@@ -175,3 +175,13 @@ def test_registry_solvers_reach_the_least_squares_optimum_unchanged(solver):
     p, ref = _fit(sim.data, False)
     res = get(solver).solve(p, rng=1, budget=20000)
     assert -1e-9 < res.fun - ref.fun < 1e-2
+
+
+def test_ellipsoid_fit_refuses_the_gyroscope_problem_in_one_line():
+    """The convex ellipsoid fit belongs to the accelerometer's norm cost: on the gyroscope's problem it says so."""
+    from optcal.errors import InputError
+
+    sim, _ = _sim(11)
+    p, _ = _fit(sim.data, False)
+    with pytest.raises(InputError, match="the ellipsoid fit is the accelerometer's convex fit"):
+        get("ellipsoid").solve(p, rng=1)
