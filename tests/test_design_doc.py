@@ -105,7 +105,7 @@ def test_calibration_file_fields_are_documented():
 OUTSIDE = ["../" + "shared", "/work/" + "shared", "shared/" + "data", "shared/" + "docs", "DESIGN" + ".md",
            "DESIGN" + " §", "ALGORITHMS" + ".md", "shared " + "DESIGN"]
 SKIP_DIRS = {".git", ".venv", "__pycache__", ".hypothesis", ".pytest_cache", ".ruff_cache", ".benchmarks", "build",
-             "out"}
+             "out", ".asv"}  # .asv: asv's environments and results (git-ignored)
 
 
 def _repository_files():

@@ -298,7 +298,7 @@ def test_cli_runs_end_to_end_on_a_real_recording(capsys):
     out = json.loads(capsys.readouterr().out)
     assert out["base"] == "diag6" and out["n_residuals"] >= 7
     assert out["noise_floor_g"] > 0  # the positions carry n and sx, sy, sz
-    # scale and bias alone leave about twice the noise floor of the position means: the χ² test says so,
-    # and with one residual degree of freedom per candidate no term reaches significance
-    assert out["verdict"] == REMAINS and out["rms_initial_g"] > 1.5 * out["noise_floor_g"]
-    assert out["steps"] == [] and out["chi2"]["p_value"] < 1e-6
+    # against the recording's own floor, correlated noise included (docs/noise.md), scale and bias explain the
+    # poses: the residual is below the floor and nothing is added (σ/√n alone made it look twice the noise)
+    assert out["verdict"] == EXPLAINED and out["rms_initial_g"] < out["noise_floor_g"]
+    assert out["steps"] == [] and out["chi2"]["p_value"] > 0.05
