@@ -60,7 +60,8 @@ NOMINAL_SCALE = {"g": 1.0, "mg": 1000.0, "m/s2": G0}
 
 @dataclass(frozen=True)
 class Refusal:
-    """Why the data do not determine a fit: ``kind`` (too_few, rank, dof, exact, exact_data, implausible) and
+    """Why the data do not determine a fit: ``kind`` (too_few, rank, dof, exact, exact_data, implausible, and
+    undetermined: a parameter of the default chain's last model known no better than its datasheet) and
     ``reason``,
     one clause. :func:`way_out` gives the clause that says what to do."""
 
@@ -185,6 +186,29 @@ def plausibility(model: Model, x: np.ndarray, data: PositionsData, g_local: floa
     return [Refusal("implausible", f"the fit of {model.name} is physically implausible: {'; '.join(bad[:3])}{more}")]
 
 
+# What a sensor's datasheet already says, as the spread of a parameter across parts (MPU-6050, LIS3DH,
+# ADXL345 class: sensitivity ±3 %, zero-g offset ±50 mg, cross-axis 1-2 % ≈ 1°, nonlinearity 0.5 %): a fitted
+# parameter whose standard error exceeds half of it tells no more than the datasheet, so the data do not
+# determine it (the default model then falls back, optcal.fit.calibrate).
+DATASHEET = {"K": 0.03, "b": 0.05, "S": math.radians(1.0), "K2": 0.005, "K3": 0.005, "kappa": 0.005, "c": 0.005}
+
+
+def undetermined(model: Model, x: np.ndarray, sd: np.ndarray) -> list[str]:
+    """The parameters of ``model`` whose standard error ``sd`` exceeds half their :data:`DATASHEET` spread
+    (scale factors and second-order terms relative to the axis's scale factor, offsets in g, angles in rad);
+    a parameter without a standard error (unobservable, held by the gauge) is not judged here."""
+    P = model.to_dict(np.asarray(x, float))
+    out = []
+    for k, name in enumerate(model.names):
+        fam, a = name.rsplit("_", 1)[0], name[-1]
+        if fam not in DATASHEET or not np.isfinite(sd[k]):
+            continue
+        rel = abs(P.get(f"K_{a}", 1.0)) if fam in ("K", "K2", "K3") else 1.0
+        if sd[k] / rel > DATASHEET[fam] / 2:
+            out.append(name)
+    return out
+
+
 def span(values, *, centred: bool) -> float:
     """The largest distance of ``values`` from their mean (temperature, §3.4's T0) or first value (time, t0)."""
     if values is None:
@@ -206,7 +230,8 @@ def way_out(refusals: list[Refusal], model: Model, smaller: str | None) -> str:
         return f"calibrate from recorded positions, whose means carry noise; {force}"
     need = model.n_params + MIN_DOF
     alt = f", fit a smaller model (`model` {smaller})" if smaller and smaller != model.name else ""
-    more = "more varied positions" if kinds == {"rank"} else f"at least {need} positions (more varied)"
+    more = ("more varied positions" if kinds <= {"rank", "undetermined"}
+            else f"at least {need} positions (more varied)")
     return f"record {more}{alt}, {force}"
 
 

@@ -134,7 +134,8 @@ def calibrate(data: PositionsData, model: str | Model | None = None, *, solver: 
     slv = get_solver(solver, **(options or {}))
     if backend is None:
         backend = "numpy" if getattr(slv, "few_evaluations", False) else "kernel"
-    first, fallback = None, None
+    named = model is not None
+    candidates, first = [], None
     for name in determination.chain(model):
         m = get_model(name)
         problem = CalibrationProblem(m, data, g_local=g_local, reference=reference, presets=presets,
@@ -142,17 +143,53 @@ def calibrate(data: PositionsData, model: str | Model | None = None, *, solver: 
         obs = observability(problem)
         refused = determination.structure(problem, obs, gauge=presets is not None or m.name == "seed15")
         if not refused:
-            if first is not None:
-                fallback = (f"{requested.name} (the default model) is not determined by these positions: "
-                            f"{first[1][0].reason}; fitted {m.name} instead, the richest of "
-                            f"{' → '.join(determination.FALLBACK)} that they determine")
-            break
+            candidates.append(problem)
         first = first or (problem, refused, obs)
-    else:
+    if not candidates:
         problem, refused, obs = first
         if not force_weak:
             smaller = _richest_determined(data, problem.model, g_local, reference, presets, noise_g)
-            raise InputError(determination.line(refused, problem.model, smaller, chain_tried=model is None))
+            raise InputError(determination.line(refused, problem.model, smaller, chain_tried=not named))
+        candidates = [problem]
+    # The default model falls back past a fit that its positions leave undetermined (a parameter known no better
+    # than its datasheet says, §7.5) or implausible: the data determine the smaller model, not that one. A named
+    # model is fitted as named, and refused or forced.
+    why = [] if first[1] == [] or candidates[0] is first[0] else [f"{first[1][0].reason}"]
+    for k, problem in enumerate(candidates):
+        fit = _fit(problem, slv, solver, x0, budget, seed, noise_g, refused=first[1] if problem is first[0] else [])
+        last = k == len(candidates) - 1
+        if named or last or not (fit.refused or fit.undetermined):
+            break
+        why.append(f"{problem.model.name}: " + ("; ".join(r.reason for r in fit.refused) if fit.refused else
+                                                 f"{', '.join(fit.undetermined)} known no better than a datasheet "
+                                                 "says (standard error above half its spread)"))
+    cal, refused = fit.calibration, fit.refused
+    if fit.undetermined and not named:  # the smallest model of the chain, and still undetermined
+        refused = refused + [determination.Refusal(
+            "undetermined", f"{', '.join(fit.undetermined)} of {cal.model.name} known no better than a datasheet "
+            "says (standard error above half its spread)")]
+    if refused and not force_weak:
+        raise InputError(determination.line(refused, cal.model, None))
+    if refused:
+        cal.notes.insert(0, "forced although the data do not determine it: " + "; ".join(r.reason for r in refused))
+    if cal.model.name != requested.name:
+        cal.notes.insert(0, f"{requested.name} (the default model) is not determined by these positions: "
+                            + "; ".join(why) + f"; fitted {cal.model.name} instead, the richest of "
+                            f"{' → '.join(determination.FALLBACK)} that they determine")
+        cal.requested_model = requested.name
+    cal.forced = [r.reason for r in refused]
+    return cal
+
+
+@dataclass
+class _Fit:
+    calibration: Calibration
+    refused: list  # determination.Refusal after the fit (exact, implausible), with the structural ones given
+    undetermined: list[str]  # parameters known no better than the datasheet (determination.undetermined)
+
+
+def _fit(problem: CalibrationProblem, slv, solver: str, x0, budget, seed, noise_g, refused) -> _Fit:
+    """One model's fit with its standard errors, notes and the post-fit judgement (:mod:`optcal.determination`)."""
     model = problem.model
     rng = np.random.default_rng(seed)
     result = slv.solve(problem, x0=x0, budget=budget, rng=rng)
@@ -190,18 +227,14 @@ def calibrate(data: PositionsData, model: str | Model | None = None, *, solver: 
                      + (f"; it gives less than half weight to {', '.join(diag.name(i) for i in low[:5])}, so the "
                         "errors assume the noise of the positions kept" if low.size else ""))
     notes += _weak_notes(problem, x, sd, obs, gof)
+    refused = list(refused)
     if not any(r.kind == "exact" for r in refused):  # no residual at all says it once
-        refused = refused + determination.exact(gof, len(data))
-    refused = refused + determination.plausibility(model, x, data, g_local)
-    if refused and not force_weak:
-        raise InputError(determination.line(refused, model, None))
-    if refused:
-        notes.insert(0, "forced although the data do not determine it: " + "; ".join(r.reason for r in refused))
-    if fallback:
-        notes.insert(0, fallback)
-    return Calibration(model, x, sd, obs, gof, problem, solver, result, notes, diag, loss,
-                       None if f_scale is None else float(f_scale), [r.reason for r in refused],
-                       None if fallback is None else requested.name)
+        refused += determination.exact(gof, len(problem.data))
+    refused += determination.plausibility(model, x, problem.data, problem.g_local)
+    weak = determination.undetermined(model, x, sd)
+    cal = Calibration(model, x, sd, obs, gof, problem, solver, result, notes, diag, loss,
+                      None if f_scale is None else float(f_scale), [], None)
+    return _Fit(cal, refused, weak)
 
 
 def _richest_determined(data: PositionsData, model: Model, g_local: float, reference: bool,

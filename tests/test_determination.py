@@ -15,11 +15,12 @@ import pytest
 from optcal import determination
 from optcal.calfile import read_calibration, write_calibration
 from optcal.cli import main
+from optcal.data import PositionsData
 from optcal.errors import InputError
 from optcal.fit import calibrate
 from optcal.model import get_model
 from optcal.presets import PAPER_TRUTH
-from optcal.schemes import six_position
+from optcal.schemes import six_position, tilt
 from optcal.simulate import simulate
 
 N12 = get_model("nonlinear12")
@@ -286,3 +287,45 @@ def test_a_raw_recording_with_too_few_poses_for_the_default_falls_back(tmp_path,
     # a named model is not replaced: its recording error stands
     with pytest.raises(InputError, match="linear9"):
         optcal.calibrate(path, "linear9", raw=True, units="counts", threshold_k="2:9")
+
+
+def _x_axis_hardly_turned(lim: float, noise: float):
+    """24 positions turned about x with the x axis within ±sin(lim) of level (a tag that never points x up),
+    linear9 truth, ``noise`` g per axis on each mean (n = 100 samples of SD 10·noise)."""
+    m = get_model("linear9")
+    x = m.from_dict({k: v for k, v in PAPER_TRUTH.items() if k in m.names})
+    rng = np.random.default_rng(4)
+    th = np.linspace(0, 2 * np.pi, 24, endpoint=False)
+    ph = rng.uniform(-lim, lim, 24)
+    A = np.column_stack([np.sin(ph), np.cos(ph) * np.sin(th), np.cos(ph) * np.cos(th)])
+    N = m.forward(x[None], A)[0] + rng.normal(0, noise, A.shape)
+    return PositionsData(N=N, n_samples=np.full(24, 100.0), std=np.full(A.shape, 10 * noise))
+
+
+def test_the_default_model_falls_back_past_terms_known_no_better_than_a_datasheet():
+    """Faces tilted by a few degrees, 2 mg noise: nonlinear12 is structurally determined, but its second-order
+    terms come out with standard errors above half their datasheet spread, so linear9 is fitted, and said;
+    named, nonlinear12 is fitted as named."""
+    m = get_model("linear9")
+    truth = {k: v for k, v in PAPER_TRUTH.items() if k in m.names}
+    rng = np.random.default_rng(3)
+    A = np.vstack([tilt(six_position(), 6.0, rng) for _ in range(3)])
+    N = m.forward(m.from_dict(truth)[None], A)[0] + rng.normal(0, 2e-3 / np.sqrt(3), A.shape)
+    data = PositionsData(N=N, n_samples=np.full(len(A), 300.0), std=np.full(A.shape, 2e-2))
+    cal = calibrate(data)
+    assert cal.model.name == "linear9" and cal.requested_model == "nonlinear12" and cal.forced == []
+    assert cal.notes[0].startswith("nonlinear12 (the default model) is not determined by these positions: "
+                                   "nonlinear12: K2_x, K2_y, K2_z known no better than a datasheet says")
+    assert calibrate(data, "nonlinear12").model.name == "nonlinear12"
+
+
+def test_the_default_model_is_refused_when_even_diag6_is_known_no_better_than_a_datasheet():
+    """The x axis never more than 0.2 rad from level: K_x of diag6 stays as uncertain as a datasheet's spread,
+    so nothing of the chain is written (one line), unless forced."""
+    data = _x_axis_hardly_turned(0.2, 2e-3)
+    with pytest.raises(InputError, match=r"^K_x of diag6 known no better than a datasheet says \(standard error "
+                                         r"above half its spread\); record more varied positions, or pass "
+                                         r"`force_weak`"):
+        calibrate(data)
+    cal = calibrate(data, force_weak=True)
+    assert cal.model.name == "diag6" and any("known no better than a datasheet" in r for r in cal.forced)

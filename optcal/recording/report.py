@@ -32,7 +32,7 @@ def describe_detection(obj: DetectionResult | PositionsData) -> str:
     elif det.method == "segment":
         sg = det.segmentation
         noise = ", ".join(f"{v:.3g}" for v in det.noise)
-        how = (f"change-point segmentation (ruptures' PELT on {det.block}-sample block means) and a rest test: "
+        how = (f"change-point segmentation (PELT on {det.block}-sample block means) and a rest test: "
                f"noise SD per sample {noise} {rec.units} (x, y, z, from the recording), poses of at least "
                f"{det.min_samples} samples, rest tested in windows of up to {det.window} samples; "
                f"{len(sg.segments)} segment(s), {int(sg.rest.sum())} at rest")

@@ -47,7 +47,10 @@ NOISE_RATIO = 3.0  # a segment whose block means scatter more than this × the r
 LINE_SLACK = 1.5  # a line fits when its residual χ² is at most this × its dof (+ LINE_SIGMAS SDs): flicker
 LINE_SIGMAS = 3.0  # a straight line explains a stretch when its residual χ² is within this many SDs of its dof
 HINGE_S = 2.0  # s: the stretch at each end of a rest searched for the start of a slow motion
-DRIFT_SIGMAS = 1.0  # a significant slope is a motion when it moves the outputs by more than this many SDs
+DRIFT_SIGMAS = 3.0  # a significant slope is a motion when it moves the outputs by more than this many SDs:
+# a hand settling moves a pose by 1.4-2.7 SDs (three of the MPU-6050 log's poses), which turns the
+# direction by a fraction of a degree and biases the mean's norm by (Δθ)²/24, micro-g; a turn that PELT
+# cut into pieces moves each piece by far more, and (c) still finds it on a line with its neighbours
 MERGE_SIGMA = 1.0  # neighbouring rests closer than this many sample-noise SDs (norm over axes) are one pose
 Q10_HALF_NORMAL = 0.12566  # the 10th percentile of |x| for x ~ N(0, 1)
 TRUNCATED_VARIANCE_3SD = 0.97334  # the variance of N(0, 1) cut to ±3, relative to 1
