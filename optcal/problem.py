@@ -16,18 +16,17 @@ rows in :mod:`optcal.gauge`, and the NumPy oracle of the residuals and Jacobian 
 
 from __future__ import annotations
 
-import copy
-
 import numpy as np
 
 from . import oracle
-from .budget import Budget, Counter
+from .budget import Budget, Counter  # noqa: F401 - Budget re-exported (the budget is the problem's)
 from .data import PositionsData, residuals_per_position
 from .errors import InputError
 from .gauge import gauge_rows
 from .linfit import linear_start
 from .model import Context, Model, get_model
 from .presets import Presets, default_halfwidth
+from .view import ParameterViews
 
 _NO_RESIDUALS = np.empty((0, 0))
 _FLOAT64 = np.dtype(np.float64)
@@ -67,7 +66,7 @@ def _check_magnitudes(data: PositionsData) -> None:
                          f"output magnitude ({med:.4g}): a typo, a unit mix-up or a moved sensor? fix or remove them")
 
 
-class CalibrationProblem:
+class CalibrationProblem(ParameterViews):
     """Calibration of ``model`` from static positions ``data``.
 
     Parameters
@@ -165,84 +164,8 @@ class CalibrationProblem:
             if self._gauge is not None:
                 self._full_buffers = None  # packed without the gauge rows while they were being found
 
-    # -- views -----------------------------------------------------------------------------
-    def restrict(self, groups_or_indices, at: np.ndarray | None = None) -> CalibrationProblem:
-        """A view over some parameters (group names or full-vector indices); the rest stay at ``at``."""
-        groups = self.model.groups()
-        idx: list[int] = []
-        for g in np.atleast_1d(groups_or_indices):
-            if isinstance(g, str | np.str_):
-                if str(g) not in groups:
-                    raise InputError(
-                        f"model {self.model.name} has no parameter group {g!r}; it has {', '.join(groups)}")
-                idx.extend(groups[str(g)])
-            else:
-                idx.append(int(g))
-        view = copy.copy(self)
-        view.free = np.array(sorted(set(idx)), int)
-        view.x_fixed = np.array(self.x_fixed if at is None else at, float)
-        view._view_buffers = None
-        return view
-
-    def normalised(self) -> CalibrationProblem:
-        """A view in unit-box coordinates z: x = centre + halfwidth · z, z ∈ [−1, 1]."""
-        view = copy.copy(self)
-        view.is_normalised = True
-        view._view_buffers = None
-        return view
-
-    @property
-    def n(self) -> int:
-        return len(self.free)
-
-    @property
-    def names(self) -> list[str]:
-        return [self.model.names[i] for i in self.free]
-
-    @property
-    def lb(self) -> np.ndarray:
-        return -np.ones(self.n) if self.is_normalised else (self.centre - self.halfwidth)[self.free]
-
-    @property
-    def ub(self) -> np.ndarray:
-        return np.ones(self.n) if self.is_normalised else (self.centre + self.halfwidth)[self.free]
-
-    @property
-    def x0(self) -> np.ndarray:
-        """The starting point in this view's coordinates (presets or the linear fit)."""
-        return self.from_full(self.x_fixed if self.n < self.model.n_params else self.centre)
-
-    def to_full(self, X) -> np.ndarray:
-        X = np.atleast_2d(np.asarray(X, float))
-        if X.shape[1] != self.n:
-            raise ValueError(f"expected {self.n} coordinates, got {X.shape[1]}")
-        if self.is_normalised:
-            X = self.centre[self.free] + self.halfwidth[self.free] * X
-        full = np.tile(self.x_fixed, (X.shape[0], 1))
-        full[:, self.free] = X
-        return full
-
-    def from_full(self, x_full) -> np.ndarray:
-        x = np.asarray(x_full, float)[..., self.free]
-        if self.is_normalised:
-            x = (x - self.centre[self.free]) / self.halfwidth[self.free]
-        return x
-
-    # -- counter and budget ----------------------------------------------------------------
-    def start(self, budget=None) -> Counter:
-        """Reset the shared counter with a new budget (solvers call this once per solve)."""
-        self.counter.__init__(Budget.of(budget))
-        return self.counter
-
-    @property
-    def nfev(self) -> int:
-        return self.counter.nfev
-
-    @property
-    def best(self) -> tuple[np.ndarray | None, float]:
-        """Best point ever evaluated (in this view's coordinates) and its cost."""
-        c = self.counter
-        return (None if c.best_x is None else self.from_full(c.best_x)), c.best_f
+    def _new_view(self) -> None:
+        self._view_buffers = None  # the kernel's buffers hold the view (free parameters, z → x)
 
     # -- the compiled kernel's buffers -----------------------------------------------------
     def _pack(self, full: bool) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

@@ -50,7 +50,7 @@ def messy_tables(draw):
     return ("\ufeff" if draw(st.booleans()) else "") + text
 
 
-def _one_line_error(call):
+def _check_one_line_error(call):
     """Run ``call``; an InputError must be one line. Anything else propagates (and fails the test)."""
     try:
         return call()
@@ -65,9 +65,9 @@ def test_messy_text_is_read_or_refused_in_one_line(text):
     with tempfile.TemporaryDirectory() as d:
         path = Path(d) / "table.csv"
         path.write_text(text, encoding="utf-8")
-        _one_line_error(lambda: read_positions(path))
-        _one_line_error(lambda: read_recording(path, rate=100.0, need_time=False, refuse_positions=True))
-        _one_line_error(lambda: read_recording(path, units="counts", need_time=False))
+        _check_one_line_error(lambda: read_positions(path))
+        _check_one_line_error(lambda: read_recording(path, rate=100.0, need_time=False, refuse_positions=True))
+        _check_one_line_error(lambda: read_recording(path, units="counts", need_time=False))
         found = raw_file_reason(path)  # never raises: a file it cannot place is left to the reader
         assert found is None or (isinstance(found[0], str) and "\n" not in found[0])
 
@@ -178,9 +178,9 @@ def test_damaged_mat_files_are_read_or_refused_in_one_line(changes, length):
     with tempfile.TemporaryDirectory() as d:
         path = Path(d) / "damaged.mat"
         path.write_bytes(bytes(raw[:length]))
-        _one_line_error(lambda: mat_table(path))
-        _one_line_error(lambda: read_recording(path, need_time=False))
-        _one_line_error(lambda: read_positions(path))
+        _check_one_line_error(lambda: mat_table(path))
+        _check_one_line_error(lambda: read_recording(path, need_time=False))
+        _check_one_line_error(lambda: read_positions(path))
         raw_file_reason(path)
 
 

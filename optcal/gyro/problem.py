@@ -23,13 +23,13 @@ local methods start there) and ``noise_g`` (1: whitened residuals).
 
 from __future__ import annotations
 
-import copy
 from types import SimpleNamespace
 
 import numpy as np
 
-from ..budget import Budget, Counter
+from ..budget import Counter
 from ..errors import InputError
+from ..view import ParameterViews
 from .data import GyroData
 from .model import GyroModel, get_gyro_model
 
@@ -94,7 +94,7 @@ def _check_rotation_seen(data: GyroData) -> None:
                          "gravity direction turns: wrong gyroscope columns, or the gyroscope was off; check them")
 
 
-class GyroProblem:
+class GyroProblem(ParameterViews):
     """Gyroscope calibration from ``data`` (:class:`GyroData`) with the model of
     :mod:`optcal.gyro.model` (``g_sensitivity`` adds G). ``bias``: ``fit`` (parameters, determined by
     the rests' residuals and the motions together) or ``rests`` (taken from the rests before fitting,
@@ -150,77 +150,6 @@ class GyroProblem:
         self.x_fixed = self.centre.copy()
         self.is_normalised = False
         self.counter = Counter()
-
-    # -- views (as CalibrationProblem) ------------------------------------------------------
-    def restrict(self, groups_or_indices, at: np.ndarray | None = None) -> GyroProblem:
-        groups = self.model.groups()
-        idx: list[int] = []
-        for g in np.atleast_1d(groups_or_indices):
-            if isinstance(g, str | np.str_):
-                if str(g) not in groups:
-                    raise InputError(f"model {self.model.name} has no parameter group {g!r}; it has "
-                                     f"{', '.join(groups)}")
-                idx.extend(groups[str(g)])
-            else:
-                idx.append(int(g))
-        view = copy.copy(self)
-        view.free = np.array(sorted(set(idx)), int)
-        view.x_fixed = np.array(self.x_fixed if at is None else at, float)
-        return view
-
-    def normalised(self) -> GyroProblem:
-        view = copy.copy(self)
-        view.is_normalised = True
-        return view
-
-    @property
-    def n(self) -> int:
-        return len(self.free)
-
-    @property
-    def names(self) -> list[str]:
-        return [self.model.names[i] for i in self.free]
-
-    @property
-    def lb(self) -> np.ndarray:
-        return -np.ones(self.n) if self.is_normalised else (self.centre - self.halfwidth)[self.free]
-
-    @property
-    def ub(self) -> np.ndarray:
-        return np.ones(self.n) if self.is_normalised else (self.centre + self.halfwidth)[self.free]
-
-    @property
-    def x0(self) -> np.ndarray:
-        return self.from_full(self.x_fixed if self.n < self.model.n_params else self.centre)
-
-    def to_full(self, X) -> np.ndarray:
-        X = np.atleast_2d(np.asarray(X, float))
-        if X.shape[1] != self.n:
-            raise ValueError(f"expected {self.n} coordinates, got {X.shape[1]}")
-        if self.is_normalised:
-            X = self.centre[self.free] + self.halfwidth[self.free] * X
-        full = np.tile(self.x_fixed, (X.shape[0], 1))
-        full[:, self.free] = X
-        return full
-
-    def from_full(self, x_full) -> np.ndarray:
-        x = np.asarray(x_full, float)[..., self.free]
-        if self.is_normalised:
-            x = (x - self.centre[self.free]) / self.halfwidth[self.free]
-        return x
-
-    def start(self, budget=None) -> Counter:
-        self.counter.__init__(Budget.of(budget))
-        return self.counter
-
-    @property
-    def nfev(self) -> int:
-        return self.counter.nfev
-
-    @property
-    def best(self):
-        c = self.counter
-        return (None if c.best_x is None else self.from_full(c.best_x)), c.best_f
 
     # -- residuals --------------------------------------------------------------------------
     @property
