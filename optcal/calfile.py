@@ -121,15 +121,10 @@ def calibration_to_dict(cal, *, units_in: str = "g", units_out: str | None = Non
 def write_calibration(cal, path, *, units_in: str = "g", units_out: str | None = None, source=None,
                       overwrite: bool = False) -> None:
     """Write the calibration file; an existing file is kept unless ``overwrite`` (the CLI's ``--force``)."""
-    path = Path(path)
-    if path.exists() and not overwrite:
-        raise InputError(f"{path} exists; pass --force to overwrite it or choose another -o path")
-    d = calibration_to_dict(cal, units_in=units_in, units_out=units_out, source=source)
-    text = json.dumps(d, indent=2)
-    try:
-        path.write_text(text + "\n")
-    except OSError as exc:
-        raise InputError(f"cannot write {path}: {exc.strerror or exc}") from None
+    from .jsonfile import write_json_object
+
+    write_json_object(calibration_to_dict(cal, units_in=units_in, units_out=units_out, source=source), path,
+                      overwrite=overwrite)
 
 
 @dataclass

@@ -1,5 +1,6 @@
 """Reading a JSON object from a file a user gave, with one-line errors (docs/design.md §9): the one reader
-behind presets, truths, calibration files, noise analyses, intervals and imported calibrations."""
+behind presets, truths, calibration files, noise analyses, intervals and imported calibrations; and the one
+writer of the calibration files (accelerometer and IMU), which keeps an existing file unless told."""
 
 from __future__ import annotations
 
@@ -30,3 +31,16 @@ def parse_json_object(text: str, path, what: str) -> dict:
     if not isinstance(obj, dict):
         raise InputError(f"{what} {path} must be a JSON object")
     return obj
+
+
+def write_json_object(obj: dict, path, *, overwrite: bool = False) -> None:
+    """Write ``obj`` as indented JSON; an existing file is kept unless ``overwrite`` (the CLI's ``--force``).
+    One-line :class:`InputError` for both."""
+    path = Path(path)
+    if path.exists() and not overwrite:
+        raise InputError(f"{path} exists; pass --force to overwrite it or choose another -o path")
+    text = json.dumps(obj, indent=2)
+    try:
+        path.write_text(text + "\n")
+    except OSError as exc:
+        raise InputError(f"cannot write {path}: {exc.strerror or exc}") from None

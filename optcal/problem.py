@@ -268,17 +268,6 @@ class CalibrationProblem(ParameterViews):
     def n_residuals(self) -> int:
         return self.n_position_residuals + (0 if self._gauge is None else len(self._gauge))
 
-    def residuals_batch(self, X) -> np.ndarray:
-        """Residuals (S, m) of a population (S, n); counts S evaluations."""
-        return self._evaluate(X)[0]
-
-    def residuals(self, x) -> np.ndarray:
-        return self._evaluate(np.asarray(x, float)[None])[0][0]
-
-    def cost_batch(self, X) -> np.ndarray:
-        """Cost Σ e_j² of a population (S, n) in one call; (S,). Candidates past the budget cost inf."""
-        return self._evaluate(X, keep_residuals=False)[1]
-
     def cost(self, x) -> float:
         """Cost of one candidate (counted). The lean path of solvers that evaluate one point per call:
         the compiled kernel plus an evaluation count and a comparison with the best cost."""

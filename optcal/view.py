@@ -5,7 +5,8 @@ accelerometer's problem (:class:`optcal.problem.CalibrationProblem`) and the gyr
 
 A view holds some parameters fixed (``restrict``: the papers' four stages) and may search in normalised
 coordinates x = centre + halfwidth · z, z ∈ [−1, 1] (``normalised``; 2020 paper §3.4). Views share one
-:class:`~optcal.budget.Counter`, so a budget covers everything done on a problem and its best point is kept.
+:class:`~optcal.budget.Counter`, so a budget covers everything done on a problem and its best point is kept
+(:class:`CountedProblem`, which the design problem of :mod:`optcal.plan` uses too).
 """
 
 from __future__ import annotations
@@ -18,10 +19,47 @@ from .budget import Budget, Counter
 from .errors import InputError
 
 
-class ParameterViews:
-    """Mixin: views, coordinates and the counter of a problem with ``model`` (``names``, ``n_params``,
-    ``groups()``), ``centre``, ``halfwidth`` (full vectors) and the view state ``free``, ``x_fixed``,
-    ``is_normalised`` and ``counter``. A subclass that caches per-view data clears it in :meth:`_new_view`."""
+class CountedProblem:
+    """Mixin: the shared counter and budget, and the evaluation entry points of the problem interface over one
+    method ``_evaluate(X, keep_residuals) -> (residuals or None, costs)`` that counts and enforces the budget;
+    ``from_full`` maps the counter's best full vector into the problem's coordinates."""
+
+    counter: Counter
+
+    def start(self, budget=None) -> Counter:
+        """Reset the shared counter with a new budget (solvers call this once per solve)."""
+        self.counter.__init__(Budget.of(budget))
+        return self.counter
+
+    @property
+    def nfev(self) -> int:
+        return self.counter.nfev
+
+    @property
+    def best(self) -> tuple[np.ndarray | None, float]:
+        """Best point ever evaluated (in this problem's coordinates) and its cost."""
+        c = self.counter
+        return (None if c.best_x is None else self.from_full(c.best_x)), c.best_f
+
+    def residuals_batch(self, X) -> np.ndarray:
+        """Residuals (S, m) of a population (S, n); counts S evaluations."""
+        return self._evaluate(X)[0]
+
+    def residuals(self, x) -> np.ndarray:
+        return self._evaluate(np.asarray(x, float)[None])[0][0]
+
+    def cost_batch(self, X) -> np.ndarray:
+        """Costs (S,) of a population (S, n) in one call; candidates past the budget cost inf."""
+        return self._evaluate(X, keep_residuals=False)[1]
+
+    def cost(self, x) -> float:
+        return float(self._evaluate(np.asarray(x, float)[None], keep_residuals=False)[1][0])
+
+
+class ParameterViews(CountedProblem):
+    """Mixin: views and coordinates of a problem with ``model`` (``names``, ``n_params``, ``groups()``),
+    ``centre``, ``halfwidth`` (full vectors) and the view state ``free``, ``x_fixed``, ``is_normalised`` and
+    ``counter``. A subclass that caches per-view data clears it in :meth:`_new_view`."""
 
     model: object
     centre: np.ndarray
@@ -29,7 +67,6 @@ class ParameterViews:
     free: np.ndarray
     x_fixed: np.ndarray
     is_normalised: bool
-    counter: Counter
 
     def _new_view(self) -> None:
         """Called on a fresh view (a copy of this problem): drop what depends on the view."""
@@ -95,19 +132,3 @@ class ParameterViews:
         if self.is_normalised:
             x = (x - self.centre[self.free]) / self.halfwidth[self.free]
         return x
-
-    # -- counter and budget ----------------------------------------------------------------
-    def start(self, budget=None) -> Counter:
-        """Reset the shared counter with a new budget (solvers call this once per solve)."""
-        self.counter.__init__(Budget.of(budget))
-        return self.counter
-
-    @property
-    def nfev(self) -> int:
-        return self.counter.nfev
-
-    @property
-    def best(self) -> tuple[np.ndarray | None, float]:
-        """Best point ever evaluated (in this view's coordinates) and its cost."""
-        c = self.counter
-        return (None if c.best_x is None else self.from_full(c.best_x)), c.best_f

@@ -13,10 +13,8 @@ the file cannot follow), ``data`` {``n_rests``, ``n_motions``, ``rms_motion_angl
 
 from __future__ import annotations
 
-import json
 import math
 from dataclasses import dataclass
-from pathlib import Path
 
 import numpy as np
 
@@ -72,14 +70,9 @@ def _offsets(problem) -> np.ndarray:
 def write_imu_calibration(acc_record: dict, gyro: dict, path, *, overwrite: bool = False) -> None:
     """Write the accelerometer's record (:func:`optcal.calfile.calibration_to_dict`) with the gyroscope block;
     an existing file is kept unless ``overwrite``."""
-    path = Path(path)
-    if path.exists() and not overwrite:
-        raise InputError(f"{path} exists; pass --force to overwrite it or choose another -o path")
-    text = json.dumps({**acc_record, "gyroscope": gyro}, indent=2)
-    try:
-        path.write_text(text + "\n")
-    except OSError as exc:
-        raise InputError(f"cannot write {path}: {exc.strerror or exc}") from None
+    from ..jsonfile import write_json_object
+
+    write_json_object({**acc_record, "gyroscope": gyro}, path, overwrite=overwrite)
 
 
 @dataclass

@@ -244,18 +244,6 @@ class GyroProblem(ParameterViews):
             counter.record(fk, Xf)
         return R, f
 
-    def residuals_batch(self, X) -> np.ndarray:
-        return self._evaluate(X)[0]
-
-    def residuals(self, x) -> np.ndarray:
-        return self._evaluate(np.asarray(x, float)[None])[0][0]
-
-    def cost_batch(self, X) -> np.ndarray:
-        return self._evaluate(X, keep_residuals=False)[1]
-
-    def cost(self, x) -> float:
-        return float(self._evaluate(np.asarray(x, float)[None], keep_residuals=False)[1][0])
-
     # -- derivatives ------------------------------------------------------------------------
     def jacobian_full(self, x_full) -> np.ndarray:
         """Exact Jacobian (m, p) of the whitened residuals: the integrator's forward-mode derivatives with

@@ -14,7 +14,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..budget import Budget, Counter
+from ..budget import Counter
+from ..view import CountedProblem
 from .criteria import Criterion
 
 
@@ -33,7 +34,7 @@ def coordinates_of(directions: np.ndarray) -> np.ndarray:
     return np.stack([d[:, 2], np.arctan2(d[:, 1], d[:, 0]) / np.pi], axis=1).ravel()
 
 
-class DesignProblem:
+class DesignProblem(CountedProblem):
     """N positions for ``criterion``; ``cands`` (K, 3) for a fixture, None for hand-held directions."""
 
     is_normalised = True
@@ -63,7 +64,7 @@ class DesignProblem:
         return np.atleast_2d(np.asarray(X, float)).copy()
 
     def from_full(self, x_full) -> np.ndarray:
-        return np.asarray(x_full, float)
+        return np.array(x_full, float)  # a copy: the counter's best point stays the counter's
 
     def directions(self, Z) -> np.ndarray:
         """Directions (S, N, 3) of candidates Z (S, n)."""
@@ -73,20 +74,6 @@ class DesignProblem:
         K = len(self.cands)
         idx = np.clip(np.floor((np.clip(Z, -1.0, 1.0) + 1.0) / 2.0 * K).astype(int), 0, K - 1)
         return self.cands[idx]
-
-    # -- counter and budget, as CalibrationProblem's -------------------------------------------
-    def start(self, budget=None) -> Counter:
-        self.counter.__init__(Budget.of(budget))
-        return self.counter
-
-    @property
-    def nfev(self) -> int:
-        return self.counter.nfev
-
-    @property
-    def best(self):
-        c = self.counter
-        return (None if c.best_x is None else c.best_x.copy()), c.best_f
 
     def cost_batch(self, X) -> np.ndarray:
         X = np.atleast_2d(np.asarray(X, float))
