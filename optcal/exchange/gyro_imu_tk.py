@@ -14,8 +14,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..errors import InputError
-from ..gyro.calfile import CALIBRATED, GYRO_UNITS, GyroCalibration
-from ..gyro.model import MISALIGNMENT, get_gyro_model, param_units
+from ..gyro.calfile import GyroCalibration, imported_block
 from .imu_tk import dumps, loads
 
 __all__ = ["dumps", "gyro_from_imu_tk", "gyro_to_imu_tk", "loads"]
@@ -24,8 +23,8 @@ __all__ = ["dumps", "gyro_from_imu_tk", "gyro_to_imu_tk", "loads"]
 def gyro_to_imu_tk(cal: GyroCalibration) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """(T, K, B) of imu_tk's ω = T·K·(W − B) for a gyroscope calibration read from an optcal IMU file."""
     if cal.model.g_sensitivity:
-        raise InputError("imu_tk's gyroscope file has no g-sensitivity; export a calibration without it "
-                         "(optcal imu without --g-sensitivity)")
+        raise InputError("imu_tk's gyroscope file has no g-sensitivity, and this calibration's gyroscope has it; "
+                         "export to imucal or kalibr, which hold it, or calibrate without --g-sensitivity")
     Ko, To, _, _ = (a[0] for a in cal.model.matrices(cal.x[None]))
     M = np.linalg.inv(To) / Ko[None, :]
     k = np.diag(M).copy()
@@ -35,23 +34,17 @@ def gyro_to_imu_tk(cal: GyroCalibration) -> tuple[np.ndarray, np.ndarray, np.nda
     return M / k[None, :], np.diag(k), cal.output_offset()
 
 
-def gyro_from_imu_tk(T, K, B, units: str) -> dict:
-    """The ``gyroscope`` block (parameters and units; :mod:`optcal.gyro.calfile`) of imu_tk's
-    ω = T·K·(W − B), W in ``units``: gyro12 with K_o = diag((T·K)⁻¹), T_o = diag(1/K_o)·(T·K)⁻¹, b = B/K_o."""
-    if units not in GYRO_UNITS:
-        raise InputError(f"unknown gyroscope units {units!r}; use one of {', '.join(GYRO_UNITS)}")
+def gyro_from_imu_tk(T, K, B, units: str, source=None) -> dict:
+    """The ``gyroscope`` block (:func:`optcal.gyro.calfile.imported_block`) of imu_tk's ω = T·K·(W − B), ω in
+    rad/s and W in ``units``: gyro12 with K_o = diag((T·K)⁻¹), T_o = diag(1/K_o)·(T·K)⁻¹, b = B/K_o."""
     C = np.asarray(T, float) @ np.asarray(K, float)
     try:
         Ci = np.linalg.inv(C)
     except np.linalg.LinAlgError:
-        raise InputError("imu_tk's T·K is singular: the file cannot be a gyroscope calibration") from None
+        raise InputError("imu_tk's gyroscope T·K is singular: the file cannot be a gyroscope calibration") from None
     Ko = np.diag(Ci).copy()
-    To = Ci / Ko[:, None]
-    model = get_gyro_model(False)
-    values = {f"K_{a}": float(Ko[i]) for i, a in enumerate("xyz")}
-    values.update({n: float(To["xyz".index(n[2]), "xyz".index(n[3])]) for n in MISALIGNMENT})
-    values.update({f"b_{a}": float(np.asarray(B, float).reshape(3)[i] / Ko[i]) for i, a in enumerate("xyz")})
-    return {"model": model.name, "terms": list(model.terms), "bias_mode": "fit",
-            "parameters": {n: values[n] for n in model.names},
-            "units": {"raw": units, "calibrated": CALIBRATED,
-                      "parameters": {n: u for n, u in param_units(units).items() if n in model.names}}}
+    if np.any(Ko == 0) or not np.all(np.isfinite(Ci)):
+        raise InputError("imu_tk's gyroscope T·K has an axis that does not sense its own rate; the file cannot be "
+                         "a gyroscope calibration")
+    return imported_block(Ko, Ci / Ko[:, None], np.asarray(B, float).reshape(3) / Ko, None, units, fmt="imu_tk",
+                          source=source)

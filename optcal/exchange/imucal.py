@@ -8,9 +8,10 @@ gyroscope's K_g, R_g, K_ga (acceleration sensitivity) and b_g. Its JSON file (``
 has those arrays as nested lists plus ``cal_type`` and ``_format_version``.
 
 From optcal's N = M·A + o (A in g): K_a·R_a = M/g0 (raw units per m/s²), so K_a = diag of the row norms of
-M/g0, R_a = K_a⁻¹·M/g0 (unit rows, as imucal's own fit gives them), b_a = o. optcal has no gyroscope: an
-export writes the identity (K_g = R_g = I, K_ga = 0, b_g = 0, deg/s to deg/s), and an import reads the
-accelerometer part only (the gyroscope terms are reported, not kept).
+M/g0, R_a = K_a⁻¹·M/g0 (unit rows, as imucal's own fit gives them), b_a = o. The gyroscope's fields are
+:mod:`optcal.exchange.gyro_imucal`'s for an IMU calibration (``optcal imu``); a calibration without a
+gyroscope is written with the identity (K_g = R_g = I, K_ga = 0, b_g = 0, deg/s to deg/s), which an import
+reads as no gyroscope.
 """
 
 from __future__ import annotations
@@ -31,11 +32,12 @@ LABEL_UNITS = {**{v: k for k, v in UNIT_LABELS.items()}, "m/s2": "m/s2", "counts
 ACC_UNITS = {"m/s^2": "m/s2", "g": "g"}  # imucal's calibrated acc_unit -> optcal's calibrated unit
 
 
-def to_imucal(lin: LinearPart, comment: str | None = None) -> dict:
-    """The fields of a ``FerrarisCalibrationInfo`` for optcal's linear part (calibrated output in m/s²)."""
+def to_imucal(lin: LinearPart, comment: str | None = None, gyro: dict | None = None) -> dict:
+    """The fields of a ``FerrarisCalibrationInfo`` for optcal's linear part (calibrated output in m/s²);
+    ``gyro``: the gyroscope's fields (:func:`optcal.exchange.gyro_imucal.gyro_to_imucal`), else the identity."""
     Msi = np.asarray(lin.M, float) / CALIBRATED_UNITS["m/s2"]
     k = np.linalg.norm(Msi, axis=1)
-    return {
+    info = {
         "acc_unit": "m/s^2",
         "gyr_unit": "deg/s",
         "from_acc_unit": UNIT_LABELS[lin.units],
@@ -51,6 +53,9 @@ def to_imucal(lin: LinearPart, comment: str | None = None) -> dict:
         "cal_type": "Ferraris",
         "_format_version": FORMAT_VERSION,
     }
+    if gyro is not None:
+        info.update(gyro)
+    return info
 
 
 def dumps(info: dict) -> str:
@@ -59,7 +64,8 @@ def dumps(info: dict) -> str:
 
 def from_imucal(info: dict, path, units: str | None = None) -> tuple[LinearPart, list[str]]:
     """optcal's linear part of an imucal Ferraris calibration (M = f·K_a·R_a, o = b_a, f the calibrated
-    units per g of its ``acc_unit``), and notes on what the import leaves out (the gyroscope terms).
+    units per g of its ``acc_unit``), and notes for the user (none today; the gyroscope's fields are
+    :func:`optcal.exchange.gyro_imucal.gyro_from_imucal`'s).
     ``units`` names the raw units when the file's ``from_acc_unit`` is missing or not one optcal knows."""
     cal_type = info.get("cal_type")
     if cal_type not in CAL_TYPES:
@@ -86,12 +92,6 @@ def from_imucal(info: dict, path, units: str | None = None) -> tuple[LinearPart,
         units = LABEL_UNITS[label]
     elif label in LABEL_UNITS and LABEL_UNITS[label] != units:
         raise InputError(f"{path}: the file's raw unit is {label!r} but --units says {units!r}; drop --units")
-    notes = []
-    gyro = {k: info.get(k) for k in ("K_g", "R_g", "K_ga", "b_g")}
-    identity = {"K_g": np.eye(3), "R_g": np.eye(3), "K_ga": np.zeros((3, 3)), "b_g": np.zeros(3)}
-    changed = [k for k, v in gyro.items() if v is not None and not np.array_equal(np.asarray(v, float), identity[k])]
-    if changed:
-        notes.append(f"the gyroscope terms ({', '.join(changed)}) are not imported: optcal calibrates the "
-                     "accelerometer only")
+    notes: list[str] = []
     M = CALIBRATED_UNITS[ACC_UNITS[acc_unit]] * (K @ R)
     return LinearPart(M, b, units), notes

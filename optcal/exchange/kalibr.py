@@ -56,21 +56,32 @@ def from_kalibr(M, units: str = "m/s2") -> LinearPart:
     return LinearPart((_G0 / SI_PER_UNIT[units]) * np.asarray(M, float), np.zeros(3), units)
 
 
-def dumps(M, comment_lines=()) -> str:
-    """An ``imu0`` entry as Kalibr's result yaml writes it: the model and the intrinsics (gyroscope identity)."""
+# The noise fields of Kalibr's imu.yaml (its IMU noise model: white noise density and bias random walk, per
+# sensor, in SI), and their units; ``optcal noise --kalibr-yaml`` writes them.
+NOISE_FIELDS = {"accelerometer_noise_density": "m/s^2/sqrt(Hz)", "accelerometer_random_walk": "m/s^3/sqrt(Hz)",
+                "gyroscope_noise_density": "rad/s/sqrt(Hz)", "gyroscope_random_walk": "rad/s^2/sqrt(Hz)"}
+
+
+def dumps(M, comment_lines=(), gyro=None, noise: dict | None = None) -> str:
+    """An ``imu0`` entry as Kalibr's result yaml writes it: the model and the intrinsics; the gyroscope's
+    ``gyro`` = (M, A, C_gyro_i) (:func:`optcal.exchange.gyro_kalibr.gyro_to_kalibr`), or the identity
+    without one; ``noise``: the fields of :data:`NOISE_FIELDS` and ``update_rate`` (:func:`load_noise`)."""
     def mat(name, A, indent):
         return [f"{indent}{name}:"] + [f"{indent}- [{', '.join(repr(float(v)) for v in r)}]" for r in rows(A)]
 
+    Mg, A, C = (np.eye(3), np.zeros((3, 3)), np.eye(3)) if gyro is None else gyro
     lines = [f"# {c}" for c in comment_lines]
     lines += ["imu0:", f"  model: {MODEL}", "  accelerometers:"]
     lines += mat("M", M, "    ")
     lines += ["  gyroscopes:"]
-    lines += mat("M", np.eye(3), "    ") + mat("A", np.zeros((3, 3)), "    ") + mat("C_gyro_i", np.eye(3), "    ")
+    lines += mat("M", Mg, "    ") + mat("A", A, "    ") + mat("C_gyro_i", C, "    ")
+    for key, unit in {**NOISE_FIELDS, "update_rate": "Hz"}.items():
+        if noise and key in noise:
+            lines.append(f"  {key}: {noise[key]!r}  # [{unit}]")
     return "\n".join(lines) + "\n"
 
 
-def loads(text: str, path) -> np.ndarray:
-    """Kalibr's accelerometer M from a yaml holding one IMU (``imu0: {...}``, or the IMU's fields at the top)."""
+def _safe_load(text: str, path, what: str) -> dict:
     try:
         import yaml
     except ImportError:  # pragma: no cover - PyYAML comes with dask, a dependency of optcal
@@ -82,7 +93,14 @@ def loads(text: str, path) -> np.ndarray:
     except yaml.YAMLError as exc:
         raise InputError(f"{path} is not a YAML file ({str(exc).splitlines()[0]})") from None
     if not isinstance(doc, dict):
-        raise InputError(f"{path} is not a Kalibr imu yaml (a mapping)")
+        raise InputError(f"{path} is not {what} (a mapping)")
+    return doc
+
+
+def load_entry(text: str, path) -> dict:
+    """The one IMU entry of a Kalibr yaml (``imu0: {...}``, or the IMU's fields at the top), model
+    ``scale-misalignment``."""
+    doc = _safe_load(text, path, "a Kalibr imu yaml")
     if "accelerometers" not in doc and "model" not in doc:
         imus = [k for k, v in doc.items() if isinstance(v, dict) and ("accelerometers" in v or "model" in v)]
         if len(imus) != 1:
@@ -93,7 +111,55 @@ def loads(text: str, path) -> np.ndarray:
     if model != MODEL:
         raise InputError(f"{path}: IMU model {model!r}; optcal imports Kalibr's {MODEL!r} model (the "
                          "'calibrated' model has no intrinsics, and the size effect is not a calibration term)")
-    acc = doc.get("accelerometers")
+    return doc
+
+
+def loads(text: str, path) -> np.ndarray:
+    """Kalibr's accelerometer M from a yaml holding one IMU (:func:`load_entry`)."""
+    return acc_loads(load_entry(text, path), path)
+
+
+def acc_loads(entry: dict, path) -> np.ndarray:
+    """Kalibr's accelerometer M of an IMU entry (:func:`load_entry`)."""
+    acc = entry.get("accelerometers")
     if not isinstance(acc, dict) or "M" not in acc:
         raise InputError(f"{path}: accelerometers.M is missing")
     return matrix3(acc["M"], "accelerometers.M", path)
+
+
+def gyro_loads(entry: dict, path) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
+    """Kalibr's gyroscope (M, A, C_gyro_i) of an IMU entry (:func:`load_entry`), or None when it has none."""
+    g = entry.get("gyroscopes")
+    if g is None:
+        return None
+    if not isinstance(g, dict) or "M" not in g:
+        raise InputError(f"{path}: gyroscopes.M is missing")
+    M = matrix3(g["M"], "gyroscopes.M", path)
+    A = matrix3(g["A"], "gyroscopes.A", path) if "A" in g else np.zeros((3, 3))
+    C = matrix3(g["C_gyro_i"], "gyroscopes.C_gyro_i", path) if "C_gyro_i" in g else np.eye(3)
+    return M, A, C
+
+
+def load_noise(text: str, path) -> dict:
+    """The noise fields of a Kalibr imu.yaml (as ``optcal noise --kalibr-yaml`` writes them: at the top, or in
+    the file's one IMU entry): all four of :data:`NOISE_FIELDS`, positive numbers in SI, and ``update_rate``
+    in Hz when the file has it. A missing field is refused, naming it: Kalibr's imu.yaml needs all four."""
+    doc = _safe_load(text, path, "a Kalibr imu.yaml")
+    if not any(k in doc for k in NOISE_FIELDS):
+        entries = [v for v in doc.values() if isinstance(v, dict) and any(k in v for k in NOISE_FIELDS)]
+        if len(entries) == 1:
+            doc = entries[0]
+    missing = [k for k in NOISE_FIELDS if k not in doc]
+    if missing:
+        raise InputError(f"{path} lacks {', '.join(missing)}, which Kalibr's imu.yaml needs; measure them with "
+                         "optcal noise --kalibr-yaml (with the gyroscope's columns and units for the gyroscope's)")
+    out = {}
+    for key in (*NOISE_FIELDS, "update_rate"):
+        if key not in doc:
+            continue
+        v = doc[key]
+        if isinstance(v, bool) or not isinstance(v, int | float) or not (np.isfinite(v) and v > 0):
+            raise InputError(f"{path}: {key} is {v!r}; it must be a positive number "
+                             f"({NOISE_FIELDS.get(key, 'Hz')})")
+        out[key] = float(v)
+    return out

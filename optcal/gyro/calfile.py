@@ -9,6 +9,11 @@ The block: ``model`` (``gyro9``: scale and misalignment, bias from the rests; ``
 bias beyond it; with the bias from the rests ``offset_spread_raw`` is its SD across the rests, the drift
 the file cannot follow), ``data`` {``n_rests``, ``n_motions``, ``rms_motion_angle_rad``,
 ``chi2_per_dof``}, ``solver``, ``observability`` and, when it was run, ``g_sensitivity_test``.
+
+A block imported from another tool's file (``optcal import``, :func:`imported_block`) holds ``model``
+(gyro12, or gyro21 with g-sensitivity), ``terms``, ``bias_mode`` ``fit``, ``parameters``, ``stderr`` (all
+null: nothing was fitted), ``units``, ``solver`` ``import:FORMAT`` and ``source``; no ``offset_raw`` (the
+bias parameters hold the whole output offset, b = offset / K), no ``data`` and no ``observability``.
 """
 
 from __future__ import annotations
@@ -19,7 +24,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import InputError
-from .model import GyroModel, get_gyro_model, param_units
+from .model import AXES, BIAS, GSENS, MISALIGNMENT, SCALE, GyroModel, get_gyro_model, param_units
 
 GYRO_UNITS = ("counts", "deg/s", "rad/s", "volts")
 CALIBRATED = "rad/s"
@@ -65,6 +70,32 @@ def _offsets(problem) -> np.ndarray:
     """The rests' mean raw outputs (the debiased data hold them subtracted: add them back)."""
     off = problem.data.extra["bias_from_rests"]
     return np.array([off[a:b].mean(axis=0) for a, b in problem.data.rests])
+
+
+def imported_block(K, T, b, G, units: str, *, fmt: str, source=None) -> dict:
+    """The gyroscope block of another tool's calibration (:mod:`optcal.exchange`), from the model's
+    matrices (:mod:`optcal.gyro.model`): scale ``K`` (3,) in output units per rad/s, misalignment ``T``
+    (3, 3) with unit diagonal, bias ``b`` (3,) in rad/s (the whole output offset over K) and g-sensitivity
+    ``G`` (3, 3) in (rad/s)/g or None; gyro21 when G has a non-zero cell, else gyro12."""
+    if units not in GYRO_UNITS:
+        raise InputError(f"unknown gyroscope units {units!r}; use one of {', '.join(GYRO_UNITS)}")
+    K, T, b = np.asarray(K, float).reshape(3), np.asarray(T, float).reshape(3, 3), np.asarray(b, float).reshape(3)
+    G = np.zeros((3, 3)) if G is None else np.asarray(G, float).reshape(3, 3)
+    if not (np.all(np.isfinite(K)) and np.all(np.isfinite(T)) and np.all(np.isfinite(b)) and np.all(np.isfinite(G))):
+        raise InputError(f"the {fmt} file's gyroscope has a non-finite entry")
+    model = get_gyro_model(bool(np.any(G != 0)))
+    values = {n: float(K[i]) for i, n in enumerate(SCALE)}
+    values.update({n: float(T[AXES.index(n[2]), AXES.index(n[3])]) for n in MISALIGNMENT})
+    values.update({n: float(b[i]) for i, n in enumerate(BIAS)})
+    values.update({n: float(G[AXES.index(n[2]), AXES.index(n[3])]) for n in GSENS})
+    block = {"model": model.name, "terms": list(model.terms), "bias_mode": "fit",
+             "parameters": {n: values[n] for n in model.names}, "stderr": {n: None for n in model.names},
+             "units": {"raw": units, "calibrated": CALIBRATED,
+                       "parameters": {n: u for n, u in param_units(units).items() if n in model.names}},
+             "solver": f"import:{fmt}"}
+    if source is not None:
+        block["source"] = str(source)
+    return block
 
 
 def write_imu_calibration(acc_record: dict, gyro: dict, path, *, overwrite: bool = False) -> None:
