@@ -1,4 +1,5 @@
-"""optcal apply: turn a raw recording into calibrated specific force with a calibration file."""
+"""optcal apply: turn a raw recording into calibrated specific force with a calibration file, and, with an IMU
+file (optcal imu -o), the gyroscope's samples into calibrated angular rate."""
 
 from __future__ import annotations
 
@@ -13,7 +14,8 @@ from ._dataopts import add_data_options, flag_names, gravity_from_args
 if TYPE_CHECKING:
     import numpy as np
 
-HELP = "apply a calibration file to a raw recording: raw outputs -> specific force in g or m/s²"
+HELP = ("apply a calibration file to a raw recording: raw outputs -> specific force in g or m/s² (and angular rate "
+        "in rad/s with an IMU file)")
 OUTPUT_UNITS = {"g": 1.0, "m/s2": G0}
 
 
@@ -24,6 +26,12 @@ def add_arguments(p):
     p.add_argument("--output-units", choices=tuple(OUTPUT_UNITS), default="g",
                    help="units of the calibrated specific force (default g = 9.80665 m/s²)")
     p.add_argument("--force", action="store_true", help="overwrite an existing output file")
+    g = p.add_argument_group("the gyroscope (an IMU file from optcal imu; as optcal imu reads it)")
+    g.add_argument("--gyro", metavar="FILE", help="the gyroscope's samples in a second file with the same times "
+                   "(t, gx, gy, gz per row, or as --gyro-columns names them)")
+    g.add_argument("--gyro-columns", metavar="SPEC", help="the gyroscope's columns by name or 0-based index: "
+                   "gx,gy,gz in RAW, or t,gx,gy,gz in --gyro (default: columns RAW's header names gx, gy, gz, "
+                   "gyr_x, ...; for --gyro its first four columns)")
     add_data_options(p, units_default=None)
 
 
@@ -46,28 +54,68 @@ def write_csv(path: Path, columns: dict[str, np.ndarray], fmt: dict[str, str]) -
 DETECTOR_OPTIONS = {"raw": ("--raw", False), "intervals": ("--intervals", None), "labels": ("--labels", None),
                     "init_s": ("--init-s", None), "threshold_k": ("--threshold-k", None),
                     "method": ("--method", None), "window": ("--window", None), "min_static": ("--min-static", None)}
-# The median magnitude of the raw outputs against the calibration's at rest (|K|·g_local): beyond this factor
-# either way the data are not in the calibration's units (docs/design.md §9.3).
+# The median magnitude of the calibrated specific force against the calibration's local gravity: beyond this
+# factor either way the data are not in the calibration's units (docs/design.md §9.3).
 MAGNITUDE_FACTOR = 4.0
 
 
-def check_magnitude(cal, N, path) -> None:
-    """Refuse raw outputs whose typical magnitude is not what the calibration's sensor gives at 1 g, naming
-    the units the data look like (a calibration fitted in counts applied to data in g, ...)."""
+def check_magnitude(cal, N, A, path) -> None:
+    """Refuse raw outputs ``N`` that are not in the calibration's units: their specific force ``A`` (g, the
+    calibration applied) has a median magnitude more than :data:`MAGNITUDE_FACTOR` from the calibration's
+    local gravity (a calibration fitted in counts applied to data in g, ...), naming the units the raw
+    outputs look like. The calibrated magnitude, not the raw one, so that offsets (an unsigned ADC's
+    mid-scale) do not count."""
     import numpy as np
 
     from ..data import guess_units
 
     with np.errstate(over="ignore", invalid="ignore"):
         med = float(np.median(np.linalg.norm(N, axis=1)))
-    K = cal.x[cal.model.groups()["scale"]]
-    expect = float(np.mean(np.abs(K))) * cal.g_local
-    if not (np.isfinite(med) and med > 0 and 1 / MAGNITUDE_FACTOR <= med / expect <= MAGNITUDE_FACTOR):
+        got = float(np.median(np.linalg.norm(A, axis=1)))
+    if not (np.isfinite(got) and got > 0 and 1 / MAGNITUDE_FACTOR <= got / cal.g_local <= MAGNITUDE_FACTOR):
         looks = guess_units(med)
         hint = f", which looks like {looks}" if looks and looks != cal.units_out else ""
-        raise InputError(f"the raw outputs of {path} have a median magnitude of {med:.4g}{hint}, but the calibration "
-                         f"was fitted to outputs in {cal.units_out!r}, which read about {expect:.4g} at rest; apply "
-                         f"a calibration fitted in the data's units")
+        raise InputError(f"the raw outputs of {path} have a median magnitude of {med:.4g}{hint}, and the calibration, "
+                         f"fitted to outputs in {cal.units_out!r}, makes them a median specific force of {got:.4g} g "
+                         f"where a sensor reads about {cal.g_local:.4g} g; apply a calibration fitted in the data's "
+                         "units")
+
+
+def gyro_rates(args, cal, rec, A) -> tuple[np.ndarray | None, np.ndarray | None, str | None]:
+    """The calibrated angular rate (n, 3) in rad/s of the recording's gyroscope, which samples of the gyroscope
+    are saturated, and a note; (None, None, note) when there is nothing to calibrate. The columns are read as
+    optcal imu reads them: ``--gyro-columns`` in RAW, or ``--gyro`` a second file sharing its times; else the
+    columns RAW's header names as a gyroscope's (gx, gyr_x, ...)."""
+    from ..gyro.calfile import read_gyro_block
+
+    asked = args.gyro is not None or args.gyro_columns is not None
+    if not isinstance(cal.meta.get("gyroscope"), dict):
+        if asked:
+            raise InputError(f"{'--gyro' if args.gyro else '--gyro-columns'} asks for the gyroscope, but "
+                             f"{args.calibration} has no gyroscope block; apply an IMU file (optcal imu -o), or "
+                             "drop the option")
+        if rec.W is not None:
+            return None, None, (f"{args.data} has gyroscope columns, but {args.calibration} has no gyroscope "
+                                "block: they are not calibrated (optcal imu -o writes an IMU file)")
+        return None, None, None
+    gcal = read_gyro_block(cal.meta, args.calibration)
+    if asked:
+        from ..gyro.recording import join_times
+        from .imu import _gyro_recording
+
+        args.gyro_units = gcal.units_raw
+        gyr = _gyro_recording(args, rec)
+        if args.gyro:
+            join_times(rec.t, gyr.t)
+        W, saturated = gyr.N, gyr.saturated
+    elif rec.W is not None:
+        W, saturated = rec.W, rec.gyro_saturated
+    else:
+        return None, None, (f"{args.calibration} has a gyroscope calibration, but {args.data} has no gyroscope "
+                            "columns: wrote the accelerometer only (name them with --gyro-columns gx,gy,gz, or "
+                            "give the second file with --gyro)")
+    # g-sensitivity needs the specific force in g: the accelerometer's calibrated samples
+    return gcal.apply(W, A if gcal.model.g_sensitivity else None), saturated, None
 
 
 def run(args) -> int:
@@ -80,7 +128,7 @@ def run(args) -> int:
     if given:
         raise InputError(f"{', '.join(given)} select static intervals, which apply does not: it converts every "
                          "sample of the recording; drop them")
-    refuse_same_file(args.output, args.calibration, args.data)
+    refuse_same_file(args.output, args.calibration, args.data, args.gyro)
     refuse_overwrite(args.output, args.force)
     check_output_folder(args.output)
     g = gravity_from_args(args)
@@ -100,31 +148,46 @@ def run(args) -> int:
         # the data were read in the calibration's units, which the user did not choose: say so
         raise InputError(f"{exc} (apply reads the data in {cal.units_out!r}, the units {args.calibration} was "
                          "fitted to: with data in other units, apply a calibration fitted in those)") from None
-    check_magnitude(cal, rec.N, args.data)
     has_t = "t" in rec.columns
-    A = cal.apply(rec.N, temp=rec.temp, t=rec.t if has_t else None)
+    with np.errstate(all="ignore"):  # data in other units may overflow; check_magnitude then says so
+        A = cal.apply(rec.N, temp=rec.temp, t=rec.t if has_t else None)
+    check_magnitude(cal, rec.N, A, args.data)
+    omega, gyro_saturated, gyro_note = gyro_rates(args, cal, rec, A)
     scale = OUTPUT_UNITS[args.output_units]
     cols: dict[str, np.ndarray] = {}
     if has_t or np.isfinite(rec.rate):
         cols["t"] = rec.t
     for j, c in enumerate(("ax", "ay", "az")):
         cols[c] = A[:, j] * scale
+    if omega is not None:
+        for j, c in enumerate(("wx", "wy", "wz")):
+            cols[c] = omega[:, j]
     if rec.temp is not None:
         cols["temp"] = rec.temp
-    if rec.saturated.any():
-        cols["saturated"] = rec.saturated.astype(float)
+    saturated = rec.saturated if gyro_saturated is None else rec.saturated | gyro_saturated
+    if saturated.any():
+        cols["saturated"] = saturated.astype(float)
     fmt = {c: "%.10g" for c in cols}
     fmt["saturated"] = "%d"
     write_csv(Path(args.output), cols, fmt)
     norm = np.linalg.norm(A, axis=1)
+    rates = "" if omega is None else (f"; wx, wy, wz in rad/s by gyroscope model "
+                                      f"{cal.meta['gyroscope']['model']}, outputs in "
+                                      f"{cal.meta['gyroscope']['units']['raw']}")
     print(f"applied {args.calibration} (model {cal.model.name}, outputs in {cal.units_out}) to {len(rec)} samples "
-          f"of {args.data}; wrote {args.output} (ax, ay, az in {args.output_units})")
+          f"of {args.data}; wrote {args.output} (ax, ay, az in {args.output_units}{rates})")
     print(f"median |A| = {np.median(norm):.6f} g (calibration's local gravity {cal.g_local:.6f} g)")
     if cal.forced:
         print(f"note: applying a forced calibration (written with --force-weak although the data did not determine "
               f"it): {'; '.join(cal.forced)}")
     if rec.saturated.any():
-        print(f"note: {int(rec.saturated.sum())} saturated sample(s) are flagged in column 'saturated'")
+        print(f"note: {int(rec.saturated.sum())} saturated sample(s) of the accelerometer are flagged in column "
+              "'saturated'")
+    if gyro_saturated is not None and gyro_saturated.any():
+        print(f"note: {int(gyro_saturated.sum())} saturated sample(s) of the gyroscope are flagged in column "
+              "'saturated'")
+    if gyro_note:
+        print(f"note: {gyro_note}")
     gave_gravity = getattr(args, "gravity_ms2", None) is not None or args.latitude is not None
     if gave_gravity and abs(g - cal.g_local) > 1e-6:
         print(f"note: the local gravity given ({g:.6f} g) differs from the calibration's ({cal.g_local:.6f} g); "
