@@ -76,7 +76,7 @@ _READING = ("columns", "rate", "saturation", "adc", "time_unit", "labels", "labe
             "method", "threshold_k", "window_s", "min_static_s", "init_s")
 
 
-def calibrate(data, model=None, *, solver: str = "scipy-lm", units: str | None = None, raw: bool = False,
+def calibrate(data, model=None, *, solver: str = "lm", units: str | None = None, raw: bool = False,
               g_local: float = 1.0, options: dict | None = None, reference: bool = False,
               presets: Presets | None = None, seed: int | None = 0, budget=None, noise_g: float | None = None,
               force_weak: bool = False, **reading) -> Calibration:

@@ -115,7 +115,7 @@ class Calibration:
         }
 
 
-def calibrate(data: PositionsData, model: str | Model | None = None, *, solver: str = "scipy-lm",
+def calibrate(data: PositionsData, model: str | Model | None = None, *, solver: str = "lm",
               options: dict | None = None, g_local: float = 1.0, reference: bool = False,
               presets: Presets | None = None, seed: int | None = 0, budget=None, x0=None,
               noise_g: float | None = None, force_weak: bool = False, backend: str | None = None) -> Calibration:

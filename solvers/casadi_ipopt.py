@@ -28,16 +28,16 @@ no second copy of the sensor equations.
   columns present, gauge rows) and kept in a module-level cache; the data (N, ref, K0, temperature and
   time offsets, g_local, centre, half-widths, gauge) are NLP parameters. :meth:`CasadiIpopt.warm_up`
   builds it outside the timed solve.
-* **Honest counting.** Ipopt calls compiled CasADi functions, not the problem, so each call passes through
-  a Python gate (:class:`_Gate`) that charges the problem's counter: an objective evaluation is one
-  evaluation, a gradient is one (a residual-and-Jacobian evaluation, as ``problem.jacobian`` counts one);
-  the same call forms JᵀJ, so the Gauss-Newton Hessian Ipopt asks for next, at the same point, costs
-  nothing more. (This is the count Ipopt reports in its statistics, taken as the calls happen rather
-  than after the run, so that the budget can stop Ipopt exactly.) Past the budget a gate refuses the
-  call: an objective refusal returns a value Ipopt accepts, so that it asks for the gradient there,
-  which is refused with NaN, and Ipopt stops at once; the refused points are never reported. One
-  evaluation is kept back: the lowest point Ipopt evaluated (its final iterate) is evaluated through the
-  problem, so the best point is tracked and the reported cost is the problem's own.
+* **Honest counting.** Ipopt calls compiled CasADi functions, not the problem, so each call passes through a
+  Python gate (``_Gate``, made by :func:`_gate_class`) that charges the problem's counter: an objective
+  evaluation is one evaluation, a gradient is one (a residual-and-Jacobian evaluation, as ``problem.jacobian``
+  counts one); the same call forms JᵀJ, so the Gauss-Newton Hessian Ipopt asks for next, at the same point,
+  costs nothing more. (This is the count Ipopt reports in its statistics, taken as the calls happen rather
+  than after the run, so that the budget can stop Ipopt exactly.) Past the budget a gate refuses the call: an
+  objective refusal returns a value Ipopt accepts, so that it asks for the gradient there, which is refused
+  with NaN, and Ipopt stops at once; the refused points are never reported. One evaluation is kept back: the
+  lowest point Ipopt evaluated (its final iterate) is evaluated through the problem, so the best point is
+  tracked and the reported cost is the problem's own.
 * **Stopping.** Ipopt stops on its gradient test (``tol``, on the objective scaled to 1 at the start) or
   a tiny step (``step_tol``). Near the optimum the cost itself cannot confirm a Gauss-Newton step (the
   residuals ‖A‖ − g ≈ 1e-5 g carry ~1e-16 g of rounding, so relative cost changes below ~1e-11 are noise),
@@ -48,6 +48,7 @@ no second copy of the sensor equations.
 
 from __future__ import annotations
 
+import functools
 import threading
 import time
 
@@ -56,13 +57,12 @@ import numpy as np
 from optcal.errors import BudgetExhausted
 from optcal.model import AXES, Context, Model
 
+from ._lazy import LazyModule
 from .base import Option, Solver, positive
 from .registry import register
 
-try:  # optional at import time: the registry lists the solver as unavailable without CasADi
-    import casadi as ca
-except ImportError:  # pragma: no cover
-    ca = None
+# imported at the first solve (the registry lists the solver as unavailable without CasADi)
+ca = LazyModule("casadi", globals(), "ca")
 
 _CACHE: dict[tuple, dict] = {}
 # Near the optimum the cost cannot resolve a Gauss-Newton step: r_j = ‖A_j‖ − g carries a rounding error
@@ -150,84 +150,90 @@ def norm_jacobian(model: Model, n: int, ctx: Context):
     return J, xs, As
 
 
-class _Gate(ca.Callback if ca is not None else object):
-    """A compiled function behind a Python gate: charges the evaluation, refuses it past the allowance,
-    the deadline or a stalled line search (module docstring), and scales the outputs by the objective
-    weight w (set from the first objective value, at the start). The gradient gate also keeps JᵀJ for
-    the Hessian gate, and the lowest point evaluated is remembered for the final evaluation."""
+@functools.cache
+def _gate_class() -> type:
+    """The class of :class:`_Gate`, made at the first solve: it derives from ``casadi.Callback``, and casadi
+    is imported only when a CasADi solver runs."""
+    class _Gate(ca.Callback):
+        """A compiled function behind a Python gate: charges the evaluation, refuses it past the allowance,
+        the deadline or a stalled line search (module docstring), and scales the outputs by the objective
+        weight w (set from the first objective value, at the start). The gradient gate also keeps JᵀJ for
+        the Hessian gate, and the lowest point evaluated is remembered for the final evaluation."""
 
-    def __init__(self, kind: str, fun, state: dict, n_out: int, jac=None):
-        ca.Callback.__init__(self)
-        self.kind, self.fun, self.state, self.n_out, self.jac = kind, fun, state, n_out, jac
-        self.construct(f"optcal_{kind}", {})
+        def __init__(self, kind: str, fun, state: dict, n_out: int, jac=None):
+            ca.Callback.__init__(self)
+            self.kind, self.fun, self.state, self.n_out, self.jac = kind, fun, state, n_out, jac
+            self.construct(f"optcal_{kind}", {})
 
-    def get_n_in(self):
-        return self.fun.n_in()
+        def get_n_in(self):
+            return self.fun.n_in()
 
-    def get_n_out(self):
-        return self.n_out
+        def get_n_out(self):
+            return self.n_out
 
-    def get_sparsity_in(self, i):
-        return self.fun.sparsity_in(i)
+        def get_sparsity_in(self, i):
+            return self.fun.sparsity_in(i)
 
-    def get_sparsity_out(self, i):
-        return self.fun.sparsity_out(i)
+        def get_sparsity_out(self, i):
+            return self.fun.sparsity_out(i)
 
-    def get_name_in(self, i):
-        return self.fun.name_in(i)
+        def get_name_in(self, i):
+            return self.fun.name_in(i)
 
-    def get_name_out(self, i):
-        return self.fun.name_out(i)
+        def get_name_out(self, i):
+            return self.fun.name_out(i)
 
-    def eval(self, arg):
-        st = self.state
-        if self.kind == "hess":
-            z, H = st["H"]
-            if z is not None and np.array_equal(z, np.asarray(arg[0]).ravel()):
-                return [float(arg[2]) * st["w"] * H]
-        if self.kind == "f":
-            st["trials"] += 1
-            if st["trials"] == 1 and st["H"][0] is not None:
-                st["step"] = float(np.max(np.abs(np.asarray(arg[0]).ravel() - st["H"][0])))
-        elif self.kind == "grad":
-            st["trials"] = 0
-        if not st["stop"]:
-            if st["left"] <= 0:
-                st["stop"] = "evaluation budget used up"
-            elif st["deadline"] is not None and time.perf_counter() >= st["deadline"]:
-                st["stop"] = "time budget used up"
-            elif st["trials"] > MAX_TRIALS:
-                st["stop"] = "stall"
-        if st["stop"]:
-            st["refused"] += 1
+        def eval(self, arg):
+            st = self.state
+            if self.kind == "hess":
+                z, H = st["H"]
+                if z is not None and np.array_equal(z, np.asarray(arg[0]).ravel()):
+                    return [float(arg[2]) * st["w"] * H]
             if self.kind == "f":
-                # Below any true objective (≥ 0): Ipopt accepts the trial and asks for its gradient,
-                # which is refused with NaN, and stops at once. (NaN here would make it halve the step
-                # down to zero: without constraints its alpha_min is 0, about 1000 trials.)
-                return [ca.DM(-1.0)]
-            return [ca.DM.nan(self.fun.sparsity_out(i)) for i in range(self.n_out)]
-        st["left"] -= 1
-        st["calls"][self.kind] += 1
-        out = self.fun.call(arg)
-        if self.kind in ("f", "grad"):
-            f = float(out[0])
-            if np.isfinite(f) and f < st["best"][0]:
-                st["best"] = (f, np.asarray(arg[0]).ravel().copy())
-            if st["w"] is None:
-                st["w"] = 1.0 / f if np.isfinite(f) and f > 0 else 1.0
-        if self.kind == "grad":
-            st["H"] = (np.asarray(arg[0]).ravel().copy(), out[2])
-        if self.kind == "hess":
-            return [st["w"] * out[0]]
-        return [o * st["w"] for o in out[: self.n_out]]
+                st["trials"] += 1
+                if st["trials"] == 1 and st["H"][0] is not None:
+                    st["step"] = float(np.max(np.abs(np.asarray(arg[0]).ravel() - st["H"][0])))
+            elif self.kind == "grad":
+                st["trials"] = 0
+            if not st["stop"]:
+                if st["left"] <= 0:
+                    st["stop"] = "evaluation budget used up"
+                elif st["deadline"] is not None and time.perf_counter() >= st["deadline"]:
+                    st["stop"] = "time budget used up"
+                elif st["trials"] > MAX_TRIALS:
+                    st["stop"] = "stall"
+            if st["stop"]:
+                st["refused"] += 1
+                if self.kind == "f":
+                    # Below any true objective (≥ 0): Ipopt accepts the trial and asks for its gradient,
+                    # which is refused with NaN, and stops at once. (NaN here would make it halve the step
+                    # down to zero: without constraints its alpha_min is 0, about 1000 trials.)
+                    return [ca.DM(-1.0)]
+                return [ca.DM.nan(self.fun.sparsity_out(i)) for i in range(self.n_out)]
+            st["left"] -= 1
+            st["calls"][self.kind] += 1
+            out = self.fun.call(arg)
+            if self.kind in ("f", "grad"):
+                f = float(out[0])
+                if np.isfinite(f) and f < st["best"][0]:
+                    st["best"] = (f, np.asarray(arg[0]).ravel().copy())
+                if st["w"] is None:
+                    st["w"] = 1.0 / f if np.isfinite(f) and f > 0 else 1.0
+            if self.kind == "grad":
+                st["H"] = (np.asarray(arg[0]).ravel().copy(), out[2])
+            if self.kind == "hess":
+                return [st["w"] * out[0]]
+            return [o * st["w"] for o in out[: self.n_out]]
 
-    # CasADi builds a gradient of the objective expression for multipliers; with calc_lam_p off it is
-    # never called (and it would go through a gate and be counted if it were).
-    def has_jacobian(self):
-        return self.jac is not None
+        # CasADi builds a gradient of the objective expression for multipliers; with calc_lam_p off it is
+        # never called (and it would go through a gate and be counted if it were).
+        def has_jacobian(self):
+            return self.jac is not None
 
-    def get_jacobian(self, name, inames, onames, opts):
-        return self.jac
+        def get_jacobian(self, name, inames, onames, opts):
+            return self.jac
+
+    return _Gate
 
 
 def _structure(problem) -> tuple:
@@ -238,7 +244,7 @@ def _structure(problem) -> tuple:
 
 class _Numeric:
     """A problem's own residuals and Jacobian (NumPy, uncounted: the gates count) behind the methods
-    :class:`_Gate` uses of a CasADi Function, for problems whose model is not the accelerometer's term
+    ``_Gate`` uses of a CasADi Function, for problems whose model is not the accelerometer's term
     table and so has no CasADi symbols (the gyroscope's, :mod:`optcal.gyro`). ``kind``: f, grad, hess or
     jac, with the outputs of the symbolic functions of :func:`build` (JᵀJ as its upper triangle)."""
 
@@ -345,9 +351,10 @@ def _assemble(funs: dict, p: int, n_par: int, options: dict) -> dict:
     """Ipopt behind the gates on the functions ``funs`` (f, grad, hess, jac) of p variables and n_par NLP
     parameters."""
     state = {"H": (None, None)}
-    jac = _Gate("jac", funs["jac"], state, 2)
-    gates = {"f": _Gate("f", funs["f"], state, 1, jac=jac), "grad": _Gate("grad", funs["grad"], state, 2),
-             "hess": _Gate("hess", funs["hess"], state, 1), "jac": jac}
+    gate = _gate_class()
+    jac = gate("jac", funs["jac"], state, 2)
+    gates = {"f": gate("f", funs["f"], state, 1, jac=jac), "grad": gate("grad", funs["grad"], state, 2),
+             "hess": gate("hess", funs["hess"], state, 1), "jac": jac}
     Z, PAR = ca.MX.sym("z", p), ca.MX.sym("p", n_par)
     LF, LG = ca.MX.sym("lam_f"), ca.MX.sym("lam_g", 0)
     grad_f = ca.Function("nlp_grad_f", [Z, PAR], gates["grad"](Z, PAR), ["x", "p"], ["f", "grad_f_x"])

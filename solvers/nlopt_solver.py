@@ -45,14 +45,13 @@ import numpy as np
 
 from optcal.errors import BudgetExhausted, InputError
 
+from ._lazy import LazyModule
 from ._unitbox import normalised_start
 from .base import Option, Solver, StopSolver
 from .registry import register, register_variant
 
-try:  # optional at import time: the registry lists the solver as unavailable without it
-    import nlopt
-except ImportError:  # pragma: no cover
-    nlopt = None
+# imported at the first solve (the registry lists the solver as unavailable without it)
+nlopt = LazyModule("nlopt", globals(), "nlopt")
 
 # algorithm → (family, uses the gradient)
 ALGORITHMS = {

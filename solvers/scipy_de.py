@@ -22,7 +22,6 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from scipy.optimize import differential_evolution, minimize
 
 from optcal.errors import BudgetExhausted, InputError
 
@@ -108,6 +107,8 @@ class ScipyDE(Solver):
             generation[0] += 1
             callback(generation[0])
 
+        from scipy.optimize import differential_evolution  # here: importing the registry stays light
+
         try:
             res = differential_evolution(
                 energies, [(-1.0, 1.0)] * n, strategy=cfg["strategy"], maxiter=maxiter, popsize=cfg["popsize"],
@@ -141,6 +142,8 @@ class ScipyDE(Solver):
             return f * scale[0], 2.0 * scale[0] * pn.jacobian(z).T @ r
 
         def polish(func, x0, **kwargs):
+            from scipy.optimize import minimize
+
             return minimize(fun_and_grad, x0, jac=True, method="L-BFGS-B", bounds=kwargs.get("bounds"))
 
         return polish

@@ -5,7 +5,6 @@ trust-region-reflective method (Branch, Coleman & Li 1999), the latter optionall
 from __future__ import annotations
 
 import numpy as np
-from scipy.optimize import least_squares
 
 from optcal.analysis import ROBUST_LOSSES, noise_scale
 from optcal.errors import InputError
@@ -32,6 +31,8 @@ class ScipyLeastSquares(Solver):
     default_budget = 2000
 
     def _solve(self, problem, x0, rng, callback):
+        from scipy.optimize import least_squares  # here: scipy.optimize costs 0.3-0.4 s to import (solvers.lm)
+
         cfg = self.config
         budget = problem.counter.budget.max_evals
         res = least_squares(
@@ -104,6 +105,8 @@ class ScipyTRF(ScipyLeastSquares):
     def _solve(self, problem, x0, rng, callback):
         if self.config["loss"] == "linear":
             return super()._solve(problem, x0, rng, callback)
+        from scipy.optimize import least_squares
+
         cfg, state = self.config, self._robust
         budget = problem.counter.budget.max_evals
         x, nit = np.asarray(x0, float), 0

@@ -43,7 +43,7 @@ def test_round_trip_is_exact(tmp_path, fitted):
     assert d["model"] == "seed15" and d["terms"] == ["scale", "bias", "misalignment6", "quadratic"]
     assert d["units"] == {"raw": "g", "calibrated": "g", "parameters": fitted.model.units("g")}
     assert d["units"]["parameters"]["K_x"] == "g/g" and d["units"]["parameters"]["S_xz"] == "rad"
-    assert d["solver"] == "scipy-lm"
+    assert d["solver"] == "lm"
     assert d["data"] == {"n_positions": 24, "rms_residual_g": fitted.fit.rms_g, "source": "sim 24"}
     assert datetime.fromisoformat(d["created"].replace("Z", "+00:00")).tzinfo is not None
     assert d["observability"]["rank"] == 12 and len(d["observability"]["unobservable"]) == 3

@@ -37,7 +37,7 @@ def add_arguments(p):
                    help="model name or sum of terms (default nonlinear12; when the positions do not determine it, "
                    "the richest of linear9 and diag6 that they do, said in a note)")
     p.set_defaults(model_named=False)
-    p.add_argument("--solver", default="scipy-lm", help="registered solver, e.g. bsas, staged:bsas (default scipy-lm)")
+    p.add_argument("--solver", default="lm", help="registered solver, e.g. scipy-lm, bsas, staged:bsas (default lm)")
     p.add_argument("--option", action="append", metavar="KEY=VALUE", help="solver option (repeatable)")
     p.add_argument("--seed", type=int, default=0, help="seed of the solver's random generator")
     p.add_argument("--budget", type=int, help="evaluation budget (default: the solver's)")

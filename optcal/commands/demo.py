@@ -12,7 +12,7 @@ def add_arguments(p):
     p.add_argument("--model", default="nonlinear12", help="model simulated and fitted (default nonlinear12)")
     p.add_argument("--scheme", default="24", help="6, 24, 36 or random:N (default 24)")
     p.add_argument("--noise-ug", type=float, default=10.0, help="SD of each position's mean per axis, µg (default 10)")
-    p.add_argument("--solver", default="scipy-lm", help="registered solver (default scipy-lm)")
+    p.add_argument("--solver", default="lm", help="registered solver (default lm)")
     p.add_argument("--seed", type=int, default=2020, help="seed of the truth, the noise and the solver (default 2020)")
 
 

@@ -34,7 +34,7 @@ def add_arguments(p):
                    "when a likelihood-ratio test finds it (needs --gyro-bias fit)")
     p.add_argument("--model", help="the accelerometer's model (default as optcal calibrate's: nonlinear12, or the "
                    "richest of linear9 and diag6 the rests determine, said in a note)")
-    p.add_argument("--solver", default="scipy-lm", help="registered solver for both sensors (default scipy-lm)")
+    p.add_argument("--solver", default="lm", help="registered solver for both sensors (default lm)")
     p.add_argument("--option", action="append", metavar="KEY=VALUE", help="solver option (repeatable)")
     p.add_argument("--seed", type=int, default=0, help="seed of the solver's random generator")
     p.add_argument("--budget", type=int, help="evaluation budget of each fit (default: the solver's)")

@@ -38,7 +38,7 @@ def _solve(problem: CalibrationProblem, x0, solver: str, budget: int) -> tuple[n
     return problem.to_full(res.x)[0], res.nfev
 
 
-def fit_model(model: Model, data: PositionsData, g_local: float, x0=None, *, solver: str = "scipy-lm",
+def fit_model(model: Model, data: PositionsData, g_local: float, x0=None, *, solver: str = "lm",
               budget: int = 2000, rank: int | None = None) -> Fit:
     """Least-squares fit of ``model`` to ``data`` with the named solver; ``rank`` by default from the
     observability at the fitted point."""
@@ -49,7 +49,7 @@ def fit_model(model: Model, data: PositionsData, g_local: float, x0=None, *, sol
     return Fit(model, problem, x, problem.residuals_full(x)[0], rank, nfev)
 
 
-def score(current: Fit, term: str, *, solver: str = "scipy-lm", budget: int = 2000) -> Score:
+def score(current: Fit, term: str, *, solver: str = "lm", budget: int = 2000) -> Score:
     """Refit with ``term`` added (warm start: current fit, new parameters zero) and test the gain."""
     ext = extend(current, term)
     if not isinstance(ext, Extension):
@@ -60,7 +60,7 @@ def score(current: Fit, term: str, *, solver: str = "scipy-lm", budget: int = 20
 
 def discover(data: PositionsData, base: str | Model = "linear9", candidates=None, g_local: float = 1.0,
              alpha: float = DEFAULT_ALPHA, bic_threshold: float = DEFAULT_BIC_THRESHOLD, *,
-             noise_g: float | None = None, max_steps: int | None = None, solver: str = "scipy-lm",
+             noise_g: float | None = None, max_steps: int | None = None, solver: str = "lm",
              budget: int = 2000) -> DiscoveryReport:
     """Forward selection of the missing terms (see :mod:`optcal.discovery.statistics` for the tests).
 

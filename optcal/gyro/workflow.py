@@ -51,7 +51,7 @@ def _fit(data, *, g_sensitivity, bias, scale, solver, options, seed, budget) -> 
 
 
 def calibrate_gyro(data: GyroData, *, bias: str = "rests", g_sensitivity: bool = False, scale=None,
-                   solver: str = "scipy-lm", options: dict | None = None, seed: int = 0,
+                   solver: str = "lm", options: dict | None = None, seed: int = 0,
                    budget: int | None = None) -> GyroFit:
     """Fit the gyroscope of ``data`` (:class:`GyroData`). ``g_sensitivity``: fit G as well and keep it only
     when the likelihood-ratio test finds it (:func:`optcal.gyro.analysis.g_sensitivity_test`; needs the

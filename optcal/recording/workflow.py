@@ -31,7 +31,7 @@ from .reading import Recording, read_recording
 from .segment import segment_diagnosis, segment_static
 
 
-def fit_score(data: PositionsData, model, g_local: float = 1.0, solver: str = "scipy-lm",
+def fit_score(data: PositionsData, model, g_local: float = 1.0, solver: str = "lm",
               alpha: float = 0.10) -> float:
     """Score of a candidate set of intervals (smaller is better): σ_up/√n, where σ_up = sqrt(cost /
     χ²_α(n − rank)) is the (1 − α) upper confidence bound of the residual SD and n the number of positions.
@@ -49,7 +49,7 @@ def fit_score(data: PositionsData, model, g_local: float = 1.0, solver: str = "s
 
 
 def choose_threshold(recording: Recording, model, fit_cost_fn=None, *, ks=DEFAULT_KS, g_local: float = 1.0,
-                     solver: str = "scipy-lm", window_s: float = 1.0, min_static_s: float = 1.0,
+                     solver: str = "lm", window_s: float = 1.0, min_static_s: float = 1.0,
                      init_s: float | None = None) -> DetectionResult:
     """Search the threshold multiplier k over ``ks`` and keep the one whose calibration fits best
     (Tedaldi et al. 2014, §IV-A; imu_tk tries k = 2…10). ``fit_cost_fn(positions) -> float`` scores a
