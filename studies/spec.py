@@ -1,6 +1,7 @@
 """Study specs (docs/design.md §11.1): a TOML file, validated completely before anything runs.
 
-A spec names the truth (the fixed ``paper`` values, ``draw`` per run, or a table of values), the models,
+A spec names the problem (the accelerometer's, or the gyroscope's with its simulated recording in
+``[gyroscope]``), the truth (the fixed ``paper`` values, ``draw`` per run, or a table of values), the models,
 the presets given to the solvers (the manufacturer's calibration, 2020 paper §4.1, or none), the schemes,
 noise, placement tilt, the number of Monte-Carlo runs, the base seed, the solvers with their options (and
 an optional option grid), budgets, the verification set (36 positions by default, 2020 paper §5.1),
@@ -76,12 +77,19 @@ class Spec:
     executor: dict
     solvers: tuple[SolverConfig, ...]
     source: str = ""
+    problem: str = "accelerometer"
+    gyroscope: dict = field(default_factory=dict)  # the gyroscope study's recording (spec_schema.Gyroscope)
 
     def canonical(self) -> dict:
-        """Everything that determines the trials' results (not the executor or the source path)."""
+        """Everything that determines the trials' results (not the executor or the source path). An
+        accelerometer study's has no ``problem`` or ``gyroscope`` key, so its hash is the one it had before
+        the gyroscope's problem existed and its study folders still resume."""
         d = asdict(self)
         for k in ("executor", "source", "description", "quick_runs"):
             d.pop(k)
+        if self.problem == "accelerometer":
+            d.pop("problem")
+            d.pop("gyroscope")
         return d
 
     @property
@@ -164,9 +172,12 @@ def parse(obj: dict, where: str = "<spec>", default_name: str = "study") -> Spec
         raise _err(where, error_line(exc)) from None
     budget = f.budget.model_dump(exclude_none=True) if f.budget is not None else {}
     v, nav, ex = f.verification, f.navigation, f.executor
-    verification = {"scheme": v.scheme, "noise_ug": f.noise_ug if v.noise_ug is None else v.noise_ug,
-                    "tilt_deg": v.tilt_deg}
-    navigation = {"enabled": nav.enabled, "hours": nav.hours, "latitude_deg": nav.latitude_deg,
+    gyro = f.problem == "gyroscope"
+    # A gyroscope study has no verification set and no navigation (both are the accelerometer's): scheme
+    # "none" and navigation off say so in the stored spec.
+    verification = {"scheme": "none" if gyro else v.scheme,
+                    "noise_ug": f.noise_ug if v.noise_ug is None else v.noise_ug, "tilt_deg": v.tilt_deg}
+    navigation = {"enabled": nav.enabled and not gyro, "hours": nav.hours, "latitude_deg": nav.latitude_deg,
                   "attitude_deg": list(nav.attitude_deg)}
     executor = {"kind": ex.kind, "workers": ex.workers, "scheduler": ex.scheduler}
     return Spec(
@@ -175,7 +186,8 @@ def parse(obj: dict, where: str = "<spec>", default_name: str = "study") -> Spec
         models=tuple(f.models), schemes=tuple(f.schemes), truth=f.truth, presets=f.presets,
         presets_error_scale=f.presets_error_scale, noise_ug=f.noise_ug, tilt_deg=f.tilt_deg, g_local=f.g_local,
         verification=verification, navigation=navigation, executor=executor,
-        solvers=tuple(_solver_configs(f.solvers, where, budget)), source=where,
+        solvers=tuple(_solver_configs(f.solvers, where, budget)), source=where, problem=f.problem,
+        gyroscope=f.gyroscope.model_dump() if gyro else {},
     )
 
 

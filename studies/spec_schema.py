@@ -5,8 +5,13 @@ Types and bounds are the models' fields (strict: a string is never read as a num
 boolean); unknown keys are refused (``extra="forbid"``). Validators do only what a field type cannot: turn
 the short forms into the long ones (``budget = 300``, ``models = "seed15"``, ``schemes = 24``), check names
 against the model and scheme tables, and the rules that tie keys together (the truth against the models,
-``name = "all"`` against the keys it excludes, ``scheduler`` against ``kind``). Solver names and options
-are checked against the registry by :func:`studies.spec.parse`, which also expands the entries.
+``name = "all"`` against the keys it excludes, ``scheduler`` against ``kind``, the ``problem`` against the
+keys only the other problem has). Solver names and options are checked against the registry by
+:func:`studies.spec.parse`, which also expands the entries.
+
+``problem`` selects what is calibrated: the accelerometer (the default: position means, the norm cost) or
+the gyroscope (rests with rotations between them, Tedaldi et al., ICRA 2014; :mod:`optcal.gyro`), whose
+recording is described by the ``[gyroscope]`` table.
 """
 
 from __future__ import annotations
@@ -22,18 +27,34 @@ from pydantic import (
     Field,
     Tag,
     ValidationError,
+    ValidationInfo,
     field_validator,
     model_validator,
 )
 from pydantic_core import PydanticCustomError
 
 from optcal.errors import InputError
+from optcal.gyro.model import get_gyro_model
+from optcal.gyro.simulate import PROFILES
 from optcal.model import get_model
 from optcal.presets import PAPER_TRUTH
 from optcal.schemes import scheme as scheme_directions
 
 EXECUTORS = ("serial", "processes", "dask")
 SCHEME_HINT = 'a scheme name ("24", "36", "6", "random:N")'
+PROBLEMS = ("accelerometer", "gyroscope")
+# The gyroscope's models by name: scale and misalignment with the bias taken from the rests (gyro9), with the
+# bias fitted (gyro12), and with g-sensitivity (gyro21) (optcal.gyro.model).
+GYRO_MODELS = {m.name: m for m in (get_gyro_model(False, bias=False), get_gyro_model(False), get_gyro_model(True))}
+# The keys that describe the accelerometer's problem only: given with problem = "gyroscope" they are refused
+# rather than ignored.
+ACCELEROMETER_ONLY = ("presets_error_scale", "tilt_deg", "g_local", "verification", "navigation")
+
+
+def gyro_sensor(model: str):
+    """The sensor model a gyroscope study simulates for the fitted model ``model``: the sensor always has a
+    bias (gyro9 takes it from the rests instead of fitting it)."""
+    return get_gyro_model(GYRO_MODELS[model].g_sensitivity)
 
 
 def _problem(text: str, at: str = "") -> PydanticCustomError:
@@ -102,6 +123,30 @@ class Navigation(_Table):
     latitude_deg: float = Field(45.0, ge=-89.0, le=89.0, description="a number of degrees")
     attitude_deg: list[float] = Field([0.0, 0.0, 0.0], min_length=3, max_length=3,
                                       description="three numbers [roll, pitch, yaw] in degrees")
+
+
+class Gyroscope(_Table):
+    """The simulated recording of a gyroscope study (:func:`optcal.gyro.simulate.simulate_imu`)."""
+
+    rate_hz: float = Field(100.0, gt=0, le=10_000, description="a number of Hz")
+    rest_s: float = Field(3.0, gt=0, description="a number of seconds")
+    motion_s: float = Field(2.0, gt=0, description="a number of seconds")
+    profile: Literal[tuple(PROFILES)] = Field(
+        "smooth", description=f"a rotation profile: {' or '.join(repr(p) for p in PROFILES)}")
+    # white rate noise, Kalibr's gyroscope_noise_density: per-sample SD = density · √rate_hz
+    noise_rad_s_rthz: float = Field(1e-4, gt=0, description="a number of rad/s/√Hz")
+    # bias instability as a random walk of the rate bias, Kalibr's gyroscope_random_walk
+    bias_walk_rad_s2_rthz: float = Field(0.0, ge=0, description="a number of rad/s²/√Hz (rad/s per √s)")
+    scale: float = Field(1000.0, gt=0, description="a number of output units (counts) per rad/s")
+
+    @model_validator(mode="after")
+    def _samples_to_integrate(self):
+        # a rest needs samples to average and a motion samples to integrate
+        if self.rest_s * self.rate_hz < 10:
+            raise _problem("holds fewer than 10 samples at rate_hz; lengthen the rests", ".rest_s")
+        if self.motion_s * self.rate_hz < 10:
+            raise _problem("holds fewer than 10 samples at rate_hz; lengthen the motions", ".motion_s")
+        return self
 
 
 class Executor(_Table):
@@ -173,10 +218,12 @@ class SpecFile(_Table):
 
     name: str | None = None
     description: str = ""
+    problem: Literal[PROBLEMS] = Field("accelerometer", description='"accelerometer" or "gyroscope"')
     runs: int = Field(10, gt=0, le=MAX_RUNS, description="an integer number of Monte-Carlo runs")
     quick_runs: int | None = Field(None, gt=0, le=MAX_RUNS,
                                    description="an integer number of runs (default min(runs, 5))")
     seed: int = Field(0, ge=0, description="a non-negative integer")
+    # models, truth and presets not given default by the problem (the _defaults_of_the_problem validator)
     models: Annotated[list[str], BeforeValidator(_as_list)] = Field(
         ["nonlinear12"], min_length=1, description="a model name or a non-empty array of them")
     schemes: Annotated[list[SchemeName], BeforeValidator(_as_list)] = Field(
@@ -191,14 +238,49 @@ class SpecFile(_Table):
     verification: Verification = Verification()
     navigation: Navigation = Navigation()
     executor: Executor = Executor()
+    gyroscope: Gyroscope | None = None
     solvers: list[SolverEntry] = Field(min_length=1, description='an array of tables ([[solvers]] name = "bsas" ...)')
 
     @field_validator("models")
     @classmethod
-    def _known_models(cls, models: list[str]) -> list[str]:
+    def _known_models(cls, models: list[str], info: ValidationInfo) -> list[str]:
+        if info.data.get("problem") == "gyroscope":
+            for i, m in enumerate(models):
+                if m not in GYRO_MODELS:
+                    raise _problem(f"is {m!r}, not a gyroscope model; use {', '.join(GYRO_MODELS)}", f"[{i}]")
+            _repeats(models)
+            return models
         canonical = [get_model(m).name for m in models]  # an unknown model raises InputError
         _repeats(canonical)
         return models
+
+    @model_validator(mode="after")
+    def _defaults_of_the_problem(self):
+        gyro = self.problem == "gyroscope"
+        given = self.model_fields_set
+        if gyro:
+            for k in ACCELEROMETER_ONLY:
+                if k in given:
+                    raise _problem('is for the accelerometer\'s problem; a gyroscope study describes its recording '
+                                   'in [gyroscope]', f".{k}")
+            if "truth" in given and self.truth == "paper":
+                raise _problem('cannot be "paper" for the gyroscope (the papers calibrate accelerometers); use '
+                               'truth = "draw" or a table of values', ".truth")
+            if "presets" in given and self.presets == "manufacturer":
+                raise _problem('cannot be "manufacturer" for the gyroscope: its search starts at the nominal scale '
+                               "and the rests' mean bias; leave presets out", ".presets")
+            for i, e in enumerate(self.solvers):
+                if e.reference:
+                    raise _problem("is the accelerometer's turntable calibration; a gyroscope study has none",
+                                   f"solvers[{i}].reference")
+        elif self.gyroscope is not None:
+            raise _problem('is for problem = "gyroscope"', ".gyroscope")
+        if gyro:
+            self.models = self.models if "models" in given else ["gyro12"]
+            self.truth = self.truth if "truth" in given else "draw"
+            self.presets = "none"
+            self.gyroscope = self.gyroscope or Gyroscope()
+        return self
 
     @field_validator("schemes")
     @classmethod
@@ -208,7 +290,10 @@ class SpecFile(_Table):
 
     @model_validator(mode="after")
     def _truth_fits_the_models(self):
-        names = {m: get_model(m).names for m in self.models}
+        # the gyroscope's truth is the sensor's (with its bias also where gyro9 takes the bias from the rests)
+        gyro = self.problem == "gyroscope"
+        names = {m: gyro_sensor(m).names if gyro else get_model(m).names for m in self.models}
+        of = (lambda m: f"the sensor simulated for model {m}") if gyro else (lambda m: f"model {m}")
         if self.truth == "paper":
             for m, ns in names.items():
                 missing = [n for n in ns if n not in PAPER_TRUTH]
@@ -224,7 +309,7 @@ class SpecFile(_Table):
             for m, ns in names.items():
                 missing = [n for n in ns if n not in self.truth]
                 if missing:
-                    raise _problem(f"lacks {missing[0]} of model {m}", ".truth")
+                    raise _problem(f"lacks {missing[0]} of {of(m)}", ".truth")
         return self
 
 

@@ -9,6 +9,12 @@ a solver to a spec leaves the other solvers' streams unchanged.
 
 A trial never raises: a solver that raises or returns a non-finite point is stored as failed with its
 message, and the study goes on.
+
+A gyroscope study (``problem = "gyroscope"``) has the same streams, trials and row columns: run i's truth
+is the simulated sensor's (:func:`optcal.gyro.simulate.draw_truth`, or the spec's table), its data an IMU
+recording of the scheme's poses with rotations between them (:func:`optcal.gyro.simulate.simulate_imu`),
+its in-field problem :class:`optcal.gyro.GyroProblem` and its bound the Cramér-Rao bound of that problem's
+whitened residuals (noise 1). It has no presets, verification set or navigation: those columns are empty.
 """
 
 from __future__ import annotations
@@ -24,6 +30,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from optcal.analysis import observability, projected_crlb
+from optcal.gyro import GyroProblem, simulate_imu
+from optcal.gyro import draw_truth as draw_gyro_truth
 from optcal.model import get_model
 from optcal.presets import PAPER_TRUTH, draw_truth, manufacturer_presets, manufacturer_sd
 from optcal.problem import CalibrationProblem, Counter
@@ -33,6 +41,7 @@ from .scoring import accuracy_of as accuracy_of  # re-exported: the names studie
 from .scoring import anytime_on_grid, crlb_with_presets, seconds_on_grid
 from .scoring import trace_on_grid as trace_on_grid
 from .spec import SolverConfig, Spec
+from .spec_schema import GYRO_MODELS, gyro_sensor
 
 TRUTH, PRESETS, DATA, VERIFY, TURNTABLE, SOLVER, OPTIMUM = range(7)
 CONVERGED_QUANTILE = 0.999  # χ² quantile of the final cost that counts as "reached the noise floor"
@@ -73,6 +82,17 @@ class Trial:
     g_local: float
     verification: dict
     navigation: dict
+    problem: str = "accelerometer"
+    gyroscope: dict | None = None  # the gyroscope study's recording (spec_schema.Gyroscope)
+
+    @property
+    def gyro(self) -> bool:
+        return self.problem == "gyroscope"
+
+
+def model_names(t: Trial) -> list[str]:
+    """The names of the fitted model's parameters (the gyroscope's gyro9 has no bias: the rests give it)."""
+    return list(GYRO_MODELS[t.model].names if t.gyro else get_model(t.model).names)
 
 
 def trial_id(model: str, scheme: str, label: str, run: int) -> str:
@@ -89,7 +109,7 @@ def trials(spec: Spec) -> list[Trial]:
                     out.append(Trial(
                         trial_id(model, scheme, cfg.label, run), run, model, scheme, cfg, spec.seed, spec.truth,
                         spec.presets, spec.presets_error_scale, spec.noise_ug, spec.tilt_deg, spec.g_local,
-                        dict(spec.verification), dict(spec.navigation)))
+                        dict(spec.verification), dict(spec.navigation), spec.problem, dict(spec.gyroscope) or None))
     return out
 
 
@@ -116,6 +136,28 @@ def infield_data(t: Trial, truth: dict):
     rng = stream(t.seed, DATA, t.run, key(t.model), key(t.scheme))
     return simulate(t.model, truth, rng, scheme=t.scheme, noise_g=t.noise_ug * 1e-6, tilt_deg=t.tilt_deg,
                     g_local=t.g_local)
+
+
+def gyro_truth(t: Trial) -> np.ndarray:
+    """The simulated gyroscope's parameter vector (its sensor model's: with the bias, also for gyro9)."""
+    sensor = gyro_sensor(t.model)
+    if t.truth == "draw":
+        return draw_gyro_truth(sensor, stream(t.seed, TRUTH, t.run, key(t.model)), t.gyroscope["scale"])
+    return sensor.vector(t.truth)
+
+
+def gyro_data(t: Trial, truth: np.ndarray):
+    """Run i's IMU recording: the scheme's poses held ``rest_s``, turned between along the rotation profile.
+    White rate noise: density · √rate per sample (the sampled white noise of Kalibr's noise model); the
+    accelerometer's white noise per sample is ``noise_ug`` (the SD of a rest's mean, as of an accelerometer
+    position's) · √(samples per rest)."""
+    g = t.gyroscope
+    n_rest = round(g["rest_s"] * g["rate_hz"])
+    return simulate_imu(gyro_sensor(t.model), truth, poses=t.scheme, rate_hz=g["rate_hz"], rest_s=g["rest_s"],
+                        motion_s=g["motion_s"], profile=g["profile"],
+                        noise_rate=g["noise_rad_s_rthz"] * np.sqrt(g["rate_hz"]),
+                        bias_walk=g["bias_walk_rad_s2_rthz"], noise_acc_g=t.noise_ug * 1e-6 * np.sqrt(n_rest),
+                        rng=stream(t.seed, DATA, t.run, key(t.model), key(t.scheme)))
 
 
 def turntable_data(t: Trial, truth: dict):
@@ -161,18 +203,19 @@ class World:
     truth: dict
     presets: object
     x_true: np.ndarray
-    yard: CalibrationProblem
+    yard: CalibrationProblem | GyroProblem
     bound: tuple  # projected_crlb(yard, x_true, sigma)
     sd_presets: list | None
-    ver: CalibrationProblem
-    ver_truth: np.ndarray
+    ver: CalibrationProblem | None  # None: no verification set (the gyroscope)
+    ver_truth: np.ndarray | None
     f_opt: float | None  # the in-field problem's optimum cost (reference least-squares fit), None if it failed
+    sigma: float  # the residuals' noise SD: g for the accelerometer, 1 for the gyroscope's whitened residuals
 
 
 def world_key(t: Trial) -> str:
     """The inputs a World depends on (everything of a Trial but its solver)."""
     return json.dumps([t.seed, t.run, t.model, t.scheme, t.truth, t.presets, t.presets_error_scale, t.noise_ug,
-                       t.tilt_deg, t.g_local, t.verification], sort_keys=True)
+                       t.tilt_deg, t.g_local, t.verification, t.problem, t.gyroscope], sort_keys=True)
 
 
 _WORLDS: dict[str, World] = {}
@@ -190,6 +233,8 @@ def world(t: Trial) -> World:
 
 
 def _build_world(t: Trial) -> World:
+    if t.gyro:
+        return _build_gyro_world(t)
     model = get_model(t.model)
     sigma = t.noise_ug * 1e-6
     truth = truth_of(t)
@@ -203,7 +248,21 @@ def _build_world(t: Trial) -> World:
         sd_presets = [float(v) for v in crlb_with_presets(yard, x_true, sigma, prior)]
     ver = CalibrationProblem(model, verification_data(t, truth).data, g_local=t.g_local, check=False)
     return World(model, truth, presets, x_true, yard, projected_crlb(yard, x_true, sigma), sd_presets, ver,
-                 _abs_norm_error_ug(ver, x_true), optimum_cost(t, yard))
+                 _abs_norm_error_ug(ver, x_true), optimum_cost(t, yard), sigma)
+
+
+def _build_gyro_world(t: Trial) -> World:
+    """Run i's gyroscope World: the problem at the nominal scale, the truth in its coordinates (the bias
+    beyond the rests' mean output, or none for gyro9: :meth:`GyroProblem.from_sensor`), the bound of its
+    whitened residuals."""
+    sensor_truth = gyro_truth(t)
+    model = GYRO_MODELS[t.model]
+    yard = GyroProblem(gyro_data(t, sensor_truth).data, g_sensitivity=model.g_sensitivity,
+                       bias="fit" if model.bias else "rests", scale=t.gyroscope["scale"])
+    x_true = yard.from_sensor(sensor_truth)
+    truth = dict(zip(gyro_sensor(t.model).names, map(float, sensor_truth), strict=True))
+    return World(yard.model, truth, None, x_true, yard, projected_crlb(yard, x_true, 1.0), None, None, None,
+                 optimum_cost(t, yard), 1.0)
 
 
 def optimum_cost(t: Trial, yard: CalibrationProblem) -> float | None:
@@ -239,7 +298,7 @@ def base_row(t: Trial) -> dict:
     cfg = t.config
     return {"trial_id": t.id, "model": t.model, "scheme": t.scheme, "solver": cfg.label, "solver_name": cfg.name,
             "run": t.run, "reference": int(cfg.reference), "reference_error_arcsec": cfg.reference_error_arcsec,
-            "names": list(get_model(t.model).names)}
+            "names": model_names(t)}
 
 
 def failed_row(t: Trial, message: str, wall_s: float | None = None) -> dict:
@@ -252,8 +311,11 @@ def run_trial(t: Trial) -> dict:
     """Run one trial and return its row (see :mod:`studies.store` for the columns)."""
     t_start = time.perf_counter()
     cfg = t.config
-    w = world(t)
-    sigma = t.noise_ug * 1e-6
+    try:
+        w = world(t)
+    except Exception as exc:  # noqa: BLE001 - data the problem refuses (a scheme too poor for it) fail the trial
+        return failed_row(t, f"the run's data: {type(exc).__name__}: {exc}", time.perf_counter() - t_start)
+    sigma = w.sigma
     row = {**base_row(t), "x_true": [float(v) for v in w.x_true]}
     try:
         if cfg.reference:
@@ -332,8 +394,9 @@ def _score(t: Trial, w: World, x_est, res, problem, sigma) -> dict:
     chi2 = float(res.fun) / sigma**2
     converged = chi2 <= converged_threshold(dof)
 
-    ver_err = _abs_norm_error_ug(w.ver, x_est)
-    ver_truth = w.ver_truth
+    # no verification set (the gyroscope): empty columns
+    ver_err = _abs_norm_error_ug(w.ver, x_est) if w.ver is not None else np.zeros(0)
+    ver_truth = w.ver_truth if w.ver_truth is not None else np.zeros(0)
     nav = _navigation(model, x_true, x_est, t.navigation)
     anytime = anytime_on_grid(res.trace, res.trace_x, x_true, w.bound)
     return dict(
@@ -341,8 +404,9 @@ def _score(t: Trial, w: World, x_est, res, problem, sigma) -> dict:
         fun=float(res.fun), chi2=chi2, dof=int(dof), nfev=int(res.nfev), nit=int(res.nit),
         runtime_s=float(res.runtime_s),
         accuracy=float(np.sqrt(np.mean((e_proj / sd) ** 2))),
-        ver_mean_ug=float(np.mean(ver_err)), ver_sd_ug=float(np.std(ver_err, ddof=1)),
-        ver_truth_mean_ug=float(np.mean(ver_truth)),
+        ver_mean_ug=float(np.mean(ver_err)) if ver_err.size else None,
+        ver_sd_ug=float(np.std(ver_err, ddof=1)) if ver_err.size else None,
+        ver_truth_mean_ug=float(np.mean(ver_truth)) if ver_truth.size else None,
         nav_max_nmi=None if nav is None else nav[0], nav_mean_nmi=None if nav is None else nav[1],
         x_est=[float(v) for v in x_est], err=[float(v) for v in e], err_proj=[float(v) for v in e_proj],
         crlb=[float(v) for v in sd], crlb_presets=w.sd_presets, observable=[int(v) for v in obs.observable_mask()],

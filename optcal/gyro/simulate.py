@@ -3,11 +3,15 @@
 The body's attitude C (body to world) in pose k puts the scheme's direction u_k (the specific force in
 the body frame, docs/design.md §4) on the world's vertical, with a heading drawn uniformly. Between two
 poses the body turns about the fixed body axis of the relative rotation C_kᵀ·C_{k+1} (axis a, angle θ)
-with the smooth profile s(τ) = τ − sin(2πτ)/(2π) over the motion's duration, so the true body rate is
-a·θ·ṡ and the attitude is known in closed form at every sample (no integration error in the truth).
-The gyroscope outputs the model of :mod:`optcal.gyro.model` at the true rate and specific force, plus
-white noise and a bias random walk (bias instability); the accelerometer's specific force (already
-calibrated, g) carries white noise.
+along a rotation profile s(τ), the share of θ turned at the motion's time fraction τ (:data:`PROFILES`):
+``smooth``, s(τ) = τ − sin(2πτ)/(2π), a raised-cosine rate that starts and ends at zero; or
+``trapezoid``, a constant angular acceleration over the first quarter, a constant rate, and a constant
+deceleration over the last quarter (a motion turned at a steady rate, as by hand or a rate table). The
+true body rate is a·θ·ṡ and the attitude is known in closed form at every sample (no integration error in
+the truth). The gyroscope outputs the model of :mod:`optcal.gyro.model` at the true rate and specific
+force, plus white noise and a bias random walk (bias instability: Brownian motion of the rate bias, the
+rate random walk term of IEEE Std 952's gyroscope noise model); the accelerometer's specific force
+(already calibrated, g) carries white noise.
 """
 
 from __future__ import annotations
@@ -43,6 +47,32 @@ class SimulatedIMU:
     attitudes: np.ndarray  # (poses, 3, 3) body to world
 
 
+# The ramp of the trapezoid profile: the share of the motion's duration spent accelerating (and as much
+# decelerating).
+RAMP = 0.25
+
+
+def _smooth(tau: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """s(τ) = τ − sin(2πτ)/(2π) and ds/dτ = 1 − cos(2πτ)."""
+    return tau - np.sin(2 * np.pi * tau) / (2 * np.pi), 1.0 - np.cos(2 * np.pi * tau)
+
+
+def _trapezoid(tau: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The trapezoid's s(τ) and ds/dτ: the rate rises linearly to v = 1/(1 − RAMP) over [0, RAMP], holds,
+    and falls linearly to zero over [1 − RAMP, 1] (so that s(1) = 1)."""
+    v = 1.0 / (1.0 - RAMP)
+    rise, fall = tau < RAMP, tau > 1.0 - RAMP
+    s = np.where(rise, v * tau**2 / (2 * RAMP), v * (tau - RAMP / 2))
+    s = np.where(fall, 1.0 - v * (1.0 - tau) ** 2 / (2 * RAMP), s)
+    ds = np.where(rise, v * tau / RAMP, np.where(fall, v * (1.0 - tau) / RAMP, v))
+    return s, ds
+
+
+# The rotation profiles between poses: the share s(τ) of the turn made at the motion's time fraction τ and
+# its derivative ds/dτ.
+PROFILES = {"smooth": _smooth, "trapezoid": _trapezoid}
+
+
 def _attitudes(u: np.ndarray, rng: np.random.Generator) -> np.ndarray:
     """Body-to-world rotations putting each body direction u_k on the world's z axis, random heading."""
     from scipy.spatial.transform import Rotation
@@ -58,15 +88,19 @@ def _attitudes(u: np.ndarray, rng: np.random.Generator) -> np.ndarray:
 
 def simulate_imu(model: GyroModel, truth, *, poses=24, rate_hz: float = 100.0, rest_s: float = 3.0,
                  motion_s: float = 2.0, noise_rate: float = 1e-3, bias_walk: float = 0.0,
-                 noise_acc_g: float = 1e-3, attitudes: np.ndarray | None = None,
+                 noise_acc_g: float = 1e-3, attitudes: np.ndarray | None = None, profile: str = "smooth",
                  rng: np.random.Generator) -> SimulatedIMU:
     """A recording of ``poses`` (a scheme: 24, 36, ...) with rests of ``rest_s`` s and motions of
-    ``motion_s`` s between them, at ``rate_hz``. Noise: ``noise_rate`` rad/s (SD per sample, white) on
-    each gyroscope axis, a bias random walk of ``bias_walk`` rad/s/√s, ``noise_acc_g`` g on each
-    accelerometer axis. ``truth``: a parameter vector of ``model``. ``attitudes`` (k, 3, 3), body to world,
-    replace the poses (to rotate about chosen axes only). Every draw from ``rng``."""
+    ``motion_s`` s between them along the rotation ``profile`` (:data:`PROFILES`), at ``rate_hz``. Noise:
+    ``noise_rate`` rad/s (SD per sample, white) on each gyroscope axis, a bias random walk of ``bias_walk``
+    rad/s/√s (the SD of the bias's change over one second; rad/s²/√Hz, Kalibr's ``gyroscope_random_walk``,
+    is the same number), ``noise_acc_g`` g on each accelerometer axis. ``truth``: a parameter vector of
+    ``model``. ``attitudes`` (k, 3, 3), body to world, replace the poses (to rotate about chosen axes
+    only). Every draw from ``rng``."""
     if not isinstance(rng, np.random.Generator):
         raise InputError("simulate_imu needs a numpy.random.Generator (seeded from the user's seed)")
+    if profile not in PROFILES:
+        raise InputError(f"unknown rotation profile {profile!r}; use one of {', '.join(PROFILES)}")
     truth = np.asarray(truth, float)
     if truth.shape != (model.n_params,):
         raise InputError(f"the truth has {truth.size} values; model {model.name} has {model.n_params}")
@@ -86,8 +120,8 @@ def simulate_imu(model: GyroModel, truth, *, poses=24, rate_hz: float = 100.0, r
             break
         rel = Rotation.from_matrix(C[k].T @ C[k + 1]).as_rotvec()  # body-frame rotation vector
         tau = (np.arange(1, n_move + 1)) / (n_move + 1)
-        s = tau - np.sin(2 * np.pi * tau) / (2 * np.pi)
-        sdot = (1.0 - np.cos(2 * np.pi * tau)) / ((n_move + 1) * dt)
+        s, ds = PROFILES[profile](tau)
+        sdot = ds / ((n_move + 1) * dt)
         omega.append(sdot[:, None] * rel[None])
         att.append(C[k] @ Rotation.from_rotvec(s[:, None] * rel[None]).as_matrix())
         i += n_move
