@@ -18,7 +18,6 @@ import os
 import pkgutil
 import re
 import sys
-from importlib.metadata import entry_points
 
 from . import commands
 from .errors import InputError
@@ -61,16 +60,35 @@ def _spelled_out(parser: argparse.ArgumentParser, argv: list[str], unknown: list
 ENTRY_POINT_GROUP = "optcal.commands"
 
 
-def _command_modules() -> list[tuple[str, object]]:
+def _builtin_names() -> list[str]:
+    """Module names of the built-in commands (the folder's listing: nothing is imported)."""
+    return sorted(m.name for m in pkgutil.iter_modules(commands.__path__) if not m.name.startswith("_"))
+
+
+def _builtin(name: str) -> object:
+    # relative to optcal.commands: a module of that folder, never one of another package or layer
+    return importlib.import_module(f".{name}", commands.__name__)
+
+
+def _command_modules(only: str | None = None) -> list[tuple[str, object]]:
     """(name, module) of the built-in commands, then of the plug-ins registered in the ``optcal.commands``
-    entry-point group (``optcal study`` is one); a plug-in may not replace a built-in command."""
+    entry-point group (``optcal study`` is one); a plug-in may not replace a built-in command. With ``only``
+    the name of a built-in command (a module ``only.py``, or ``only_.py`` for a Python keyword), that command
+    alone: a command's run then imports nothing of the others nor reads the installed packages' entry points
+    (importlib.metadata: a tenth of a second)."""
+    if only is not None:
+        for m in _builtin_names():
+            if m.rstrip("_") == only:
+                mod = _builtin(m)
+                if getattr(mod, "NAME", m) == only:
+                    return [(only, mod)]
     found = []
-    for info in sorted(pkgutil.iter_modules(commands.__path__), key=lambda m: m.name):
-        if not info.name.startswith("_"):
-            # relative to optcal.commands: a module of that folder, never one of another package or layer
-            mod = importlib.import_module(f".{info.name}", commands.__name__)
-            found.append((getattr(mod, "NAME", info.name), mod))
+    for m in _builtin_names():
+        mod = _builtin(m)
+        found.append((getattr(mod, "NAME", m), mod))
     taken = {name for name, _ in found}
+    from importlib.metadata import entry_points
+
     for ep in sorted(entry_points(group=ENTRY_POINT_GROUP), key=lambda e: e.name):
         if ep.name in taken:
             print(f"optcal: warning: plug-in command {ep.name!r} ({ep.value}) ignored: the name is taken",
@@ -122,15 +140,36 @@ class _StderrHandler(logging.Handler):
             self.handleError(record)
 
 
-def build_parser() -> argparse.ArgumentParser:
+class _VersionAction(argparse.Action):
+    """``--version``: the installed version, looked up only when asked (importlib.metadata is slow to import)."""
+
+    def __init__(self, option_strings, dest=argparse.SUPPRESS, default=argparse.SUPPRESS, help=None):
+        super().__init__(option_strings, dest, nargs=0, default=default, help=help)
+
+    def __call__(self, parser, namespace, values, option_string=None):
+        print(f"optcal {_version()}")  # on stdout, as argparse's own version action prints it
+        parser.exit()
+
+
+def _command_named(argv: list[str]) -> str | None:
+    """The command ``argv`` names: its first word that is not one of the top-level options (-v, -q)."""
+    for a in argv:
+        if not (a.startswith("-") and set(a[1:]) <= {"v", "q"} or a in ("--verbose", "--quiet")):
+            return None if a.startswith("-") else a
+    return None
+
+
+def build_parser(argv: list[str] | None = None) -> argparse.ArgumentParser:
+    """The parser of every command, or, when ``argv`` (the arguments to be parsed) names a built-in command,
+    of that command alone: its options and errors are the same either way; ``optcal --help``, plug-in
+    commands and unknown names get the full parser."""
     parser = ArgumentParser(prog="optcal", description="In-field accelerometer calibration and optimiser comparison")
-    parser.add_argument("--version", action="version", version=f"optcal {_version()}",
-                        help="print optcal's version and exit")
+    parser.add_argument("--version", action=_VersionAction, help="print optcal's version and exit")
     _verbosity_options(parser)
     common = argparse.ArgumentParser(add_help=False)
     _verbosity_options(common, "_cmd")
     sub = parser.add_subparsers(dest="command", required=True, parser_class=ArgumentParser)
-    for name, mod in _command_modules():
+    for name, mod in _command_modules(None if argv is None else _command_named(argv)):
         p = sub.add_parser(name, help=mod.HELP, description=mod.HELP, parents=[common])
         mod.add_arguments(p)
         p.set_defaults(_run=mod.run, _flags=_flags_of(p))
@@ -159,7 +198,7 @@ def with_flags(message: str, flags: dict[str, str]) -> str:
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = build_parser()
+    parser = build_parser(sys.argv[1:] if argv is None else argv)
     args = parser.parse_args(argv)
     logger = logging.getLogger("optcal")
     saved = logger.level

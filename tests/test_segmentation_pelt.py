@@ -8,7 +8,7 @@ import ruptures
 from conftest import REAL_DATA
 
 import optcal.recording.segment as segment
-from optcal.recording.pelt import RUPTURES_FROM_BLOCKS, VECTOR_FROM, pelt_l2
+from optcal.recording.pelt import RUPTURES_FROM_BLOCKS, VECTOR_FROM, pelt_l2, pelt_l2_many
 from optcal.recording.reading import read_recording
 
 
@@ -23,6 +23,22 @@ def test_same_change_points_as_ruptures_on_random_series():
         Z = np.concatenate([rng.normal(rng.normal(0, 3, 3), 1, (n, 3)) for n in lens])
         pen = float(rng.uniform(1, 60))
         assert pelt_l2(Z, pen) == _ruptures(Z, pen)
+
+
+def test_series_in_lockstep_give_what_each_gives_alone():
+    """pelt_l2_many (segmentation's pieces side by side) against pelt_l2 series by series: 100 batches of 2-5
+    series of different lengths, a long rest among them, and an empty and a one-block series."""
+    rng = np.random.default_rng(11)
+    for _ in range(100):
+        batch = []
+        for _ in range(rng.integers(2, 6)):
+            lens = rng.integers(1, 120, size=rng.integers(1, 14))
+            batch.append(np.concatenate([rng.normal(rng.normal(0, 3, 3), 1, (n, 3)) for n in lens]))
+        pen = float(rng.uniform(1, 60))
+        assert pelt_l2_many(batch, pen) == [pelt_l2(Z, pen) for Z in batch]
+    rest = np.concatenate([rng.normal(0, 1, (6 * VECTOR_FROM, 3)), rng.normal(5, 1, (40, 3))])
+    batch = [rest, np.zeros((0, 3)), rng.normal(0, 1, (1, 3)), rest[::-1]]
+    assert pelt_l2_many(batch, 123.0) == [pelt_l2(Z, 123.0) for Z in batch]
 
 
 def test_long_rest_takes_the_vector_pass_and_agrees():

@@ -307,10 +307,23 @@ def _load_numeric(path: Path, lay: Layout, usecols: list[int], max_rows: int | N
             # with max_rows, NumPy notes that blank lines do not count as rows: that is how they are meant
             warnings.filterwarnings("ignore", message=".*max_rows", category=UserWarning)
             return np.loadtxt(fh, delimiter=lay.delimiter, skiprows=lay.skiprows, usecols=usecols, ndmin=2,
-                              comments=COMMENT, dtype=float, converters=comma, max_rows=max_rows)
+                              comments=_comment_marks(path), dtype=float, converters=comma, max_rows=max_rows)
     except ValueError as exc:
         msg = str(exc).splitlines()[0].rstrip(".")
         raise InputError(f"{path}: {msg} (data start on line {lay.skiprows + 1}); fix or remove that row") from None
+
+
+def _comment_marks(path: Path, chunk: int = 1 << 20):
+    """The comment marks (:data:`COMMENT`) that occur in the file: with none or one, numpy.loadtxt parses in C
+    alone; with two it filters every line in Python first (0.08 s for 51,000 lines). Found in one pass over
+    the bytes, a chunk at a time."""
+    marks = [c.encode() for c in COMMENT]
+    found: set[bytes] = set()
+    with open_binary(path) as fh:
+        while len(found) < len(marks) and (block := fh.read(chunk)):
+            found.update(m for m in marks if m in block)
+    used = tuple(m.decode() for m in marks if m in found)
+    return used[0] if len(used) == 1 else (used or None)
 
 
 def _load_arrow(path: Path, lay: Layout, usecols: list[int]) -> np.ndarray | None:

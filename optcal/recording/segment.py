@@ -35,7 +35,7 @@ import numpy as np
 
 from ..errors import InputError
 from .detection import DetectionResult
-from .pelt import RUPTURES_FROM_BLOCKS, pelt_l2
+from .pelt import RUPTURES_FROM_BLOCKS, pelt_l2_many
 from .reading import Recording
 
 BLOCKS_PER_POSE = 8  # blocks in the shortest pose: the block is an eighth of min_static_s (and ≤ MAX_BLOCK_S)
@@ -289,28 +289,31 @@ def _slow_noise_excess(Z: np.ndarray, good: np.ndarray, w: int) -> np.ndarray:
 
 def _change_points(Z: np.ndarray, good: np.ndarray) -> np.ndarray:
     """Segments [start, end) (blocks) of the good blocks of ``Z`` (normalised block means) by PELT with a
-    linear kernel on pieces of at most :data:`PIECE_BLOCKS` blocks: :func:`optcal.recording.pelt.pelt_l2`, or
+    linear kernel on pieces of at most :data:`PIECE_BLOCKS` blocks: :func:`optcal.recording.pelt.pelt_l2_many`, or
     ruptures' compiled KernelCPD (the same change points) for a series long enough to pay for its import."""
     d = np.diff(np.concatenate([[0], good.astype(np.int8), [0]]))
     runs = np.column_stack([np.flatnonzero(d == 1), np.flatnonzero(d == -1)])
     pen = PENALTY
+    pieces = []  # [start, end) of each piece: the runs of good blocks (none with drops), cut to PIECE_BLOCKS
+    for s, e in runs:
+        cuts = np.linspace(s, e, -(-(e - s) // PIECE_BLOCKS) + 1).round().astype(int)
+        pieces.extend(zip(cuts[:-1].tolist(), cuts[1:].tolist()))
+    long = [(ps, pe) for ps, pe in pieces if pe - ps >= 4]
     if len(Z) >= RUPTURES_FROM_BLOCKS:
         import ruptures  # here: its import costs a second, repaid only on long recordings
 
-        def changes(X):
-            return ruptures.KernelCPD(kernel="linear", min_size=1, jump=1).fit(X).predict(pen=pen)
+        ends = [ruptures.KernelCPD(kernel="linear", min_size=1, jump=1).fit(Z[ps:pe]).predict(pen=pen)
+                for ps, pe in long]
     else:
-        def changes(X):
-            return pelt_l2(X, pen)
+        ends = pelt_l2_many([Z[ps:pe] for ps, pe in long], pen)
+    found = dict(zip(long, ends))
     bounds = []
-    for s, e in runs:  # runs of good blocks (one without drops), each cut into pieces
-        cuts = np.linspace(s, e, -(-(e - s) // PIECE_BLOCKS) + 1).round().astype(int)
-        for ps, pe in zip(cuts[:-1], cuts[1:]):
-            if pe - ps < 4:
-                bounds.append([ps, pe])
-                continue
-            edges = np.concatenate([[0], changes(Z[ps:pe])]) + ps
-            bounds.extend(np.column_stack([edges[:-1], edges[1:]]).tolist())
+    for ps, pe in pieces:
+        if (ps, pe) not in found:  # too short to cut
+            bounds.append([ps, pe])
+            continue
+        edges = np.concatenate([[0], found[ps, pe]]) + ps
+        bounds.extend(np.column_stack([edges[:-1], edges[1:]]).tolist())
     return np.array(bounds, dtype=np.int64).reshape(-1, 2)
 
 
