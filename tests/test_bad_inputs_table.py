@@ -116,7 +116,41 @@ def source(tmp_path_factory):
                fmt="%.10g")
     (d / "v73.mat").write_bytes(b"MATLAB 7.3 MAT-file, Platform: GLNXA64, HDF5 schema 1.00 .".ljust(116) + bytes(8)
                                 + b"\x00\x02IM" + b"\x89HDF\r\n\x1a\n" + bytes(64))
+    # IMU files (optcal imu's layout, issue #23): gyroscope blocks beside the accelerometer's record; a
+    # gyroscope's samples whose times are half a step off the recordings'; Kalibr noise without the gyroscope's
+    _imu_files(d)
     return d
+
+
+def _imu_files(d):
+    from optcal.exchange.common import LinearPart, calibration_dict
+    from optcal.gyro.model import get_gyro_model
+
+    def block(g_sensitivity, units, k):
+        m = get_gyro_model(g_sensitivity)
+        x = np.zeros(m.n_params)
+        x[:3], x[3:9] = k, [0.01, -0.01, 0.005, 0.0, 0.002, -0.003]
+        if g_sensitivity:
+            x[12:] = 1e-3
+        return {"model": m.name, "terms": list(m.terms), "bias_mode": "fit",
+                "parameters": dict(zip(m.names, x.tolist())), "units": {"raw": units, "calibrated": "rad/s"}}
+
+    def imu(src, name, gyro):
+        (d / name).write_text(json.dumps({**json.loads(src.read_text()), "gyroscope": gyro}))
+
+    imu(d / "cal.json", "imu_g.json", block(False, "deg/s", 180 / np.pi))  # nonlinear12 in g, deg/s gyroscope
+    imu(d / "calc.json", "imu_c.json", block(False, "counts", 16.4 * 180 / np.pi))  # linear9 in counts
+    imu(d / "calc.json", "imu_gs.json", block(True, "counts", 16.4 * 180 / np.pi))  # with g-sensitivity
+    lin_g = d / "lin_g.json"
+    lin_g.write_text(json.dumps(calibration_dict(LinearPart(np.eye(3), np.zeros(3), "g"), fmt="test", source="t")))
+    imu(lin_g, "imu_lin_gc.json", block(False, "counts", 16.4 * 180 / np.pi))  # Kalibr-ready but for counts
+    t = np.arange(500) / 100.0
+    np.savetxt(d / "gyro_shifted.csv", np.column_stack([t + 0.005, np.zeros((500, 3))]), delimiter=",", fmt="%.10g")
+    t = np.arange(6000) / 100.0
+    np.savetxt(d / "rest_gyro_shifted.csv", np.column_stack([t + 0.005, np.zeros((6000, 3))]), delimiter=",",
+               fmt="%.10g")
+    (d / "acc_noise.yaml").write_text("accelerometer_noise_density: 1e-3\naccelerometer_random_walk: 1e-4\n")
+    (d / "imu_tk_gyro.txt").write_text((d / "imu_tk.txt").read_text())
 
 
 def row(name, argv, fragment, xfail=None):
@@ -223,6 +257,15 @@ CASES = [
     row("apply-detector-threshold", APPLY + ["--threshold-k", "3"], "--threshold-k"),
     row("apply-height-without-latitude", APPLY + ["--height", "100"], "without a latitude"),
     row("apply-unknown-version", ["apply", "v3.json", "raw_g.csv", "-o", "out.csv"], "format_version 3"),
+    # apply with the gyroscope (issue #23): asked for without a gyroscope block, columns missing, times disagree
+    row("apply-gyro-columns-without-gyroscope", APPLY + ["--gyro-columns", "gx,gy,gz"], "has no gyroscope block"),
+    row("apply-gyro-file-without-gyroscope", APPLY + ["--gyro", "gyro_shifted.csv"], "has no gyroscope block"),
+    row("apply-gyro-columns-missing", ["apply", "imu_g.json", "raw_g.csv", "-o", "out.csv", "--gyro-columns",
+                                       "gx,gy,gz"], "no column 'gx'"),
+    row("apply-gyro-times-disagree", ["apply", "imu_g.json", "raw_g.csv", "-o", "out.csv", "--gyro",
+                                      "gyro_shifted.csv"], "times disagree"),
+    row("apply-gyro-columns-wrong-count", ["apply", "imu_g.json", "raw_g.csv", "-o", "out.csv", "--gyro-columns",
+                                           "gx,gy"], "must name 3 columns"),
     # info
     row("info-zero-noise", INFO + ["--noise-ug", "0"], "--noise-ug 0"),
     row("info-negative-noise", INFO + ["--noise-ug", "-1"], "--noise-ug -1"),
@@ -258,6 +301,13 @@ CASES = [
     row("noise-negative-scale", NOISE + ["--scale", "-2"], "--scale -2"),
     row("noise-unknown-units", NOISE + ["--units", "furlongs"], "furlongs"),
     row("noise-bad-interval", NOISE + ["--interval", "5-9"], "START:END"),
+    row("noise-gyro-columns-without-units", NOISE + ["--gyro-columns", "gx,gy,gz"], "give --gyro-units"),
+    row("noise-gyro-counts-without-scale", NOISE + ["--gyro-units", "counts", "--gyro-columns", "1,2,3"],
+        "give --gyro-scale"),
+    row("noise-gyro-columns-missing", NOISE + ["--gyro-units", "deg/s", "--kalibr-yaml", "k.yaml"],
+        "names no gyroscope columns"),
+    row("noise-gyro-times-disagree", NOISE + ["--gyro", "rest_gyro_shifted.csv", "--gyro-units", "deg/s",
+                                              "--kalibr-yaml", "k.yaml"], "times disagree"),
     # export and import
     row("export-output-is-input", ["export", "cal.json", "--format", "matrix", "-o", "cal.json", "--force"],
         "is also an input"),
@@ -268,6 +318,28 @@ CASES = [
     row("export-missing-calibration", ["export", "none.json", "--format", "matrix", "-o", "m.json"],
         "does not exist"),
     row("export-unknown-version", ["export", "v3.json", "--format", "matrix", "-o", "m.json"], "format_version 3"),
+    row("export-imu-file-to-matrix", ["export", "imu_c.json", "--format", "matrix", "-o", "m.json"],
+        "holds one affine map"),
+    row("export-imu-tk-without-gyro-output", ["export", "imu_c.json", "--format", "imu_tk", "-o", "a.calib"],
+        "--gyro-output FILE"),
+    row("export-imu-tk-g-sensitivity", ["export", "imu_gs.json", "--format", "imu_tk", "-o", "a.calib",
+                                        "--gyro-output", "g.calib"], "no g-sensitivity"),
+    row("export-kalibr-gyroscope-in-counts", ["export", "imu_lin_gc.json", "--format", "kalibr", "-o", "k.yaml"],
+        "gyroscope outputs are in counts"),
+    row("export-kalibr-noise-without-gyroscope", ["export", "imu_lin_gc.json", "--format", "kalibr", "-o", "k.yaml",
+                                                  "--noise", "acc_noise.yaml"], "lacks gyroscope_noise_density"),
+    row("export-gyro-output-not-imu-tk", ["export", "imu_c.json", "--format", "imucal", "-o", "i.json",
+                                          "--gyro-output", "g.calib"], "imu_tk only"),
+    row("export-gyro-output-without-gyroscope", ["export", "calc.json", "--format", "imu_tk", "-o", "a.calib",
+                                                 "--gyro-output", "g.calib"], "has no gyroscope block"),
+    row("export-noise-not-kalibr", ["export", "imu_c.json", "--format", "imucal", "-o", "i.json", "--noise",
+                                    "acc_noise.yaml"], "kalibr only"),
+    row("import-imu-tk-gyro-without-units", ["import", "imu_tk.txt", "--format", "imu_tk", "--units", "g", "--gyro",
+                                             "imu_tk_gyro.txt", "-o", "i.json"], "give them with --gyro-units"),
+    row("import-gyro-units-without-gyro-file", ["import", "imu_tk.txt", "--format", "imu_tk", "--units", "g",
+                                                "--gyro-units", "counts", "-o", "i.json"], "(--gyro)"),
+    row("import-gyro-file-not-imu-tk", ["import", "imu_tk.txt", "--format", "kalibr", "--gyro", "imu_tk_gyro.txt",
+                                        "-o", "i.json"], "imu_tk's second file"),
     row("import-imu-tk-without-units", ["import", "imu_tk.txt", "--format", "imu_tk", "-o", "i.json"], "--units"),
     row("import-missing-folder", ["import", "imu_tk.txt", "--format", "imu_tk", "--units", "g", "-o",
                                   "missing/i.json"], "does not exist"),
