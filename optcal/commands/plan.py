@@ -1,4 +1,5 @@
-"""optcal plan: plan the positions of a calibration, or advise the next one (docs/planning.md)."""
+"""optcal plan: plan the positions of a calibration, or advise the next one; with ``--sensor gyroscope``, plan the
+order of a scheme's poses and the rotations between them for the gyroscope (docs/planning.md)."""
 
 from __future__ import annotations
 
@@ -8,25 +9,33 @@ from ..errors import InputError
 from ._common import check_seed, refuse_overwrite, refuse_same_file
 from ._dataopts import add_data_options, gravity_from_args, load_positions
 
-HELP = "plan N calibration positions (D-, A-, E-optimal or to targets), or advise the next pose for recorded ones"
+HELP = ("plan N calibration positions (D-, A-, E-optimal or to targets), advise the next pose for recorded ones, or "
+        "plan the rotations between poses for the gyroscope")
+GYRO_OPTIONS = ("scheme", "gyro_model", "order", "rotations", "gyro_noise", "rest_s", "rate_limit", "motion_budget",
+                "headings")
 
 
 def add_arguments(p):
+    p.add_argument("--sensor", choices=("accelerometer", "gyroscope"), default="accelerometer",
+                   help="accelerometer: plan the positions (default); gyroscope: plan the order of a scheme's poses "
+                   "and the rotation between each two (docs/planning.md, 'Planning the rotations')")
     p.add_argument("--n", type=int, metavar="N", help="number of positions to plan")
     p.add_argument("--model", default="nonlinear12", help="model name or sum of terms (default nonlinear12)")
-    p.add_argument("--criterion", default="D", choices=("D", "A", "E", "targets"),
+    p.add_argument("--criterion", default="D", choices=("D", "A", "E", "targets", "worst"),
                    help="D: log-det of the information; A: mean variance; E: worst direction; targets: every "
-                   "SD within its target (default D)")
+                   "SD within its target (accelerometer); worst: the largest parameter variance (gyroscope; "
+                   "default D)")
     p.add_argument("--targets", metavar="LIST", help="SD targets, e.g. 'scale<=20ppm,bias<=30ug' (units: ppm for "
                    "scale, ug or mg for bias, urad, arcsec or deg for misalignment, ppm/g for quadratic)")
-    p.add_argument("--noise-ug", type=float, help="SD of each position's mean per axis, µg (default 10; with "
-                   "--recorded: the data's own when they have sx, sy, sz)")
+    p.add_argument("--noise-ug", type=float, help="SD of each position's (gyroscope: rest's) mean per axis, µg "
+                   "(default 10; with --recorded: the data's own when they have sx, sy, sz)")
     p.add_argument("--fixture", default="free",
                    help="free (hand-held, default), faces (a cube's six faces), faces:STEP (a cube on a tilt "
                    "plate, tilts in STEP degrees) or head:STEP (a dividing head about each axis)")
     p.add_argument("--solver", default="cmaes", help="registered search method for the design problem, or "
                    "'exchange' for the exchange algorithm alone (default cmaes; the exchange always runs as a check)")
-    p.add_argument("--starts", type=int, default=2, help="independent random starts of the solver (default 2)")
+    p.add_argument("--starts", type=int, help="independent random starts of the solver (default 2; gyroscope: "
+                   "starting orders, the scheme's and random ones, default 8)")
     p.add_argument("--budget", type=int, default=5000, help="cost evaluations per start (default 5000)")
     p.add_argument("--placement-deg", type=float, default=3.0,
                    help="placement error SD per axis for the robustness score, degrees (default 3; 0: none)")
@@ -38,6 +47,23 @@ def add_arguments(p):
                    "simulate, info and study specs)")
     p.add_argument("--plot", metavar="FILE.png", help="figure of the directions on the sphere")
     p.add_argument("--force", action="store_true", help="overwrite existing output files")
+    g = p.add_argument_group("gyroscope (with --sensor gyroscope)")
+    g.add_argument("--scheme", help="the poses: 6, 24, 36, random:N, plan:D18 or a scheme file (default 24)")
+    g.add_argument("--gyro-model", help="gyro9 (scale factors and misalignments, the bias from the rests), gyro12 "
+                   "(and the bias; default) or gyro21 (and g-sensitivity)")
+    g.add_argument("--order", choices=("plan", "given"), help="plan the order of the poses (default) or keep the "
+                   "scheme's")
+    g.add_argument("--rotations", choices=("plan", "axes", "shortest"), help="plan each motion's rotation (default), "
+                   "plan it among the turns about the sensor's own axes (easiest by hand), or take the shortest")
+    g.add_argument("--gyro-noise", type=float, metavar="DPS_RTHZ", help="the gyroscope's rate noise density, "
+                   "°/s/√Hz (default 0.0057, i.e. 1e-4 rad/s/√Hz)")
+    g.add_argument("--rest-s", type=float, metavar="S", help="each rest's time, s (default 3)")
+    g.add_argument("--rate-limit", type=float, metavar="DPS", help="the peak rate of a motion, °/s: a turn by θ "
+                   "takes 2θ/limit, at least 0.5 s (default 90)")
+    g.add_argument("--motion-budget", type=float, metavar="S", help="at most this much time in motion in all, s "
+                   "(default: no limit)")
+    g.add_argument("--headings", type=int, metavar="H", help="turns about the vertical tried per pair of poses "
+                   "(default 8), besides the turns about the sensor's axes")
     add_data_options(p)
 
 
@@ -90,6 +116,15 @@ def _print_sd(rows) -> None:
 
 def run(args) -> int:
     check_seed(args.seed)
+    if args.sensor == "gyroscope":
+        return _plan_gyro(args)
+    given = [f"--{o.replace('_', '-')}" for o in GYRO_OPTIONS if getattr(args, o) is not None]
+    if given:
+        raise InputError(f"{', '.join(given)} plan the gyroscope's rotations; add --sensor gyroscope")
+    if args.criterion == "worst":
+        raise InputError("--criterion worst is the gyroscope's; for the accelerometer use D, A, E or targets")
+    if args.starts is None:
+        args.starts = 2
     if args.recorded:
         return _advise(args)
     if args.n is None:
@@ -220,3 +255,101 @@ def _advise(args) -> int:
     print(f"next pose: face {faces[0]} down, α = {a[0]:.1f}°, β = {b[0]:.1f}° "
           f"(direction {nxt[0]:.4f}, {nxt[1]:.4f}, {nxt[2]:.4f})")
     return 0
+
+
+def _plan_gyro(args) -> int:
+    """--sensor gyroscope: the order of a scheme's poses and the rotation of each motion (optcal.plan.gyro)."""
+    import numpy as np
+
+    from ..gyro.model import get_gyro_model
+    from ..plan.gyro import CRITERIA, GyroNoise, Timing, candidates, model_spec
+    from ..plan.gyro_follow import plan_csv, summary, verdict
+    from ..plan.gyro_search import habitual, search
+    from ..schemes import scheme
+
+    for value, name in ((args.n, "--n"), (args.recorded, "--recorded"), (args.plot, "--plot"),
+                        (args.targets, "--targets")):
+        if value is not None:
+            raise InputError(f"{name} plans the accelerometer's positions; with --sensor gyroscope give the poses "
+                             "with --scheme")
+    if args.criterion not in CRITERIA:
+        raise InputError(f"--criterion {args.criterion} is the accelerometer's; for the gyroscope use "
+                         f"{', '.join(CRITERIA)}")
+    refuse_overwrite(args.output, args.force)
+    model = args.gyro_model or "gyro12"
+    g_sens, bias = model_spec(model)
+    noise_ug = 10.0 if args.noise_ug is None else args.noise_ug
+    density = 1e-4 if args.gyro_noise is None else float(np.deg2rad(args.gyro_noise))
+    noise = GyroNoise(density, noise_ug * 1e-6, 3.0 if args.rest_s is None else args.rest_s)
+    timing = Timing(90.0 if args.rate_limit is None else args.rate_limit)
+    rng = np.random.default_rng(args.seed)
+    spec = args.scheme or "24"
+    d = scheme(spec, rng)
+    p = get_gyro_model(g_sens, bias == "fit").n_params
+    residuals = 2 * (len(d) - 1) + (3 * len(d) if bias == "fit" else 0)
+    if len(d) < 2 or residuals < p:
+        raise InputError(f"{len(d)} pose(s) give {residuals} residuals, fewer than the {p} parameters of {model}: "
+                         "give a scheme with more poses")
+    cands = candidates(d, model, noise=noise, timing=timing, headings=8 if args.headings is None else args.headings,
+                       rng=rng)
+    plan = search(cands, args.criterion, order=args.order or "plan", rotations=args.rotations or "plan",
+                  restarts=8 if args.starts is None else args.starts, budget_s=args.motion_budget, rng=rng)
+    rank = verdict(plan.directions, plan.rotvec, plan.duration, model, noise, rng)  # names what is undetermined
+    if not np.isfinite(plan.value):
+        raise InputError(f"the plan leaves {model} nearly undetermined (its information is singular to the "
+                         "observability threshold); give more poses, or a model with fewer parameters")
+    try:
+        hab = habitual(cands, kind=args.criterion)
+    except InputError:  # the scheme's order puts opposite poses side by side: no habitual plan to compare with
+        hab = None
+    settings = (f"scheme {spec}, {len(d)} poses, model {model}, criterion {args.criterion}, order "
+                f"{args.order or 'plan'}, rotations {args.rotations or 'plan'}, rate limit {timing.rate_limit_dps:g} "
+                f"°/s, noise {np.rad2deg(density):.3g} °/s/√Hz and {noise_ug:g} µg per rest mean, rests "
+                f"{noise.rest_s:g} s, seed {args.seed}")
+    out = summary(plan, hab, rank)
+    if args.output:
+        from pathlib import Path
+
+        Path(args.output).write_text(plan_csv(plan, [f"optcal plan --sensor gyroscope: {settings}",
+                                                     f"criterion {args.criterion} = {plan.value:.6g} (variance in "
+                                                     "natural units), motions "
+                                                     f"{plan.motion_s:.2f} s, session {plan.session_s:.2f} s"]),
+                                     encoding="utf-8")
+    if args.json:
+        out["settings"] = settings
+        print(json.dumps(out, indent=2))
+        return 0
+    _print_gyro(settings, out)
+    return 0
+
+
+def _z(v: float, digits: int) -> float:
+    """``v`` rounded to ``digits`` decimals, without the sign of a rounded-away negative ("-0.0")."""
+    return round(v, digits) + 0.0
+
+
+def _print_gyro(settings: str, out: dict) -> None:
+    print(f"optcal plan --sensor gyroscope: {settings}")
+    print(f"criterion {out['criterion']} = {out['criterion_value']:.4g}, a {out['criterion_unit']}; motions "
+          f"{out['motion_s']:.1f} s, session {out['session_s']:.1f} s")
+    h = out.get("habitual")
+    if h:
+        print(f"habitual plan (the scheme's order, shortest rotations): {h['criterion_value']:.4g}, motions "
+              f"{h['motion_s']:.1f} s, session {h['session_s']:.1f} s; this plan's criterion is {h['factor']:.3g} "
+              "times lower")
+    print(f"{'#':>3} {'face down':>9} {'α °':>7} {'β °':>7}   {'dx':>8} {'dy':>8} {'dz':>8}   then turn about axis "
+          "(sensor frame)       angle °  time s  peak °/s")
+    for pose, m in zip(out["poses"], out["motions"] + [None], strict=True):
+        line = (f"{pose['position']:>3} {pose['face_down']:>9} {_z(pose['alpha_deg'], 1):7.1f} "
+                f"{_z(pose['beta_deg'], 1):7.1f}   {_z(pose['dx'], 4):8.4f} {_z(pose['dy'], 4):8.4f} "
+                f"{_z(pose['dz'], 4):8.4f}")
+        if m:
+            ax = "(" + ", ".join(f"{_z(v, 4):7.4f}" for v in m["axis"]) + ")"
+            line += (f"   {ax} {m['about'] or '':>3}  {m['angle_deg']:7.1f}  {m['duration_s']:6.2f}  "
+                     f"{m['peak_dps']:8.1f}")
+        print(line)
+    print(f"{'parameter':<10} {'Cramér-Rao SD':>14}  unit")
+    for r in out["crlb"]:
+        print(f"{r['name']:<10} {r['sd']:>14.4g}  {r['unit']}")
+    print(f"observability: all {out['n_parameters']} parameters determined (rank {out['rank']} of "
+          f"{out['n_parameters']}) by a recording that follows the plan")

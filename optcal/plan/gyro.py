@@ -34,8 +34,6 @@ import numpy as np
 
 from ..errors import InputError
 from ..gauge import RTOL
-from ..gyro.analysis import check_observable
-from ..gyro.data import GyroData
 from ..gyro.model import get_gyro_model
 from ..gyro.problem import GyroProblem
 from ..gyro.simulate import simulate_imu
@@ -195,6 +193,12 @@ class Candidates:
     def angle(self) -> np.ndarray:
         return np.linalg.norm(self.rotvec, axis=1)
 
+    @property
+    def about_axis(self) -> np.ndarray:
+        """True for the turns about one of the sensor's axes."""
+        a = np.abs(self.rotvec) / np.maximum(self.angle, 1e-300)[:, None]
+        return (np.abs(a.max(axis=1) - 1.0) < 1e-6) & (self.angle > 0)
+
     def shortest_of(self, i: np.ndarray, j: np.ndarray) -> np.ndarray:
         """The shortest candidate of each pair (U[i] → U[j]); −1 where there is none (opposite directions)."""
         O = self.options[i, j]
@@ -247,7 +251,7 @@ def whitened_rows(rows: np.ndarray, window: np.ndarray, duration: np.ndarray, na
     return R / noise.motion_sd(duration)[:, None, None]
 
 
-def _align(u: np.ndarray) -> np.ndarray:
+def level_attitudes(u: np.ndarray) -> np.ndarray:
     """Body-to-world attitudes (m, 3, 3) putting each body direction u on the world's vertical."""
     from scipy.spatial.transform import Rotation
 
@@ -290,7 +294,7 @@ def _jacobian_rows(U, a, b, rotvec, g_sens: bool, bias: str, rng):
         if s < 0:  # jump: a fresh pose at vertex −s − 1; the motion into it is not a candidate
             if C:
                 motion_of.append(-1)
-            C.append(_align(U[[-s - 1]])[0])
+            C.append(level_attitudes(U[[-s - 1]])[0])
             vertex.append(-s - 1)
         else:
             motion_of.append(s)
@@ -395,6 +399,24 @@ class MotionPlan:
     def duration(self) -> np.ndarray:
         return self.cands.duration[self.choice]
 
+    @property
+    def angle_deg(self) -> np.ndarray:
+        return np.rad2deg(np.linalg.norm(self.rotvec, axis=1))
+
+    @property
+    def peak_dps(self) -> np.ndarray:
+        """Each motion's peak rate (°/s) on the simulator's smooth profile, 2θ/T."""
+        return 2.0 * self.angle_deg / self.duration
+
+    @property
+    def motion_s(self) -> float:
+        return float(self.duration.sum())
+
+    @property
+    def session_s(self) -> float:
+        """Rests and motions (s)."""
+        return len(self.order) * self.cands.noise.rest_s + self.motion_s
+
     def family_sd(self) -> dict[str, float]:
         """The largest SD of each parameter family, in the unit a user reads (DISPLAY)."""
         out = {}
@@ -410,52 +432,3 @@ def information(cands: Candidates, choices: np.ndarray) -> np.ndarray:
     it) plus the motions ``choices`` (S, N − 1) (candidate ids)."""
     F_rest = cands.rest_info[cands.vertex].sum(axis=0)
     return F_rest[None] + cands.info[np.asarray(choices)].sum(axis=1)
-
-
-def simulate_plan(plan_rotvec: np.ndarray, plan_duration: np.ndarray, first_direction: np.ndarray, model: str,
-                  truth: np.ndarray, noise: GyroNoise, rng: np.random.Generator, rate_hz: float = 100.0) -> GyroData:
-    """A recording following a plan: rest ``noise.rest_s`` at the first pose, then each motion (rotation vector,
-    sensor frame, over its duration, the simulator's smooth profile) and a rest, with white rate noise of the
-    stated density and each rest's mean specific force off by the stated direction noise per axis. ``truth``:
-    the parameters of the simulated gyroscope (:func:`optcal.gyro.simulate.draw_truth`'s model with bias and,
-    for gyro21, g-sensitivity). One simulation per motion (each has its own duration), joined in time."""
-    from scipy.spatial.transform import Rotation
-
-    g_sens, _ = model_spec(model)
-    full = get_gyro_model(g_sens)
-    C = [_align(np.asarray(first_direction, float)[None])[0]]
-    for Q in Rotation.from_rotvec(np.atleast_2d(plan_rotvec)).as_matrix():
-        C.append(C[-1] @ Q)
-    n_rest = int(round(noise.rest_s * rate_hz))
-    acc = noise.direction * np.sqrt(n_rest)
-    t, W, F, rests, t0 = [], [], [], [], 0.0
-    for k, T in enumerate(np.atleast_1d(plan_duration)):
-        s = simulate_imu(full, truth, attitudes=np.array(C[k:k + 2]), rate_hz=rate_hz, rest_s=noise.rest_s,
-                         motion_s=float(T) - 1.0 / rate_hz, noise_rate=noise.density * np.sqrt(rate_hz),
-                         noise_acc_g=acc, rng=rng).data
-        last = k == len(C) - 2
-        end = len(s.t) if last else int(s.detected_rests[1, 0])
-        base = sum(len(x) for x in t)
-        rests.append(s.detected_rests[0] + base)
-        if last:
-            rests.append(s.detected_rests[1] + base)
-        t.append(s.t[:end] + t0)
-        W.append(s.W[:end])
-        F.append(s.F[:end])
-        t0 += end / rate_hz
-    return GyroData(np.concatenate(t), np.concatenate(W), np.concatenate(F), np.array(rests), units="rad/s")
-
-
-def verdict(plan_rotvec, plan_duration, first_direction, model: str, noise: GyroNoise,
-            rng: np.random.Generator) -> int:
-    """The rank of the gyroscope problem of a recording that follows the plan (simulated with the stated noise,
-    nominal sensor): an InputError naming the parameters it leaves undetermined when any are
-    (:func:`optcal.gyro.analysis.check_observable`)."""
-    g_sens, bias = model_spec(model)
-    truth = get_gyro_model(g_sens).default_vector(1.0)
-    data = simulate_plan(plan_rotvec, plan_duration, first_direction, model, truth, noise, rng)
-    problem = GyroProblem(data, g_sensitivity=g_sens, bias=bias, scale=1.0)
-    try:
-        return check_observable(problem, problem.from_sensor(truth)).rank
-    except InputError as exc:
-        raise InputError(f"{model}: {exc}") from None

@@ -30,17 +30,23 @@ CHUNK = 256  # plans scored per batch (memory: CHUNK·N·p² numbers)
 # determine the model yet (as the planner's ridge for positions, :mod:`.design`); the plan is scored without it.
 RIDGE = 1e-8
 ORDERS = ("plan", "given")
-ROTATIONS = ("plan", "shortest")
+ROTATIONS = ("plan", "axes", "shortest")
 
 
 class _Search:
-    """The candidates, the criterion, the ridge and the motion budget (s; inf: none) of one search."""
+    """The candidates, the criterion, the ridge, the motion budget (s; inf: none) and the rotations allowed
+    (``options``: all, or only the turns about the sensor's axes) of one search."""
 
-    def __init__(self, cands: Candidates, kind: str, budget_s: float):
-        self.c, self.kind, self.budget = cands, kind, budget_s
+    def __init__(self, cands: Candidates, kind: str, budget_s: float, rotations: str):
+        self.c, self.kind, self.budget, self.rotations = cands, kind, budget_s, rotations
         self.ridge = RIDGE * float(np.trace(cands.info.mean(axis=0))) / cands.info.shape[1]
         n = len(cands.U)
         self.shortest = cands.shortest_of(*np.meshgrid(np.arange(n), np.arange(n), indexing="ij"))
+        O = cands.options
+        self.options = O if rotations != "axes" else np.where(cands.about_axis[np.maximum(O, 0)], O, -1)
+        T = np.where(self.options >= 0, cands.duration[np.maximum(self.options, 0)], np.inf)
+        self.quickest = np.where(np.isfinite(T.min(axis=-1)),
+                                 np.take_along_axis(self.options, np.argmin(T, axis=-1)[..., None], -1)[..., 0], -1)
 
     def scores(self, choices: np.ndarray) -> np.ndarray:
         """The criterion (B,) of plans (B, N − 1) of candidate ids, with the ridge; inf where a step has none
@@ -59,7 +65,7 @@ class _Search:
         criterion."""
         c = self.c
         v = c.vertex[order]
-        O = c.options[v[:-1], v[1:]]
+        O = self.options[v[:-1], v[1:]]
         p = c.info.shape[1]
         choice = choice.copy()
         F = information(c, choice[None])[0]
@@ -84,26 +90,24 @@ class _Search:
         Fi = np.linalg.inv(F + self.ridge * np.eye(len(F)))
         G = np.einsum("mrp,pq,msq->mrs", R, Fi, R)
         gain = np.log((1 + G[:, 0, 0]) * (1 + G[:, 1, 1]) - G[:, 0, 1] * G[:, 1, 0])
-        O = self.c.options
+        O = self.options
         vals = np.where(O >= 0, gain[np.maximum(O, 0)], -np.inf)
         best = np.take_along_axis(O, np.argmax(vals, axis=-1)[..., None], -1)[..., 0]
         return np.where(np.isfinite(vals.max(axis=-1)), best, -1)
 
-    def local(self, order: np.ndarray, rotations: str, move_order: bool) -> tuple[np.ndarray, np.ndarray, float]:
+    def local(self, order: np.ndarray, move_order: bool) -> tuple[np.ndarray, np.ndarray, float]:
         """Local search from ``order``: the plan and its criterion (with the ridge)."""
         v = self.c.vertex
-        # without a budget the rotations start as each pair's best; with one, as the shortest (least time)
-        plan_all = rotations == "plan" and not np.isfinite(self.budget)
-        if plan_all:
-            choice = self.best_options(self.c.rest_info[v].sum(axis=0))[v[order[:-1]], v[order[1:]]]
-        else:
-            choice = self.shortest[v[order[:-1]], v[order[1:]]]
+        # each step starts as its pair's best rotation; with a budget, as its quickest (shortest: always)
+        base = self.shortest if self.rotations == "shortest" else self.quickest if np.isfinite(self.budget) else None
+        first = base if base is not None else self.best_options(self.c.rest_info[v].sum(axis=0))
+        choice = first[v[order[:-1]], v[order[1:]]]
         cur = float(self.scores(choice[None])[0])
-        if rotations == "plan" and np.isfinite(cur):
+        if self.rotations != "shortest" and np.isfinite(cur):
             choice, cur = self.polish(order, choice)
         while move_order:
-            edge = (self.best_options(information(self.c, np.maximum(choice, 0)[None])[0]) if plan_all
-                    else self.shortest.copy())
+            edge = (base.copy() if base is not None
+                    else self.best_options(information(self.c, np.maximum(choice, 0)[None])[0]))
             ok = choice >= 0
             edge[v[order[:-1]][ok], v[order[1:]][ok]] = choice[ok]  # a step the move keeps keeps its rotation
             P = neighbours(order)
@@ -113,7 +117,7 @@ class _Search:
             if not vals[k] < cur * (1 - 1e-12):
                 break
             order, choice, cur = P[k], C[k], float(vals[k])
-            if rotations == "plan":
+            if self.rotations != "shortest":
                 choice, cur = self.polish(order, choice)
         return order, choice, cur
 
@@ -151,7 +155,8 @@ def search(cands: Candidates, kind: str = "D", *, order: str = "plan", rotations
            budget_s: float | None = None, given: np.ndarray | None = None,
            rng: np.random.Generator) -> MotionPlan:
     """The best plan found: the poses' order (``order`` "plan", or "given": ``given``, default the scheme's)
-    and the rotations (``rotations`` "plan", or "shortest") minimising criterion ``kind``, the motions taking
+    and the rotations (``rotations`` "plan": any candidate; "axes": turns about the sensor's own axes, which a
+    hand or a dividing head makes most easily; "shortest") minimising criterion ``kind``, the motions taking
     at most ``budget_s`` seconds in all (None: no limit)."""
     if order not in ORDERS:
         raise InputError(f"unknown order {order!r}; use {' or '.join(ORDERS)}")
@@ -165,13 +170,15 @@ def search(cands: Candidates, kind: str = "D", *, order: str = "plan", rotations
     start = np.arange(n) if given is None else np.asarray(given, int)
     if order == "given" and rotations == "shortest" and budget_s is None:
         return habitual(cands, start, kind)
-    run = _Search(cands, kind, np.inf if budget_s is None else float(budget_s))
+    run = _Search(cands, kind, np.inf if budget_s is None else float(budget_s), rotations)
     starts = [start] + ([rng.permutation(n) for _ in range(restarts - 1)] if order == "plan" else [])
-    best = min((run.local(s, rotations, order == "plan") for s in starts), key=lambda r: r[2])
+    best = min((run.local(s, order == "plan") for s in starts), key=lambda r: r[2])
     o, c, v = best
     if np.any(c < 0):
-        raise InputError("the given order puts opposite poses side by side: no single turn of less than 180° "
-                         "joins them; plan the order (--order plan), or put a pose between them")
+        what = ("puts opposite poses side by side: no single turn of less than 180° joins them" if rotations != "axes"
+                else "has consecutive poses that no turn about a sensor axis joins")
+        raise InputError(f"the {'given ' if order == 'given' else ''}order {what}; plan the order (--order plan), "
+                         "or allow any rotation (--rotations plan)")
     if not np.isfinite(v):
         raise InputError(f"no plan of these poses fits the motion budget of {budget_s:g} s at this rate limit; "
                          "allow more time, or raise the rate limit")
