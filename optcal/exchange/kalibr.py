@@ -5,7 +5,10 @@ Kalibr predicts an accelerometer measurement as a_m = M·a + b(t) with a the spe
 and a_m, a in m/s²: M a lower-triangular matrix (its design variable is initialised to I with only the cells
 on and below the diagonal active) and b(t) a bias that Kalibr estimates as a random walk, not a constant.
 Its result yaml holds, per IMU, ``model: scale-misalignment``, ``accelerometers: {M: 3×3}`` and
-``gyroscopes: {M, A, C_gyro_i}``; no accelerometer bias.
+``gyroscopes: {M, A, C_gyro_i}`` (:mod:`optcal.exchange.gyro_kalibr`; the identity for a calibration without
+a gyroscope); no accelerometer bias. Its imu.yaml also holds the noise model, four numbers in SI
+(:data:`NOISE_FIELDS`, which ``optcal noise --kalibr-yaml`` measures): an export with them writes a complete
+entry but for ``rostopic``.
 
 From optcal's N = M_o·A + o (A in g, N in units u with s m/s² per u): M = (s/g0)·M_o and the bias s·o. M is
 lower triangular exactly when T is (optcal's gauge, docs/design.md §6.3), so linear9 and diag6 fit Kalibr's

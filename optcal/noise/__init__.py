@@ -1,4 +1,4 @@
-"""Noise of a static accelerometer recording, read from its Allan deviation.
+"""Noise of a static accelerometer (or gyroscope) recording, read from its Allan deviation.
 
 The package: :mod:`~optcal.noise.allan` reads the stretch and computes σ(τ), :mod:`~optcal.noise.fit` fits the
 three terms and their intervals, :mod:`~optcal.noise.report` holds the result and writes the table, the JSON
@@ -52,6 +52,12 @@ mg/1000, m/s²/g0; counts and volts by a scale in output units per g, given, or 
 stretch's mean output (a static sensor reads 1 g). That default assumes equal scales on the three axes and
 small biases: it is off by the bias along gravity over 1 g (about 10 % on the MPU-6050 recording in
 tests/data, whose z offset is 0.11 g); give the nominal or calibrated scale when it matters.
+
+A gyroscope is analysed the same way, its samples turned into rad/s instead of g (by its output units per
+rad/s: exact for deg/s and rad/s, given for counts and volts); :class:`NoiseReport` with ``sensor``
+"gyroscope" then reads N in rad/s/√Hz, B in rad/s and K in rad/s/√s = rad/s²/√Hz, Kalibr's
+``gyroscope_noise_density`` and ``gyroscope_random_walk`` (:mod:`~optcal.noise.report`). ``optcal noise``
+finds the gyroscope's columns as ``optcal imu`` does.
 """
 
 from .allan import (
@@ -84,11 +90,11 @@ from .fit import (
     noise_type,
     read_terms,
 )
-from .report import G0, METHOD, UNIT_SCALE, AxisNoise, NoiseReport
+from .report import G0, METHOD, SENSORS, UNIT_SCALE, AxisNoise, NoiseReport
 
 __all__ = [
     "AXES", "DEFAULT_CI", "FLICKER_FACTOR", "G0", "MAX_STATIC_G", "METHOD", "MIN_AVERAGES", "MIN_TAUS",
-    "MIN_TERM_EDF", "NONSTATIC_RATIO", "RAMP_SLOPE", "RW_TAU_S", "SLOPE_TOL", "UNIT_SCALE", "WHITE_TAU_S",
+    "MIN_TERM_EDF", "NONSTATIC_RATIO", "RAMP_SLOPE", "RW_TAU_S", "SENSORS", "SLOPE_TOL", "UNIT_SCALE", "WHITE_TAU_S",
     "AxisNoise", "Coefficient", "Fit", "NoiseReport", "WhiteNoise", "analyse", "analyse_axis", "chi2_interval",
     "colored_noise",
     "fit_terms", "greenhall_edf", "load_white_noise", "noise_from_recording", "noise_type", "octave_m",
