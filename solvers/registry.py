@@ -14,7 +14,6 @@ from __future__ import annotations
 
 import importlib.util
 from collections.abc import Callable
-from importlib import metadata
 
 from optcal.errors import InputError
 
@@ -76,6 +75,8 @@ def load_entry_points() -> list[str]:
     if _entry_points_loaded:
         return []
     _entry_points_loaded = True
+    from importlib import metadata  # here: scanning the installed packages costs a command tens of ms
+
     loaded = []
     for ep in metadata.entry_points(group="optcal.solvers"):
         obj = ep.load()
@@ -124,7 +125,8 @@ def wrapper_factory(prefix: str) -> Callable[..., Solver]:
 
 
 def solver_class(name: str) -> tuple[type[Solver], dict]:
-    load_entry_points()
+    if name not in _SOLVERS:  # a plug-in cannot take a built-in solver's name: look further only for others
+        load_entry_points()
     if name not in _SOLVERS:
         known = ", ".join(names())
         raise InputError(f"unknown solver {name!r}; registered solvers: {known} (wrappers and families: "

@@ -158,3 +158,28 @@ def test_without_pyarrow_the_numpy_reader_is_used(tmp_path, monkeypatch):
     rec = reading.read_recording(tmp_path / "r.csv", units="counts")
     assert reading._arrow_csv is None
     assert rec.N[-1].tolist() == [49, -49, 98]
+
+
+def test_calibrating_a_raw_recording_imports_no_heavy_module(tmp_path):
+    """The whole ``optcal calibrate RAW --raw --units counts`` on imu_tk's Xsens recording (issue #20: the
+    process's time is mostly imports): none of HEAVY, no importlib.metadata (entry points are read only for a
+    name that is not built in), and of the command modules only calibrate's. The fit is solvers.lm's."""
+    import gzip
+    from pathlib import Path
+
+    raw = Path(__file__).parent / "data" / "imu_tk" / "xsens_acc.mat.gz"
+    path = tmp_path / "xsens_acc.mat"
+    path.write_bytes(gzip.decompress(raw.read_bytes()))
+    code = f"""
+        import contextlib, io, sys
+        from optcal.cli import main
+        out = io.StringIO()
+        with contextlib.redirect_stdout(out):
+            assert main(["calibrate", {str(path)!r}, "--raw", "--units", "counts"]) == 0
+        assert "solver lm" in out.getvalue()
+        commands = sorted(m for m in sys.modules
+                          if m.startswith("optcal.commands.") and not m.split(".")[-1].startswith("_"))
+        assert commands == ["optcal.commands.calibrate"], commands
+        assert "importlib.metadata" not in sys.modules
+    """
+    assert imported(code, HEAVY + ("pydantic", "ruptures")) == []
