@@ -95,7 +95,8 @@ def gyro_scale(args) -> float | None:
         if not (math.isfinite(args.gyro_scale) and args.gyro_scale > 0):
             raise InputError(f"--gyro-scale {args.gyro_scale:g} must be a positive number of output units per rad/s")
         return args.gyro_scale
-    nominal = {"deg/s": 180.0 / math.pi, "rad/s": 1.0}  # optcal.gyro.calfile.NOMINAL_SCALE
+    from ..gyro.calfile import NOMINAL_SCALE as nominal
+
     if args.gyro_units not in nominal:
         raise InputError(f"the gyroscope's {args.gyro_units} have no fixed value in rad/s: give --gyro-scale, its "
                          "output units per rad/s (the nominal scale, or K of an optcal imu calibration)")
