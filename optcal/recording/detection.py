@@ -65,18 +65,28 @@ class DetectionResult:
         return int(np.sum(self.intervals[:, 1] - self.intervals[:, 0])) if len(self.intervals) else 0
 
 
+def _centred_means(X: np.ndarray, window: int) -> np.ndarray:
+    """Mean of each row of ``X`` over the centred window of ``window`` samples (odd), where it fits (the
+    columns h … n − h − 1, h = window // 2; the others are left 0): differences of running sums."""
+    h = window // 2
+    c = np.zeros((X.shape[0], X.shape[1] + 1))
+    np.cumsum(X, axis=1, out=c[:, 1:])
+    out = np.zeros_like(X)
+    out[:, h:X.shape[1] - h] = (c[:, window:] - c[:, :X.shape[1] + 1 - window]) / window
+    return out
+
+
 def variance_statistic(N: np.ndarray, window: int) -> np.ndarray:
     """ς per sample: norm of the per-axis variances over a centred window of ``window`` samples (odd);
-    NaN where the window does not fit. Running sums in C (scipy.ndimage), no per-sample Python loop."""
+    NaN where the window does not fit. Running sums in NumPy (cumulative sums), no per-sample Python loop
+    and no scipy.ndimage (a third of a second to import)."""
     n = len(N)
     h = window // 2
     # Centred (the running sums of squares keep their precision) and one contiguous row per axis (the
-    # filter then runs along memory: three times faster than along axis 0 of an (n, 3) array).
-    from scipy.ndimage import uniform_filter1d  # here, not at module level: importing optcal stays light
-
+    # sums then run along memory).
     X = np.ascontiguousarray((N - N.mean(axis=0)).T)
-    m = uniform_filter1d(X, window, axis=1, mode="nearest")
-    m2 = uniform_filter1d(X * X, window, axis=1, mode="nearest")
+    m = _centred_means(X, window)
+    m2 = _centred_means(X * X, window)
     var = m2 - m * m
     # Below this the difference is rounding of the running sums, not signal: a window of constant
     # (quantised) samples must come out exactly 0.
