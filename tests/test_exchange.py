@@ -272,8 +272,8 @@ def test_imucal_applies_an_exported_fit_as_optcal_apply_does(tmp_path, capsys):
 
 def test_imucals_own_file_imported_gives_imucals_specific_force(tmp_path):
     """imucal's Ferraris calibration of its example session (tests/data/imucal), imported: optcal apply on the
-    session's raw counts gives what imucal's calibrate gives with the original file, to 1e-9 relative. The
-    gyroscope terms are reported as not imported."""
+    session's raw counts gives what imucal's calibrate gives with the original file, to 1e-9 relative. (The
+    gyroscope terms come in as a gyro21 block: tests/test_gyro_export_import.py.)"""
     cal = tmp_path / "imported.json"
     assert main(["import", str(DATA / "example_cal.json"), "--format", "imucal", "-o", str(cal),
                  "--gravity-ms2", "9.81"]) == 0

@@ -101,10 +101,10 @@ def gyro_rates(args, cal, rec, A) -> tuple[np.ndarray | None, np.ndarray | None,
     gcal = read_gyro_block(cal.meta, args.calibration)
     if asked:
         from ..gyro.recording import join_times
-        from .imu import _gyro_recording
+        from .imu import gyro_recording
 
         args.gyro_units = gcal.units_raw
-        gyr = _gyro_recording(args, rec)
+        gyr = gyro_recording(args, rec)
         if args.gyro:
             join_times(rec.t, gyr.t)
         W, saturated = gyr.N, gyr.saturated

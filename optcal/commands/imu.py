@@ -53,7 +53,7 @@ def _columns(spec: str | None, n: int, option: str) -> list[str] | None:
     return parts
 
 
-def _gyro_recording(args, acc_rec):
+def gyro_recording(args, acc_rec):
     """The gyroscope's samples (a Recording whose N holds them) and whether they came from a second file."""
     from ..recording import read_recording
 
@@ -104,7 +104,7 @@ def run(args) -> int:
     acc = det.recording
     cal = calibrate(positions, args.model if named else None, solver=args.solver, options=parse_options(args.option),
                     g_local=g_local, seed=args.seed, budget=args.budget)
-    gyr = _gyro_recording(args, acc)
+    gyr = gyro_recording(args, acc)
     join_times(acc.t, gyr.t)
     F = cal.model.inverse(np.asarray(cal.x, float)[None], acc.N)[0]
     data = GyroData(acc.t, gyr.N, F, det.intervals, units=args.gyro_units)

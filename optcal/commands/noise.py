@@ -113,13 +113,13 @@ def gyro_report(args, scale: float, interval):
     from ..gyro.recording import join_times
     from ..noise import noise_from_recording
     from ..recording.reading import read_recording
-    from .imu import _gyro_recording
+    from .imu import gyro_recording
 
     acc = read_recording(args.recording, args.columns, args.rate, args.units)
     if args.gyro is not None or args.gyro_columns is not None:
         how = SimpleNamespace(gyro=args.gyro, gyro_columns=args.gyro_columns, gyro_units=args.gyro_units,
                               rate=args.rate, time_unit=None, data=args.recording)
-        gyr = _gyro_recording(how, acc)
+        gyr = gyro_recording(how, acc)
         if args.gyro is not None:
             join_times(acc.t, gyr.t)
         columns = gyr.columns
