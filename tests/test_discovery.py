@@ -302,3 +302,26 @@ def test_cli_runs_end_to_end_on_a_real_recording(capsys):
     # poses: the residual is below the floor and nothing is added (σ/√n alone made it look twice the noise)
     assert out["verdict"] == EXPLAINED and out["rms_initial_g"] < out["noise_floor_g"]
     assert out["steps"] == [] and out["chi2"]["p_value"] > 0.05
+
+
+def test_verdict_on_a_recording_uses_its_noise_floor(tmp_path):
+    """On a raw recording's positions (imu_tk's Xsens log) the final χ² is judged as ``optcal calibrate`` judges
+    it: the F test against the recording's correlated-noise floor (analysis.goodness_of_fit), not χ²_dof with the
+    floor taken as exact (issue #20, docs/noise.md), which would call the model wrong."""
+    import gzip
+
+    from optcal.analysis import goodness_of_fit
+    from optcal.distributions import chi2_sf
+    from optcal.recording.workflow import positions_from_raw
+
+    raw = Path(__file__).parent / "data" / "imu_tk" / "xsens_acc.mat.gz"
+    path = tmp_path / "xsens_acc.mat"
+    path.write_bytes(gzip.decompress(raw.read_bytes()))
+    data = positions_from_raw(path, units="counts")
+    report = discover(data, base="linear9", candidates=["quadratic"])
+    gof = goodness_of_fit(report.final.problem, report.final.x)
+    chi2, dof, p = report.chi2
+    assert gof.expected_chi2 is not None and (chi2, p) == (gof.chi2, gof.p_value)
+    plain = float(chi2_sf(float(np.sum((report.final.residuals / report.sigma_j) ** 2)), dof))
+    # measured: plain 0.0013, the floor's F test 0.020; at discovery's α = 0.01 the verdicts differ
+    assert plain < report.alpha < p and report.verdict == EXPLAINED

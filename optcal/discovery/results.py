@@ -100,6 +100,9 @@ class DiscoveryReport:
     noise_g: float | None  # RMS over positions of σ_j
     sigma_j: np.ndarray | None  # noise of each norm residual, g (from noise_g or the data's n and sx, sy, sz)
     notes: list[str] = field(default_factory=list)
+    # the final fit judged against a recording's noise floor (optcal.analysis.GoodnessOfFit), when the noise
+    # comes from the data's floor rather than a stated level
+    floor_fit: object | None = None
 
     @property
     def final_model(self) -> Model:
@@ -124,13 +127,18 @@ class DiscoveryReport:
 
     @property
     def chi2(self) -> tuple[float, int, float] | None:
-        """χ² goodness of fit of the final model against the known noise, Σ (e_j/σ_j)²: (χ², dof, p-value)."""
-        from scipy import stats
+        """χ² goodness of fit of the final model against the known noise, Σ (e_j/σ_j)²: (χ², dof, p-value).
+        With a recording's noise floor (correlated noise, estimated: ``floor_fit``) the p-value is the F test
+        of :func:`optcal.analysis.goodness_of_fit`, as ``optcal calibrate`` judges the same fit (docs/noise.md);
+        else P(χ²_dof > χ²)."""
+        from ..distributions import chi2_sf
 
         if self.sigma_j is None or self.dof < 1:
             return None
+        if self.floor_fit is not None and self.floor_fit.chi2 is not None:
+            return float(self.floor_fit.chi2), self.dof, float(self.floor_fit.p_value)
         c = float(np.sum((self.final.residuals / self.sigma_j) ** 2))
-        return c, self.dof, float(stats.chi2.sf(c, self.dof))
+        return c, self.dof, float(chi2_sf(c, self.dof))
 
     @property
     def verdict(self) -> str:

@@ -12,7 +12,7 @@ import numpy as np
 
 import solvers
 
-from ..analysis import crlb, observability
+from ..analysis import crlb, goodness_of_fit, observability
 from ..data import PositionsData
 from ..errors import InputError
 from ..model import TERMS, Model, get_model
@@ -96,5 +96,9 @@ def discover(data: PositionsData, base: str | Model = "linear9", candidates=None
         pool = [t for t in pool if t != best.term]
     sigma_j = noise_per_position(current, noise_g, notes)
     floor = None if sigma_j is None else float(np.sqrt(np.mean(sigma_j**2)))
+    gof = None
+    if noise_g is None and sigma_j is not None:
+        fit = goodness_of_fit(current.problem, current.x)
+        gof = fit if fit.expected_chi2 is not None else None  # a recording's floor: judged as calibrate does
     return DiscoveryReport(model.name, initial, current, steps, last_round, alpha, bic_threshold, floor, sigma_j,
-                           notes)
+                           notes, gof)
