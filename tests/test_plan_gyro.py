@@ -115,15 +115,15 @@ def test_planned_order_and_rotations_beat_the_habitual_24(c24):
     """The 24-position scheme in its order with the shortest turns (45° about x, y, z in turn; 25 s of motion at
     90 °/s) against planned plans, D criterion, measured with seed 0:
 
-    - order and rotations planned: 2.03 times lower (79 s of motion: larger turns carry more information and
-      take longer, at the same peak rate); turns about the sensor's axes only: 1.89; the order planned with
+    - order and rotations planned: 2.03 times lower (80 s of motion: larger turns carry more information and
+      take longer, at the same peak rate); turns about the sensor's axes only: 1.90; the order planned with
       the shortest turns: 1.87;
     - within 50 s of motion: 1.67; within the habitual plan's own 25 s: 1.01 (its 45° turns are the quickest
       there are, and at a rate limit every turned degree costs the same time: what a plan gains is in the time
       it turns for, and in the axes it turns about)."""
     h = habitual(c24)
     assert h.motion_s == pytest.approx(25.0)
-    measured = {(): 2.031, (("rotations", "axes"),): 1.886, (("rotations", "shortest"),): 1.869,
+    measured = {(): 2.035, (("rotations", "axes"),): 1.899, (("rotations", "shortest"),): 1.869,
                 (("budget_s", 50.0),): 1.672, (("budget_s", 25.0),): 1.009}
     for kw, factor in measured.items():
         plan = search(c24, restarts=8, rng=np.random.default_rng(0), **dict(kw))
@@ -133,11 +133,11 @@ def test_planned_order_and_rotations_beat_the_habitual_24(c24):
         if kw == (("rotations", "axes"),):
             assert np.all(c24.about_axis[plan.choice])
     full = search(c24, restarts=8, rng=np.random.default_rng(0))
-    assert full.motion_s == pytest.approx(79.25) and np.all(full.peak_dps <= 90.0 + 1e-9)
-    # the worst SD of each family falls too: scale factors 48 -> 36 ppm, misalignments 71 -> 43 µrad
+    assert full.motion_s == pytest.approx(79.9) and np.all(full.peak_dps <= 90.0 + 1e-9)
+    # the worst SD of each family falls too: scale factors 48 -> 37 ppm, misalignments 71 -> 42 µrad
     hw, pw = h.family_sd(), full.family_sd()
-    assert hw["K"] == pytest.approx(48.2, abs=0.1) and pw["K"] == pytest.approx(36.3, abs=0.1)
-    assert hw["T"] == pytest.approx(71.3, abs=0.1) and pw["T"] == pytest.approx(42.8, abs=0.1)
+    assert hw["K"] == pytest.approx(48.2, abs=0.1) and pw["K"] == pytest.approx(36.7, abs=0.1)
+    assert hw["T"] == pytest.approx(71.3, abs=0.1) and pw["T"] == pytest.approx(42.4, abs=0.1)
 
 
 def test_criteria_fast_path_equals_the_eigen_decomposition(c24):

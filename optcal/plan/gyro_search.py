@@ -48,17 +48,19 @@ class _Search:
         self.quickest = np.where(np.isfinite(T.min(axis=-1)),
                                  np.take_along_axis(self.options, np.argmin(T, axis=-1)[..., None], -1)[..., 0], -1)
 
-    def scores(self, choices: np.ndarray) -> np.ndarray:
-        """The criterion (B,) of plans (B, N − 1) of candidate ids, with the ridge; inf where a step has none
-        (−1) or the motions take longer than the budget."""
-        bad = np.any(choices < 0, axis=1)
+    def scores(self, choices: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The number of steps without a rotation (−1: opposite poses, or no turn about a sensor axis joins them)
+        and the criterion with the ridge, those steps adding nothing, of plans (B, N − 1) of candidate ids
+        (inf where the motions take longer than the budget). Plans compare by the first, then the second."""
+        missing = np.sum(choices < 0, axis=1)
         ch = np.where(choices < 0, 0, choices)
-        bad |= self.c.duration[ch].sum(axis=1) > self.budget * (1 + 1e-12)
+        time = np.where(choices < 0, 0.0, self.c.duration[ch]).sum(axis=1)
         out = np.empty(len(ch))
         for s in range(0, len(ch), CHUNK):
-            out[s:s + CHUNK] = criterion(information(self.c, ch[s:s + CHUNK]), self.kind, self.ridge)
-        out[bad] = np.inf
-        return out
+            F = information(self.c, ch[s:s + CHUNK]) - missing[s:s + CHUNK, None, None] * self.c.info[0]
+            out[s:s + CHUNK] = criterion(F, self.kind, self.ridge)
+        out[time > self.budget * (1 + 1e-12)] = np.inf
+        return missing, out
 
     def polish(self, order: np.ndarray, choice: np.ndarray) -> tuple[np.ndarray, float]:
         """Best replacement of one step's rotation at a time (within the budget), while one improves the
@@ -69,7 +71,7 @@ class _Search:
         p = c.info.shape[1]
         choice = choice.copy()
         F = information(c, choice[None])[0]
-        cur = float(self.scores(choice[None])[0])
+        cur = float(self.scores(choice[None])[1][0])
         while True:
             Fc = F[None, None] - c.info[choice][:, None] + c.info[np.maximum(O, 0)]
             vals = criterion(Fc.reshape(-1, p, p), self.kind, self.ridge).reshape(O.shape)
@@ -102,8 +104,8 @@ class _Search:
         base = self.shortest if self.rotations == "shortest" else self.quickest if np.isfinite(self.budget) else None
         first = base if base is not None else self.best_options(self.c.rest_info[v].sum(axis=0))
         choice = first[v[order[:-1]], v[order[1:]]]
-        cur = float(self.scores(choice[None])[0])
-        if self.rotations != "shortest" and np.isfinite(cur):
+        miss, cur = (float(x[0]) for x in self.scores(choice[None]))
+        if self.rotations != "shortest" and miss == 0 and np.isfinite(cur):
             choice, cur = self.polish(order, choice)
         while move_order:
             edge = (base.copy() if base is not None
@@ -112,12 +114,12 @@ class _Search:
             edge[v[order[:-1]][ok], v[order[1:]][ok]] = choice[ok]  # a step the move keeps keeps its rotation
             P = neighbours(order)
             C = edge[v[P[:, :-1]], v[P[:, 1:]]]
-            vals = self.scores(C)
-            k = int(np.argmin(vals))
-            if not vals[k] < cur * (1 - 1e-12):
+            missing, vals = self.scores(C)
+            k = int(np.lexsort((vals, missing))[0])
+            if not (missing[k] < miss or (missing[k] == miss and vals[k] < cur * (1 - 1e-12))):
                 break
-            order, choice, cur = P[k], C[k], float(vals[k])
-            if self.rotations != "shortest":
+            order, choice, miss, cur = P[k], C[k], float(missing[k]), float(vals[k])
+            if self.rotations != "shortest" and miss == 0:
                 choice, cur = self.polish(order, choice)
         return order, choice, cur
 
@@ -172,8 +174,7 @@ def search(cands: Candidates, kind: str = "D", *, order: str = "plan", rotations
         return habitual(cands, start, kind)
     run = _Search(cands, kind, np.inf if budget_s is None else float(budget_s), rotations)
     starts = [start] + ([rng.permutation(n) for _ in range(restarts - 1)] if order == "plan" else [])
-    best = min((run.local(s, order == "plan") for s in starts), key=lambda r: r[2])
-    o, c, v = best
+    o, c, v = min((run.local(s, order == "plan") for s in starts), key=lambda r: (np.sum(r[1] < 0), r[2]))
     if np.any(c < 0):
         what = ("puts opposite poses side by side: no single turn of less than 180° joins them" if rotations != "axes"
                 else "has consecutive poses that no turn about a sensor axis joins")
