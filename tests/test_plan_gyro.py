@@ -236,16 +236,23 @@ def test_cli_prints_the_plan_and_writes_a_file_others_read(tmp_path, capsys):
     (["--scheme", "ONE_AXIS", "--order", "given", "--rotations", "shortest"],
      "do not determine gyroscope parameter(s) K_y, K_z, T_xy, T_xz, T_yz, T_zy"),
     (["--scheme", "THREE", "--gyro-model", "gyro21"], "3 pose(s) give 13 residuals, fewer than the 21 parameters"),
+    (["--scheme", "UP"], "the poses all have one gravity direction"),
+    (["--scheme", "UPDOWN"], "the pose with direction [0.0, 0.0, 1.0] joins no other by a turn of less than 180°"),
     (["--criterion", "targets"], "is the accelerometer's"),
     (["--n", "12"], "--n plans the accelerometer's positions"),
     (["--rate-limit", "-5"], "rate limit must be a positive"),
     (["--gyro-noise", "0"], "noise density must be a positive"),
+    (["--rest-s", "0.01"], "rests of 0.01 s are too short to take a mean of"),
+    (["--scheme", "random:30", "--rotations", "axes"], "no order of these poses joins every two consecutive ones by "
+     "a turn about a sensor axis"),
     (["--scheme", "24", "--motion-budget", "10"], "no plan of these poses fits the motion budget of 10 s"),
 ])
 def test_bad_gyroscope_plans_are_one_line_and_exit_2(argv, fragment, tmp_path, capsys):
     from optcal.plan.schemefile import scheme_csv
 
-    files = {"ONE_AXIS": ONE_AXIS, "THREE": np.eye(3)}
+    up, down = np.array([[0, 0, 1.0]]), np.array([[0, 0, -1.0]])
+    files = {"ONE_AXIS": ONE_AXIS, "THREE": np.eye(3), "UP": np.repeat(up, 5, 0),
+             "UPDOWN": np.vstack([up, up, up, down, down])}
     argv = [str(tmp_path / f"{a}.csv") if a in files else a for a in argv]
     for name, d in files.items():
         (tmp_path / f"{name}.csv").write_text(scheme_csv(d), encoding="utf-8")

@@ -47,6 +47,7 @@ MAX_ANGLE_DEG = 179.0
 # The candidates' simulation: 100 samples per motion of 1 s, rests of 10 samples (their means only count).
 REF_RATE_HZ, REF_MOTION_S, REF_REST_S = 100.0, 1.0, 0.1
 SIM_NOISE = 1e-9  # the candidates' recording is noise-free but for this (the problem refuses constant columns)
+MIN_REST_S = 0.1  # ten samples at 100 Hz, the rate at which a plan's recording is simulated
 DEG_PER_H = 180.0 / np.pi * 3600.0
 # What a user reads: (scale to multiply the natural unit by, unit)
 DISPLAY = {"K": (1e6, "ppm"), "T": (1e6, "µrad"), "b": (DEG_PER_H, "°/h"), "G": (DEG_PER_H, "(°/h)/g")}
@@ -74,6 +75,9 @@ class GyroNoise:
                         ("rest time", self.rest_s)):
             if not (np.isfinite(v) and v > 0):
                 raise InputError(f"the {name} must be a positive number, got {v!r}")
+        if self.rest_s < MIN_REST_S:
+            raise InputError(f"rests of {self.rest_s:g} s are too short to take a mean of: give at least "
+                             f"{MIN_REST_S:g} s (3 s is usual)")
 
     def motion_sd(self, window_s: np.ndarray) -> np.ndarray:
         return np.sqrt(2.0 * self.direction**2 + self.density**2 * np.asarray(window_s, float))
@@ -232,6 +236,13 @@ def candidates(directions: np.ndarray, model: str = "gyro12", *, noise: GyroNois
     _, first = np.unique(key[ok], axis=0, return_index=True)
     sel = np.flatnonzero(ok)[np.sort(first)]
     a, b, rv, shortest = i[pair[sel]], j[pair[sel]], rv[sel], shortest[sel]
+    if n < 2:
+        raise InputError("the poses all have one gravity direction: turns about the vertical cannot see the rate "
+                         "along it; give poses with different directions")
+    lone = np.setdiff1d(np.arange(n), a[a != b])
+    if lone.size:
+        raise InputError(f"the pose with direction {np.round(U[lone[0]], 4).tolist()} joins no other by a turn of "
+                         "less than 180° (only its opposite is there); add a pose between them")
     rng = rng if rng is not None else np.random.default_rng(0)
     rows, rest_rows, window, names = _jacobian_rows(U, a, b, rv, g_sens, GYRO_MODELS[model][1], rng)
     duration = timing.duration(np.linalg.norm(rv, axis=1))

@@ -13,9 +13,11 @@ Cook and Nachtsheim 1980):
   from the current path keeps its rotation); the best move is made, then the rotations again, while one
   improves the criterion.
 
-It starts from the given order and from ``restarts`` − 1 random orders (drawn from the user's generator) and
-keeps the best plan. The habitual plan, for comparison, is the given order with the shortest rotation
-between consecutive poses.
+A step that no candidate joins (opposite poses; with turns about the sensor's axes only, two poses that share
+no component along an axis) counts before the criterion: a starting order that has such steps is first
+repaired by the same moves. It starts from the given order and from ``restarts`` − 1 random orders (drawn
+from the user's generator) and keeps the best plan. The habitual plan, for comparison, is the given order
+with the shortest rotation between consecutive poses.
 """
 
 from __future__ import annotations
@@ -176,10 +178,14 @@ def search(cands: Candidates, kind: str = "D", *, order: str = "plan", rotations
     starts = [start] + ([rng.permutation(n) for _ in range(restarts - 1)] if order == "plan" else [])
     o, c, v = min((run.local(s, order == "plan") for s in starts), key=lambda r: (np.sum(r[1] < 0), r[2]))
     if np.any(c < 0):
-        what = ("puts opposite poses side by side: no single turn of less than 180° joins them" if rotations != "axes"
-                else "has consecutive poses that no turn about a sensor axis joins")
-        raise InputError(f"the {'given ' if order == 'given' else ''}order {what}; plan the order (--order plan), "
-                         "or allow any rotation (--rotations plan)")
+        turn = "a turn about a sensor axis" if rotations == "axes" else "a single turn of less than 180°"
+        if order == "given":
+            raise InputError(f"the given order has consecutive poses that no {turn[2:]} joins; plan the order "
+                             "(--order plan)" + (", or allow any rotation (--rotations plan)" if rotations == "axes"
+                                                 else ", or put a pose between opposite ones"))
+        raise InputError(f"no order of these poses joins every two consecutive ones by {turn}; "
+                         + ("allow any rotation (--rotations plan)" if rotations == "axes"
+                            else "put a pose between opposite ones"))
     if not np.isfinite(v):
         raise InputError(f"no plan of these poses fits the motion budget of {budget_s:g} s at this rate limit; "
                          "allow more time, or raise the rate limit")
