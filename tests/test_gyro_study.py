@@ -255,10 +255,9 @@ def test_least_squares_reaches_the_gyroscopes_cramer_rao_bound_over_40_runs():
     RMSE/CRLB over 12 or 21 parameters of 40 runs each: an efficient estimator gives 1 with an SD of about
     0.03-0.05 (each parameter's ratio² is χ²₄₀/40); the tolerance ±0.15 is three to five of them. Each
     scale, misalignment and g-sensitivity ratio lies within the 0.01 % and 99.99 % quantiles of √(χ²₄₀/40),
-    0.61 and 1.43 (rounded out to 0.6-1.45), and its
-    mean error within 3.5 standard errors. The bias parameters are scored as the problem defines them, the
-    rate bias beyond the rests' mean output, whose truth moves with the rests' noise: they are in the RMS but
-    not held to the quantiles."""
+    0.61 and 1.43 (rounded out to 0.6-1.45), and its mean error within 3.5 standard errors. The bias
+    parameters are scored as the problem defines them, the rate bias beyond the rests' mean output, whose
+    truth moves with the rests' noise: they are in the RMS but not held to the quantiles."""
     gs = _scipy_lm_groups(40, ["gyro12", "gyro21"], 0.0)
     for model, g in gs.items():
         assert g.n == 40 and g.success_rate == 1.0
