@@ -1,4 +1,4 @@
-"""optcal.plan.gyro: the rotations between rests for the gyroscope (docs/planning.md, "Planning the rotations").
+"""optcal.plan.gyro*: the rotations between rests for the gyroscope (docs/planning.md, "Planning the rotations").
 
 The candidates' information against the problem's own Jacobian on a recording that follows a plan; a turn about
 the gravity direction is blind to the rate sensed along it; turns about one axis leave the other axes' scale
@@ -13,7 +13,8 @@ import pytest
 from optcal.cli import main
 from optcal.errors import InputError
 from optcal.gyro import GyroProblem, draw_truth, get_gyro_model
-from optcal.plan.gyro import GyroNoise, MotionPlan, Timing, candidates, criterion, model_spec
+from optcal.plan.gyro import GyroNoise, MotionPlan, Timing, criterion, model_spec
+from optcal.plan.gyro_candidates import candidates
 from optcal.plan.gyro_follow import plan_csv, read_plan, simulate_plan, verdict
 from optcal.plan.gyro_search import habitual, neighbours, search
 from optcal.schemes import scheme

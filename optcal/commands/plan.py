@@ -262,7 +262,8 @@ def _plan_gyro(args) -> int:
     import numpy as np
 
     from ..gyro.model import get_gyro_model
-    from ..plan.gyro import CRITERIA, GyroNoise, Timing, candidates, model_spec
+    from ..plan.gyro import CRITERIA, GyroNoise, Timing, model_spec
+    from ..plan.gyro_candidates import candidates
     from ..plan.gyro_follow import plan_csv, summary, verdict
     from ..plan.gyro_search import habitual, search
     from ..schemes import scheme

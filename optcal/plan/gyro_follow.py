@@ -24,7 +24,7 @@ from ..gyro.model import get_gyro_model
 from ..gyro.problem import GyroProblem
 from ..gyro.simulate import simulate_imu
 from .fixtures import to_faces
-from .gyro import GyroNoise, MotionPlan, level_attitudes, model_spec
+from .gyro import DISPLAY, GyroNoise, MotionPlan, level_attitudes, model_spec
 
 MOTION_COLUMNS = ("axis_x", "axis_y", "axis_z", "angle_deg", "duration_s")
 TOL = 1e-3  # unit vectors and the motion's landing direction, to this much (rad): the file has 6-9 decimals
@@ -161,8 +161,6 @@ def verdict(directions: np.ndarray, rotvec: np.ndarray, duration: np.ndarray, mo
 def summary(plan: MotionPlan, habitual: MotionPlan | None, rank: int) -> dict:
     """The plan as one JSON-ready record: poses, motions, every parameter's predicted SD in the unit a user
     reads (:data:`optcal.plan.gyro.DISPLAY`), the criterion against the habitual plan's, times, the rank."""
-    from .gyro import DISPLAY
-
     c = plan.cands
     faces, alpha, beta = to_faces(plan.directions)
     angle = plan.angle_deg
