@@ -225,6 +225,8 @@ def test_cli_prints_the_plan_and_writes_a_file_others_read(tmp_path, capsys):
     assert code == 0, err
     rec = json.loads(text)
     assert rec["rank"] == 12 and rec["habitual"]["factor"] > 1.5
+    assert rec["family_worst_sd"]["T"]["unit"] == "µrad" and rec["habitual"]["family_worst_sd"]["b"]["unit"] == "°/h"
+    assert rec["family_worst_sd"]["K"]["sd"] < rec["habitual"]["family_worst_sd"]["K"]["sd"]
     assert all(m["about"] in ("+x", "-x", "+y", "-y", "+z", "-z") for m in rec["motions"])
     assert max(m["peak_dps"] for m in rec["motions"]) <= 60.0 + 1e-9
     assert rec["noise"]["rest_mean_ug"] == pytest.approx(20.0)

@@ -158,6 +158,10 @@ def verdict(directions: np.ndarray, rotvec: np.ndarray, duration: np.ndarray, mo
         raise InputError(f"{model} on this plan: {exc}") from None
 
 
+def _with_units(family_sd: dict) -> dict:
+    return {f: {"sd": v, "unit": DISPLAY[f][1]} for f, v in family_sd.items()}
+
+
 def summary(plan: MotionPlan, habitual: MotionPlan | None, rank: int) -> dict:
     """The plan as one JSON-ready record: poses, motions, every parameter's predicted SD in the unit a user
     reads (:data:`optcal.plan.gyro.DISPLAY`), the criterion against the habitual plan's, times, the rank."""
@@ -181,9 +185,9 @@ def summary(plan: MotionPlan, habitual: MotionPlan | None, rank: int) -> dict:
            "noise": {"rate_density_dps_rthz": float(np.rad2deg(c.noise.density)),
                      "rest_mean_ug": c.noise.direction * 1e6, "rest_s": c.noise.rest_s},
            "rate_limit_dps": c.timing.rate_limit_dps, "poses": poses, "motions": motions, "crlb": sd,
-           "family_worst_sd": plan.family_sd()}
+           "family_worst_sd": _with_units(plan.family_sd())}
     if habitual is not None:
         out["habitual"] = {"criterion_value": habitual.value, "motion_s": habitual.motion_s,
-                           "session_s": habitual.session_s, "family_worst_sd": habitual.family_sd(),
+                           "session_s": habitual.session_s, "family_worst_sd": _with_units(habitual.family_sd()),
                            "factor": habitual.value / plan.value}
     return out
