@@ -266,6 +266,14 @@ def test_bad_gyroscope_plans_are_one_line_and_exit_2(argv, fragment, tmp_path, c
     assert not out.exists()  # nothing written before the command has succeeded
 
 
+def test_the_plan_file_is_not_written_over_its_own_scheme(tmp_path, capsys):
+    f = tmp_path / "g.csv"
+    assert _run(capsys, "plan", "--sensor", "gyroscope", "--scheme", "6", "-o", str(f))[0] == 0
+    before = f.read_text()
+    code, _, err = _run(capsys, "plan", "--sensor", "gyroscope", "--scheme", str(f), "-o", str(f), "--force")
+    assert code == 2 and "is also an input of this command" in err and f.read_text() == before
+
+
 def test_gyroscope_options_without_the_sensor_are_refused(capsys):
     code, _, err = _run(capsys, "plan", "--n", "12", "--scheme", "24")
     assert code == 2 and "--scheme plan the gyroscope's rotations; add --sensor gyroscope" in err

@@ -277,6 +277,7 @@ def _plan_gyro(args) -> int:
         raise InputError(f"--criterion {args.criterion} is the accelerometer's; for the gyroscope use "
                          f"{', '.join(CRITERIA)}")
     refuse_overwrite(args.output, args.force)
+    refuse_same_file(args.output, args.scheme)
     model = args.gyro_model or "gyro12"
     g_sens, bias = model_spec(model)
     noise_ug = 10.0 if args.noise_ug is None else args.noise_ug
