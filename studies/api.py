@@ -25,8 +25,9 @@ class StudyResult:
     """A study's results.
 
     ``trials``: one row per trial, the store's columns (docs/studies.md): the scalars as numbers or text
-    (``accuracy`` is the trial's RMS over parameters of |error| / CRLB; ``fun`` its final cost in g²;
-    ``runtime_s`` its solver time in s), the per-parameter and anytime records as lists. ``summary``: one row per
+    (``accuracy`` is the trial's RMS over parameters of |error| / CRLB; ``fun`` its final cost, g² for the
+    accelerometer and a χ² of whitened residuals, no unit, for the gyroscope; ``runtime_s`` its solver time
+    in s), the per-parameter and anytime records as lists. ``summary``: one row per
     model × scheme × solver configuration, the numbers of the report's tables (``success_rate``, ``accuracy``
     and ``accuracy_presets`` as RMSE/CRLB, ``ver_mean_ug`` in µg, ``runtime_median_s`` in s, ...). ``run``:
     what this call ran (trials run, skipped as already stored, failed; wall time). ``folder``: the study
