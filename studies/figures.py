@@ -1,9 +1,18 @@
 """The report's figures (matplotlib, Agg backend), after the 2020 paper's: final cost per run (Figures 5
 and 6), convergence curves (Figure 4), verification error per position (Figure 9), static navigation
-error (Figure 11); plus error against the Cramér-Rao bound and accuracy against runtime."""
+error (Figure 11); plus error against the Cramér-Rao bound and accuracy against runtime.
+
+Drawing them is most of a large study's report time (matplotlib lays out and draws every tick of the
+cost figure's forty panels, about 5 s of CPU each), and each figure is independent of the others: a
+:class:`Renderer` draws them in worker processes, one per CPU, while the report's process computes its
+tables and statistics. The drawing is deterministic, so the files are the same whichever process draws
+them.
+"""
 
 from __future__ import annotations
 
+import os
+from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
@@ -11,6 +20,81 @@ import numpy as np
 from .metrics import Group
 
 MAX_LINES = 10  # solvers drawn on per-solver line charts (the most accurate ones)
+# Worker processes pay off from about this many groups (solver × model × scheme) on: a worker takes about a
+# second of CPU to start (Python, NumPy, matplotlib), a figure about 25-150 ms per group it draws.
+PARALLEL_MIN_GROUPS = 40
+MAX_WORKERS = 8  # beyond this the largest figure (the cost per run, one of 30) bounds the time anyway
+
+
+def usable_cpus() -> int:
+    """The CPUs this process may run on."""
+    try:
+        return len(os.sched_getaffinity(0))
+    except AttributeError:  # pragma: no cover - not Linux
+        return os.cpu_count() or 1
+
+
+def figure_workers(n_groups: int) -> int:
+    """Worker processes for a report of ``n_groups`` groups: one per CPU (up to :data:`MAX_WORKERS`), none
+    (every figure drawn in the report's process) for a small study or on one CPU."""
+    cpus = usable_cpus()
+    return min(cpus, MAX_WORKERS) if n_groups >= PARALLEL_MIN_GROUPS and cpus > 1 else 0
+
+
+def _draw(fn: Callable, path: Path, args: tuple, kwargs: dict) -> Path:
+    return fn(*args, path=path, **kwargs)
+
+
+class Renderer:
+    """Draws figures: in ``workers`` worker processes (spawned: a clean interpreter, whatever threads the
+    calling process holds), or at once in this process when ``workers`` is 0. :meth:`finish` waits for
+    every figure and raises a figure's error; a figure whose worker died (the pool broke) is drawn here.
+    Used as a context manager, which stops the workers however the report ends."""
+
+    def __init__(self, workers: int = 0):
+        self.pool = None
+        if workers > 0:
+            import multiprocessing as mp
+            from concurrent.futures import ProcessPoolExecutor
+
+            self.pool = ProcessPoolExecutor(max_workers=workers, mp_context=mp.get_context("spawn"))
+        self.jobs: list[tuple] = []
+
+    def draw(self, fn: Callable, path: Path, *args, **kwargs) -> Path:
+        """``fn(*args, path=path, **kwargs)``, now or in a worker; returns ``path``."""
+        from concurrent.futures.process import BrokenProcessPool
+
+        if self.pool is None:
+            return _draw(fn, path, args, kwargs)
+        job = (fn, path, args, kwargs)
+        try:
+            self.jobs.append((self.pool.submit(_draw, *job), job))
+        except BrokenProcessPool:  # a worker died: this figure and the next ones are drawn here
+            self.finish()
+            _draw(*job)
+        return path
+
+    def finish(self) -> None:
+        from concurrent.futures.process import BrokenProcessPool
+
+        for future, job in self.jobs:
+            try:
+                future.result()
+            except BrokenProcessPool:  # its worker died (killed, out of memory): draw it here
+                _draw(*job)
+        self.jobs = []
+        self.close()
+
+    def close(self) -> None:
+        if self.pool is not None:
+            self.pool.shutdown(wait=True, cancel_futures=True)
+            self.pool = None
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        self.close()
 
 
 def _plt():

@@ -3,6 +3,8 @@ per-parameter statistic, and ``summary.json`` (one record per solver × scheme �
 
 from __future__ import annotations
 
+import dataclasses
+import functools
 import json
 import math
 from pathlib import Path
@@ -13,11 +15,60 @@ from optcal.errors import InputError
 
 from . import anytime, figures, paired
 from .metrics import Group, cells, groups
-from .report_sections import anytime_section, fmt, label_of, md_table, navigation_section, traditional_section, with_ci
+from .report_sections import (
+    anytime_section,
+    fmt,
+    label_of,
+    md_table,
+    navigation_section,
+    preamble,
+    ranked_on,
+    traditional_section,
+    with_ci,
+)
 from .store import Store
 
 # summary.json: 2 = an object (study, provenance, records, paired, settings); 1 was the list of records alone
 SUMMARY_FORMAT = 2
+
+
+class FinishedGroup(Group):
+    """A :class:`studies.metrics.Group` whose rows no longer change (a report's): each derived number is
+    computed once, where a plain group recomputes its per-parameter statistics at every use (the report
+    asks for them hundreds of times: ranking, tables, figures, records). Callers get copies of the cached
+    dicts, so that no caller can change what another one reads."""
+
+    ok = functools.cached_property(Group.ok.fget)
+    success_rate = functools.cached_property(Group.success_rate.fget)
+    failures = functools.cached_property(Group.failures.fget)
+    accuracy = functools.cached_property(Group.accuracy.fget)
+    accuracy_presets = functools.cached_property(Group.accuracy_presets.fget)
+
+    @functools.cached_property
+    def _parameters(self) -> list[dict]:
+        return Group.parameters(self)
+
+    def parameters(self) -> list[dict]:
+        return [dict(p) for p in self._parameters]
+
+    @functools.cached_property
+    def _summary(self) -> dict:
+        return Group.summary(self)
+
+    def summary(self) -> dict:
+        return dict(self._summary)
+
+    @functools.cached_property
+    def _unobservable(self) -> list[dict]:
+        return Group.unobservable(self)
+
+    def unobservable(self) -> list[dict]:
+        return [dict(d) for d in self._unobservable]
+
+
+def finished_groups(rows: list[dict], order: list[str] | None = None) -> list[FinishedGroup]:
+    """:func:`studies.metrics.groups` as :class:`FinishedGroup` (the report's groups)."""
+    return [FinishedGroup(**{f.name: getattr(g, f.name) for f in dataclasses.fields(g)}) for g in groups(rows, order)]
 
 
 def rank_value(g: Group) -> float:
@@ -101,7 +152,7 @@ def headline(folder: str | Path, top: int = 8) -> str:
     with Store.open_existing(folder) as store:
         spec, rows = store.spec, store.rows()
     out = []
-    for (model, scheme), cg in cells(groups(rows, [s["label"] for s in spec["solvers"]])).items():
+    for (model, scheme), cg in cells(finished_groups(rows, [s["label"] for s in spec["solvers"]])).items():
         ranked = _rank(cg)
         out.append(f"{model}, {scheme} positions ({min(top, len(ranked))} best of {len(ranked)}):")
         wp = _has_presets_bound(cg)
@@ -271,8 +322,11 @@ def paired_section(cs, presets: bool) -> tuple[list[str], list[dict]]:
     return L, recs
 
 
-def write_report(folder: str | Path) -> Path:
-    """Write ``report.md``, ``parameters.md``, ``summary.json`` and ``figures/*.png`` into ``folder``."""
+def write_report(folder: str | Path, workers: int | None = None) -> Path:
+    """Write ``report.md``, ``parameters.md``, ``summary.json`` and ``figures/*.png`` into ``folder``.
+
+    ``workers``: processes that draw the figures beside the report's own work (0: none, every figure drawn
+    here; default: :func:`studies.figures.figure_workers`); the files are the same either way."""
     import time
 
     t_report = time.perf_counter()
@@ -286,123 +340,36 @@ def write_report(folder: str | Path) -> Path:
     figdir = folder / "figures"
     figdir.mkdir(exist_ok=True)
     order = [s["label"] for s in spec["solvers"]]
-    gs = groups(rows, order)
+    gs = finished_groups(rows, order)
     cs = cells(gs)
-    cis = {id(g): anytime.group_ci(g, spec["seed"]) for g in gs}
-    expected = spec["runs"] * len(spec["models"]) * len(spec["schemes"]) * len(spec["solvers"])
-    failed = sum(r["status"] != "ok" for r in rows)
-    has_nav = any(r.get("nav_max_nmi") is not None for r in rows)
-    budgets = {json.dumps(s["budget"], sort_keys=True) for s in spec["solvers"]}
-    budget = (", ".join(f"{k} {v:g}" for k, v in spec["solvers"][0]["budget"].items()) or "the solvers' defaults"
-              ) if len(budgets) == 1 else "per solver (see the spec)"
     presets = any(_has_presets_bound(cg) for cg in cs.values())
-    ranked_on = ("RMSE/CRLB with presets (the bound of data and presets together)" if presets
-                 else "RMSE/CRLB (the data's bound)")
-
-    L = [f"# Study `{spec['name']}`", ""]
-    if spec.get("description"):
-        L += [spec["description"], ""]
-    L += [
-        f"- Spec hash `{spec_hash}`; {len(rows)} of {expected} trials stored"
-        + (" (**incomplete**: run the spec again into this folder to finish)" if len(rows) < expected else "")
-        + f"; {failed} failed.",
-        f"- {spec['runs']} Monte-Carlo runs, base seed {spec['seed']}; models {', '.join(spec['models'])}; "
-        f"schemes {', '.join(spec['schemes'])} positions; noise {spec['noise_ug']:g} µg; placement tilt "
-        f"{spec['tilt_deg']:g}°; truth `{spec['truth'] if isinstance(spec['truth'], str) else 'given values'}`; "
-        f"presets `{spec['presets']}`; budget: {budget}.",
-        f"- Verification: {spec['verification']['scheme']} positions, {spec['verification']['noise_ug']:g} µg noise. "
-        + (f"Navigation: {spec['navigation']['hours']:g} h static at {spec['navigation']['latitude_deg']:g}° latitude."
-           if has_nav else "Navigation: not computed."),
-        "@@WALL@@",
-        "",
-        "**How to read.** *At noise floor*: share of runs whose final cost is within the 99.9 % χ² quantile of "
-        "the cost at the optimum (the `success_rate` of summary.json). It is a statistical test, not a distance "
-        "to the optimum: a final cost up to that quantile passes, even when it lies well above the optimum of "
-        "the run's data, so it is much looser than the anytime table's *solved gap ≤ 0.01* (the cost within 1 % "
-        "of that optimum); a staged solver, which keeps parameters near the presets, can be at the noise floor "
-        "in every run and within 1 % of the optimum in few. "
-        "*RMSE/CRLB*: RMS over parameters of each parameter's "
-        "RMSE over runs divided by its Cramér-Rao bound (1 = as good as any unbiased estimator can be; "
-        "unobservable directions excluded, see below). *RMSE/CRLB with presets*: the whole error against "
-        "the bound of the data and the presets together (the presets as one more measurement of every "
-        "parameter, with the manufacturer's error SD); no method can beat it, so a ratio below 1 in the "
-        "first column and near 1 here means the accuracy came from the presets, not from the data. "
-        f"Solvers are ranked on {ranked_on}. "
-        "*Verification*: |‖A‖ − g| on an independent "
-        "verification set with the estimated calibration (2020 paper, Table 5), mean over positions "
-        "(SD over positions), averaged over runs. *Final cost*: Σ (‖A‖ − g)² over the positions, in g². "
-        "*Runtime*: solver time per calibration. *Evaluations*: evaluations of the cost over the whole data set "
-        "per calibration; a Jacobian counts as one (so a Levenberg-Marquardt fit's few evaluations are residual "
-        "vectors and Jacobians together), and a trial stops once its cost is within "
-        f"{_final_gap():g} of its data's optimum, so a fast method uses far fewer than its budget. "
-        "*Navigation*: position error after the hours of static navigation, in nautical miles (nmi). "
-        f"*value [lo, hi]* after the share at the noise floor, RMSE/CRLB and the median runtime: "
-        f"{100 * anytime.LEVEL:.0f} % percentile "
-        f"bootstrap interval over the Monte-Carlo runs ({anytime.RESAMPLES} resamples, seed {spec['seed']}).",
-        "",
-    ]
-    if len(cs) > 1:
-        L += ["## Overview", "", ("RMSE/CRLB / RMSE/CRLB with presets" if presets else "RMSE/CRLB")
-              + f" (share at the noise floor) of every solver in every model × scheme, ranked on {ranked_on}, "
-              "most accurate first (mean rank over the columns); runtime: median over the columns of the median "
-              "solver time.", ""]
-        L += overview(cs)
-    paired_lines, paired_recs = paired_section(cs, presets)
-    L += paired_lines
-    summary = []
-    for (model, scheme), cg in cs.items():
-        slug = f"{model}_{scheme}".replace(":", "-")
-        L += [f"## {model}, {scheme} positions", ""]
-        truth_ver = np.nanmean([g.summary()["ver_truth_ug"] for g in cg if g.ok]) if any(g.ok for g in cg) else np.nan
-        L += [f"Truth calibration on the verification set: {fmt(truth_ver, '.2f')} µg (the noise floor).", ""]
-        header = (SUMMARY_HEADER[:3] + (["RMSE/CRLB with presets"] if _has_presets_bound(cg) else [])
-                  + SUMMARY_HEADER[3:] + ([NAV_HEADER] if has_nav else []) + ["failed"])
-        L += md_table(header, _summary_rows(cg, has_nav, cis))
-        for g in cg:
-            summary.append({**g.summary(), **{f"{k}_ci": list(v) for k, v in cis[id(g)].items()},
-                            "reference": g.reference, "reference_error_arcsec": g.reference_error_arcsec})
-        ttl = f"{spec['name']}: {model}, {scheme} positions"
-        # the turntable fit minimises another cost (3-D residuals): not on the cost figures
-        norm = [g for g in cg if not g.reference] or cg
-        f1 = figures.cost_per_run(norm, f"{ttl}: final cost per run", figdir / f"cost_{slug}.png")
-        f2 = figures.convergence(norm, f"{ttl}: convergence", figdir / f"convergence_{slug}.png")
-        f3 = figures.error_vs_crlb(cg, f"{ttl}: error against the Cramér-Rao bound", figdir / f"crlb_{slug}.png")
-        f4 = figures.verification(cg, f"{ttl}: verification error per position", figdir / f"verification_{slug}.png")
-        f0 = figures.ranking(cg, f"{ttl}: accuracy of every solver", figdir / f"ranking_{slug}.png")
-        L += [f"![ranking](figures/{f0.name})", "",
-              f"![final cost per run](figures/{f1.name})", "", f"![convergence](figures/{f2.name})", "",
-              f"![error against CRLB](figures/{f3.name})", "", f"![verification](figures/{f4.name})", ""]
-        # per-parameter ratios
-        names = cg[0].names
-        obs = cg[0].ok[0]["observable"] if cg[0].ok else [1] * len(names)
-        L += ["RMSE / CRLB per parameter (\\* = observable part only):", ""]
-        L += md_table(["solver"] + [n + ("" if o else "\\*") for n, o in zip(names, obs)],
-                    [[f"`{label_of(g)}`"] + [fmt(p["ratio"], ".2g") for p in g.parameters()] for g in _rank(cg)])
-        un = [(g, g.unobservable()) for g in _rank(cg) if g.unobservable()]
-        if un:
-            dirs = [d["direction"] for d in un[0][1]]
-            L += ["Unobservable directions (natural units; set by the presets, not by the data, so not scored): "
-                  "RMS error along each, over runs.", ""]
-            L += md_table(["solver"] + [f"`{d}`" for d in dirs],
-                        [[f"`{label_of(g)}`"] + [fmt(d["rms"], ".2e") for d in u] for g, u in un])
-        L += navigation_section((model, scheme), cg, spec["navigation"], figdir, slug)
-        L += traditional_section((model, scheme), cg, figdir, slug)
-        fails = [(g, g.failures) for g in cg if g.failures]
-        if fails:
-            L += ["Failures:", ""] + [f"- `{g.solver}` ({g.n_failed}): " + "; ".join(m[:200] for m in f[:3])
-                                      for g, f in fails] + [""]
-    if len(cs):
-        p = figures.accuracy_runtime(cs, f"{spec['name']}: accuracy against runtime", figdir / "accuracy_runtime.png")
-        L += ["## Accuracy against runtime", "", f"![accuracy against runtime](figures/{p.name})", ""]
-    L += anytime_section(rows, order, spec, figdir)
-    st = settings(spec, rows)
-    L += settings_section(st)
-    L += ["Per-parameter mean error, RMSE, SD and CRLB: [parameters.md](parameters.md). "
-          "Every trial: `trials.csv` / `trials.parquet` / `study.sqlite`.", ""]
-    prov = provenance(sessions)
-    L += [f"Computed by commit `{prov['commit'] or 'unknown'}` on {prov['machine']['system']} "
-          f"({prov['machine']['cpus']} CPUs), Python {prov['python']}; "
-          + ", ".join(f"{k} {v}" for k, v in prov["libraries"].items()) + ".", ""]
+    has_nav = any(r.get("nav_max_nmi") is not None for r in rows)
+    with figures.Renderer(figures.figure_workers(len(gs)) if workers is None else workers) as render:
+        cis = {id(g): anytime.group_ci(g, spec["seed"]) for g in gs}
+        L = preamble(spec, rows, spec_hash, presets, _final_gap())
+        if len(cs) > 1:
+            L += _overview_section(cs, presets)
+        paired_lines, paired_recs = paired_section(cs, presets)
+        L += paired_lines
+        summary = []
+        for (model, scheme), cg in cs.items():
+            lines, records = _cell_section(spec, model, scheme, cg, has_nav, cis, figdir, render)
+            L += lines
+            summary += records
+        if len(cs):
+            p = render.draw(figures.accuracy_runtime, figdir / "accuracy_runtime.png", cs,
+                            f"{spec['name']}: accuracy against runtime")
+            L += ["## Accuracy against runtime", "", f"![accuracy against runtime](figures/{p.name})", ""]
+        L += anytime_section(rows, order, spec, figdir, render)
+        st = settings(spec, rows)
+        L += settings_section(st)
+        L += ["Per-parameter mean error, RMSE, SD and CRLB: [parameters.md](parameters.md). "
+              "Every trial: `trials.csv` / `trials.parquet` / `study.sqlite`.", ""]
+        prov = provenance(sessions)
+        L += [f"Computed by commit `{prov['commit'] or 'unknown'}` on {prov['machine']['system']} "
+              f"({prov['machine']['cpus']} CPUs), Python {prov['python']}; "
+              + ", ".join(f"{k} {v}" for k, v in prov["libraries"].items()) + ".", ""]
+        render.finish()
     (folder / "parameters.md").write_text(_parameters_md(cs))
     t_rep = time.perf_counter() - t_report
     L[L.index("@@WALL@@")] = (
@@ -410,10 +377,11 @@ def write_report(folder: str | Path) -> Path:
         + "; ".join(f"{s['executor']} ×{s['workers']}: {s['trials']} trials in {s['wall_s']:.1f} s"
                     + _busy(s) + (f", code {s['code']}" if s.get("code") else "") for s in sessions)
         + f") and this report {t_rep:.1f} s.")
+    expected = spec["runs"] * len(spec["models"]) * len(spec["schemes"]) * len(spec["solvers"])
     doc = {"format": SUMMARY_FORMAT,
            "study": {"name": spec["name"], "spec_hash": spec_hash, "runs": spec["runs"], "seed": spec["seed"],
-                     "trials": len(rows), "expected": expected, "failed": failed, "wall_s": wall,
-                     "report_s": t_rep, "ranked_on": "accuracy_presets" if presets else "accuracy",
+                     "trials": len(rows), "expected": expected, "failed": sum(r["status"] != "ok" for r in rows),
+                     "wall_s": wall, "report_s": t_rep, "ranked_on": "accuracy_presets" if presets else "accuracy",
                      "final_gap": _final_gap()},
            "provenance": prov, "records": summary, "paired": paired_recs, "settings": st}
     # strict JSON: a value that could not be computed (no presets, no navigation) is null, not NaN
@@ -421,6 +389,62 @@ def write_report(folder: str | Path) -> Path:
     out = folder / "report.md"
     out.write_text("\n".join(L))
     return out
+
+
+def _overview_section(cs, presets: bool) -> list[str]:
+    return ["## Overview", "", ("RMSE/CRLB / RMSE/CRLB with presets" if presets else "RMSE/CRLB")
+            + f" (share at the noise floor) of every solver in every model × scheme, ranked on {ranked_on(presets)}, "
+            "most accurate first (mean rank over the columns); runtime: median over the columns of the median "
+            "solver time.", ""] + overview(cs)
+
+
+def _cell_section(spec: dict, model: str, scheme: str, cg: list[FinishedGroup], has_nav: bool, cis: dict,
+                  figdir: Path, render: figures.Renderer) -> tuple[list[str], list[dict]]:
+    """One model × scheme's section of the report (its table, figures, per-parameter ratios, unobservable
+    directions, navigation, traditional calibration and failures) and its summary.json records; ``has_nav``:
+    whether the study computed navigation (a column of the table)."""
+    slug = f"{model}_{scheme}".replace(":", "-")
+    L = [f"## {model}, {scheme} positions", ""]
+    truth_ver = np.nanmean([g.summary()["ver_truth_ug"] for g in cg if g.ok]) if any(g.ok for g in cg) else np.nan
+    L += [f"Truth calibration on the verification set: {fmt(truth_ver, '.2f')} µg (the noise floor).", ""]
+    header = (SUMMARY_HEADER[:3] + (["RMSE/CRLB with presets"] if _has_presets_bound(cg) else [])
+              + SUMMARY_HEADER[3:] + ([NAV_HEADER] if has_nav else []) + ["failed"])
+    L += md_table(header, _summary_rows(cg, has_nav, cis))
+    records = [{**g.summary(), **{f"{k}_ci": list(v) for k, v in cis[id(g)].items()},
+                "reference": g.reference, "reference_error_arcsec": g.reference_error_arcsec} for g in cg]
+    ttl = f"{spec['name']}: {model}, {scheme} positions"
+    # the turntable fit minimises another cost (3-D residuals): not on the cost figures
+    norm = [g for g in cg if not g.reference] or cg
+    f1 = render.draw(figures.cost_per_run, figdir / f"cost_{slug}.png", norm, f"{ttl}: final cost per run")
+    f2 = render.draw(figures.convergence, figdir / f"convergence_{slug}.png", norm, f"{ttl}: convergence")
+    f3 = render.draw(figures.error_vs_crlb, figdir / f"crlb_{slug}.png", cg,
+                     f"{ttl}: error against the Cramér-Rao bound")
+    f4 = render.draw(figures.verification, figdir / f"verification_{slug}.png", cg,
+                     f"{ttl}: verification error per position")
+    f0 = render.draw(figures.ranking, figdir / f"ranking_{slug}.png", cg, f"{ttl}: accuracy of every solver")
+    L += [f"![ranking](figures/{f0.name})", "",
+          f"![final cost per run](figures/{f1.name})", "", f"![convergence](figures/{f2.name})", "",
+          f"![error against CRLB](figures/{f3.name})", "", f"![verification](figures/{f4.name})", ""]
+    # per-parameter ratios
+    names = cg[0].names
+    obs = cg[0].ok[0]["observable"] if cg[0].ok else [1] * len(names)
+    L += ["RMSE / CRLB per parameter (\\* = observable part only):", ""]
+    L += md_table(["solver"] + [n + ("" if o else "\\*") for n, o in zip(names, obs)],
+                  [[f"`{label_of(g)}`"] + [fmt(p["ratio"], ".2g") for p in g.parameters()] for g in _rank(cg)])
+    un = [(g, g.unobservable()) for g in _rank(cg) if g.unobservable()]
+    if un:
+        dirs = [d["direction"] for d in un[0][1]]
+        L += ["Unobservable directions (natural units; set by the presets, not by the data, so not scored): "
+              "RMS error along each, over runs.", ""]
+        L += md_table(["solver"] + [f"`{d}`" for d in dirs],
+                      [[f"`{label_of(g)}`"] + [fmt(d["rms"], ".2e") for d in u] for g, u in un])
+    L += navigation_section((model, scheme), cg, spec["navigation"], figdir, slug, render)
+    L += traditional_section((model, scheme), cg, figdir, slug, render)
+    fails = [(g, g.failures) for g in cg if g.failures]
+    if fails:
+        L += ["Failures:", ""] + [f"- `{g.solver}` ({g.n_failed}): " + "; ".join(m[:200] for m in f[:3])
+                                  for g, f in fails] + [""]
+    return L, records
 
 
 def read_summary(folder: str | Path) -> dict:

@@ -7,6 +7,7 @@ profiles; :mod:`studies.anytime`).
 
 from __future__ import annotations
 
+import json
 import math
 from pathlib import Path
 
@@ -47,6 +48,66 @@ def label_of(g: Group) -> str:
     return g.solver
 
 
+def ranked_on(presets: bool) -> str:
+    """What the report ranks on (:func:`studies.report.rank_value`), in words."""
+    return ("RMSE/CRLB with presets (the bound of data and presets together)" if presets
+            else "RMSE/CRLB (the data's bound)")
+
+
+def preamble(spec: dict, rows: list[dict], spec_hash: str, presets: bool, final_gap: float) -> list[str]:
+    """The report's head: the study, its trials and settings, a placeholder line "@@WALL@@" for the wall
+    time (known only at the end), and how to read the tables."""
+    expected = spec["runs"] * len(spec["models"]) * len(spec["schemes"]) * len(spec["solvers"])
+    failed = sum(r["status"] != "ok" for r in rows)
+    has_nav = any(r.get("nav_max_nmi") is not None for r in rows)
+    budgets = {json.dumps(s["budget"], sort_keys=True) for s in spec["solvers"]}
+    budget = (", ".join(f"{k} {v:g}" for k, v in spec["solvers"][0]["budget"].items()) or "the solvers' defaults"
+              ) if len(budgets) == 1 else "per solver (see the spec)"
+    L = [f"# Study `{spec['name']}`", ""]
+    if spec.get("description"):
+        L += [spec["description"], ""]
+    L += [
+        f"- Spec hash `{spec_hash}`; {len(rows)} of {expected} trials stored"
+        + (" (**incomplete**: run the spec again into this folder to finish)" if len(rows) < expected else "")
+        + f"; {failed} failed.",
+        f"- {spec['runs']} Monte-Carlo runs, base seed {spec['seed']}; models {', '.join(spec['models'])}; "
+        f"schemes {', '.join(spec['schemes'])} positions; noise {spec['noise_ug']:g} µg; placement tilt "
+        f"{spec['tilt_deg']:g}°; truth `{spec['truth'] if isinstance(spec['truth'], str) else 'given values'}`; "
+        f"presets `{spec['presets']}`; budget: {budget}.",
+        f"- Verification: {spec['verification']['scheme']} positions, {spec['verification']['noise_ug']:g} µg noise. "
+        + (f"Navigation: {spec['navigation']['hours']:g} h static at {spec['navigation']['latitude_deg']:g}° latitude."
+           if has_nav else "Navigation: not computed."),
+        "@@WALL@@",
+        "",
+        "**How to read.** *At noise floor*: share of runs whose final cost is within the 99.9 % χ² quantile of "
+        "the cost at the optimum (the `success_rate` of summary.json). It is a statistical test, not a distance "
+        "to the optimum: a final cost up to that quantile passes, even when it lies well above the optimum of "
+        "the run's data, so it is much looser than the anytime table's *solved gap ≤ 0.01* (the cost within 1 % "
+        "of that optimum); a staged solver, which keeps parameters near the presets, can be at the noise floor "
+        "in every run and within 1 % of the optimum in few. "
+        "*RMSE/CRLB*: RMS over parameters of each parameter's "
+        "RMSE over runs divided by its Cramér-Rao bound (1 = as good as any unbiased estimator can be; "
+        "unobservable directions excluded, see below). *RMSE/CRLB with presets*: the whole error against "
+        "the bound of the data and the presets together (the presets as one more measurement of every "
+        "parameter, with the manufacturer's error SD); no method can beat it, so a ratio below 1 in the "
+        "first column and near 1 here means the accuracy came from the presets, not from the data. "
+        f"Solvers are ranked on {ranked_on(presets)}. "
+        "*Verification*: |‖A‖ − g| on an independent "
+        "verification set with the estimated calibration (2020 paper, Table 5), mean over positions "
+        "(SD over positions), averaged over runs. *Final cost*: Σ (‖A‖ − g)² over the positions, in g². "
+        "*Runtime*: solver time per calibration. *Evaluations*: evaluations of the cost over the whole data set "
+        "per calibration; a Jacobian counts as one (so a Levenberg-Marquardt fit's few evaluations are residual "
+        "vectors and Jacobians together), and a trial stops once its cost is within "
+        f"{final_gap:g} of its data's optimum, so a fast method uses far fewer than its budget. "
+        "*Navigation*: position error after the hours of static navigation, in nautical miles (nmi). "
+        f"*value [lo, hi]* after the share at the noise floor, RMSE/CRLB and the median runtime: "
+        f"{100 * anytime.LEVEL:.0f} % percentile "
+        f"bootstrap interval over the Monte-Carlo runs ({anytime.RESAMPLES} resamples, seed {spec['seed']}).",
+        "",
+    ]
+    return L
+
+
 def _crossing(levels: list[tuple[float, float]], value: float) -> str:
     """The orientation error above which the turntable metric exceeds ``value``."""
     a = [x for x, _ in levels]
@@ -61,7 +122,7 @@ def _crossing(levels: list[tuple[float, float]], value: float) -> str:
     return f"at none of the orientation errors tested (up to {a[-1]:g}″)"
 
 
-def traditional_section(cell_key, gs: list[Group], figdir: Path, slug: str) -> list[str]:
+def traditional_section(cell_key, gs: list[Group], figdir: Path, slug: str, render: figures.Renderer) -> list[str]:
     ref = sorted([g for g in gs if g.reference], key=lambda g: g.reference_error_arcsec)
     inf = [g for g in gs if not g.reference and g.ok]
     if not ref or not inf:
@@ -88,13 +149,14 @@ def traditional_section(cell_key, gs: list[Group], figdir: Path, slug: str) -> l
         lines.append(f"- **{name}**: in-field calibration beats the turntable calibration: " + "; ".join(said) + ".")
         v = fn(best_in.summary())
         if len(levels) > 1 and np.isfinite(v):
-            p = figures.traditional(levels, [(g.solver, fn(g.summary())) for g in inf], name,
-                                    f"{model}, {scheme} positions: {name}", figdir / f"traditional_{key}_{slug}.png")
+            p = render.draw(figures.traditional, figdir / f"traditional_{key}_{slug}.png", levels,
+                            [(g.solver, fn(g.summary())) for g in inf], name, f"{model}, {scheme} positions: {name}")
             lines.append(f"  ![{name}](figures/{p.name})")
     return lines + [""]
 
 
-def navigation_section(cell_key, gs: list[Group], nav_spec: dict, figdir: Path, slug: str) -> list[str]:
+def navigation_section(cell_key, gs: list[Group], nav_spec: dict, figdir: Path, slug: str,
+                       render: figures.Renderer) -> list[str]:
     nav = [g for g in gs if any(r.get("nav_max_nmi") is not None for r in g.ok)]
     if not nav:
         return []
@@ -115,12 +177,13 @@ def navigation_section(cell_key, gs: list[Group], nav_spec: dict, figdir: Path, 
         s = g.summary()
         rows.append([label_of(g), fmt(s["nav_max_nmi"], ".4f"), fmt(s["nav_mean_nmi"], ".4f")])
     lines += md_table(["calibration", "max error (nmi)", "mean error (nmi)"], rows)
-    p = figures.navigation(nav, hours, f"{model}, {scheme} positions: static navigation error",
-                           figdir / f"navigation_{slug}.png")
+    p = render.draw(figures.navigation, figdir / f"navigation_{slug}.png", nav, hours,
+                    f"{model}, {scheme} positions: static navigation error")
     return lines + [f"![navigation](figures/{p.name})", ""]
 
 
-def anytime_section(rows: list[dict], order: list[str], spec: dict, figdir: Path) -> list[str]:
+def anytime_section(rows: list[dict], order: list[str], spec: dict, figdir: Path,
+                    render: figures.Renderer) -> list[str]:
     """Runtime ECDFs, data and performance profiles, and their table (studies.anytime)."""
     L = ["## Anytime performance", ""]
     at = anytime.collect(rows, order)
@@ -162,18 +225,20 @@ def anytime_section(rows: list[dict], order: list[str], spec: dict, figdir: Path
     recs.sort(key=lambda r: (-np.nan_to_num(r["cost_area"], nan=-1), -np.nan_to_num(r["accuracy_area"], nan=-1)))
     order = [r["solver"] for r in recs]  # one colour per solver in every figure
     name = spec["name"]
-    p1 = figures.runtime_ecdf(at, f"{name}: runtime ECDFs", figdir / "anytime_ecdf.png", order)
+    p1 = render.draw(figures.runtime_ecdf, figdir / "anytime_ecdf.png", at, f"{name}: runtime ECDFs", order=order)
     search = search_methods(spec, at.solvers)
     if search:
         ref = [s for s in ("scipy-lm",) if s in at.solvers]
-        p0 = figures.runtime_ecdf(at, f"{name}: runtime ECDFs of the search methods" + (" and scipy-lm" if ref else ""),
-                                  figdir / "anytime_ecdf_search.png", order, only=search + ref)
-    p2 = figures.data_profiles(at, f"{name}: data profiles", figdir / "data_profiles.png", order)
-    p3 = figures.performance_profiles(at, f"{name}: performance profiles", figdir / "performance_profiles.png", order)
+        p0 = render.draw(figures.runtime_ecdf, figdir / "anytime_ecdf_search.png", at,
+                         f"{name}: runtime ECDFs of the search methods" + (" and scipy-lm" if ref else ""),
+                         order=order, only=search + ref)
+    p2 = render.draw(figures.data_profiles, figdir / "data_profiles.png", at, f"{name}: data profiles", order=order)
+    p3 = render.draw(figures.performance_profiles, figdir / "performance_profiles.png", at,
+                     f"{name}: performance profiles", order=order)
     L += [f"![runtime ECDFs](figures/{p1.name})", ""]
     if at.hits_s and any(np.isfinite(h).any() for h in at.hits_s.values()):
-        pt = figures.runtime_ecdf_time(at, f"{name}: runtime ECDFs against solver time",
-                                       figdir / "anytime_ecdf_time.png", order)
+        pt = render.draw(figures.runtime_ecdf_time, figdir / "anytime_ecdf_time.png", at,
+                         f"{name}: runtime ECDFs against solver time", order=order)
         L += ["The same (trial, target) pairs against solver time, each met at the time its point was found "
               "(a solver's own overhead per evaluation counts here; the number in the legend is the share reached):",
               "", f"![runtime ECDFs against time](figures/{pt.name})", ""]
