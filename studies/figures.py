@@ -220,8 +220,9 @@ def verification(groups: list[Group], title: str, path: Path) -> Path:
     return _save(fig, path)
 
 
-def accuracy_runtime(cells: dict, title: str, path: Path) -> Path:
-    """Accuracy (RMSE/CRLB) against median runtime for every solver, one panel per model × scheme.
+def accuracy_runtime(cells: dict, title: str, path: Path, names: dict | None = None) -> Path:
+    """Accuracy (RMSE/CRLB) against median runtime for every solver, one panel per model × scheme
+    (``names``: each cell's name in its panel's title, "nonlinear12, 24 positions" by default).
 
     Each point (or cluster of points within 4 % in runtime and 1 % in accuracy: the least-squares methods all
     reach the same optimum) carries a number, and the key beside the panel names the solvers of each number:
@@ -262,7 +263,8 @@ def accuracy_runtime(cells: dict, title: str, path: Path) -> Path:
         ax.axhline(1.0, color="k", lw=0.8, ls="--")
         ax.set_xlabel("median runtime per calibration (s)")
         ax.set_ylabel("RMSE / CRLB (RMS over parameters)")
-        ax.set_title(f"{model}, {scheme} positions (circles: joint, squares: staged)", fontsize=9)
+        name = (names or {}).get((model, scheme), f"{model}, {scheme} positions")
+        ax.set_title(f"{name} (circles: joint, squares: staged)", fontsize=9)
         ax.grid(True, which="both", alpha=0.3)
     for ax in axes.flat[n:]:
         ax.set_visible(False)

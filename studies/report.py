@@ -21,8 +21,11 @@ from .report_sections import (
     label_of,
     md_table,
     navigation_section,
+    per_position,
+    positions_of,
     preamble,
     ranked_on,
+    scheme_phrase,
     traditional_section,
     with_ci,
 )
@@ -88,8 +91,26 @@ def _has_presets_bound(gs: list[Group]) -> bool:
     return any(np.isfinite(g.accuracy_presets) for g in gs)
 
 
-def _summary_rows(gs: list[Group], nav: bool, cis: dict | None = None) -> list[list[str]]:
-    """The per-cell table's rows; ``cis`` maps id(group) to its bootstrap intervals (anytime.group_ci)."""
+def accuracy_per_position(g: Group, n: int | None, sigma: float) -> float:
+    """A group's RMSE·√N/σ (:func:`studies.report_sections.per_position` of its per-parameter RMSEs, their
+    observable parts as in RMSE/CRLB) for its scheme's ``n`` positions and the noise SD ``sigma`` (g); NaN
+    for a turntable configuration, which fits other positions."""
+    if g.reference:
+        return float("nan")
+    return per_position([p.get("rmse_observable") for p in g.parameters()], n, sigma)
+
+
+def crlb_per_position(gs: list[Group], n: int | None, sigma: float) -> float:
+    """The Cramér-Rao bound per position of a model × scheme (the bounds of its in-field trials, which share
+    their data sets, as :func:`accuracy_per_position` takes the RMSEs)."""
+    g = next((g for g in gs if not g.reference and g.ok), None)
+    return float("nan") if g is None else per_position([p["crlb"] for p in g.parameters()], n, sigma)
+
+
+def _summary_rows(gs: list[Group], nav: bool, cis: dict | None = None,
+                  per_pos: dict | None = None) -> list[list[str]]:
+    """The per-cell table's rows; ``cis`` maps id(group) to its bootstrap intervals (anytime.group_ci),
+    ``per_pos`` to its accuracy per position (a column when given)."""
     rows = []
     presets = _has_presets_bound(gs)
     for g in _rank(gs):
@@ -99,6 +120,7 @@ def _summary_rows(gs: list[Group], nav: bool, cis: dict | None = None) -> list[l
             f"`{label_of(g)}`", with_ci(s["success_rate"], ci.get("success_rate"), ".0f", 100, " %"),
             with_ci(s["accuracy"], ci.get("accuracy"), ".2f"),
             *([with_ci(s["accuracy_presets"], ci.get("accuracy_presets"), ".2f")] if presets else []),
+            *([fmt(per_pos[id(g)], ".3g")] if per_pos is not None else []),
             f"{fmt(s['ver_mean_ug'], '.2f')} ({fmt(s['ver_sd_ug'], '.2f')})",
             f"{fmt(s['cost_median'], '.2e')} [{fmt(s['cost_min'], '.2e')}, {fmt(s['cost_max'], '.2e')}]",
             (with_ci(s["runtime_median_s"], ci.get("runtime_median_s"), ".3g") if cis is not None else
@@ -118,6 +140,7 @@ SUMMARY_HEADER = ["solver", "at noise floor", "RMSE/CRLB", "verification µg mea
                   "final cost (g²) median [min, max]", "runtime s median [95 % CI]", "evaluations (median)",
                   "evaluations/s"]
 NAV_HEADER = "5-h navigation error max / mean (nautical miles)"
+PER_POSITION_HEADER = "RMSE·√N/σ (per position)"
 
 
 def _parameters_md(cs) -> str:
@@ -127,7 +150,7 @@ def _parameters_md(cs) -> str:
              "in an unobservable direction: their ratio scores only their observable part.", ""]
     for (model, scheme), gs in cs.items():
         for g in gs:
-            lines.append(f"## {model}, {scheme} positions: `{label_of(g)}`")
+            lines.append(f"## {model}, {scheme_phrase(scheme)}: `{label_of(g)}`")
             lines.append("")
             rows = [[p["name"] + ("" if p["observable"] else "*"), fmt(p["mean"], ".3e"), fmt(p["rmse"], ".3e"),
                      fmt(p["sd"], ".3e"), fmt(p["crlb"], ".3e"), fmt(p["ratio"], ".3g")] for p in g.parameters()]
@@ -154,7 +177,7 @@ def headline(folder: str | Path, top: int = 8) -> str:
     out = []
     for (model, scheme), cg in cells(finished_groups(rows, [s["label"] for s in spec["solvers"]])).items():
         ranked = _rank(cg)
-        out.append(f"{model}, {scheme} positions ({min(top, len(ranked))} best of {len(ranked)}):")
+        out.append(f"{model}, {scheme_phrase(scheme)} ({min(top, len(ranked))} best of {len(ranked)}):")
         wp = _has_presets_bound(cg)
         out += md_table(["solver", "at noise floor", "RMSE/CRLB"] + (["with presets"] if wp else [])
                       + ["verification µg", "runtime s"],
@@ -358,7 +381,8 @@ def write_report(folder: str | Path, workers: int | None = None) -> Path:
             summary += records
         if len(cs):
             p = render.draw(figures.accuracy_runtime, figdir / "accuracy_runtime.png", cs,
-                            f"{spec['name']}: accuracy against runtime")
+                            f"{spec['name']}: accuracy against runtime",
+                            names={k: f"{k[0]}, {scheme_phrase(k[1])}" for k in cs})
             L += ["## Accuracy against runtime", "", f"![accuracy against runtime](figures/{p.name})", ""]
         L += anytime_section(rows, order, spec, figdir, render)
         st = settings(spec, rows)
@@ -404,15 +428,21 @@ def _cell_section(spec: dict, model: str, scheme: str, cg: list[FinishedGroup], 
     directions, navigation, traditional calibration and failures) and its summary.json records; ``has_nav``:
     whether the study computed navigation (a column of the table)."""
     slug = f"{model}_{scheme}".replace(":", "-")
-    L = [f"## {model}, {scheme} positions", ""]
+    L = [f"## {model}, {scheme_phrase(scheme)}", ""]
     truth_ver = np.nanmean([g.summary()["ver_truth_ug"] for g in cg if g.ok]) if any(g.ok for g in cg) else np.nan
-    L += [f"Truth calibration on the verification set: {fmt(truth_ver, '.2f')} µg (the noise floor).", ""]
+    n, sigma = positions_of(scheme), spec["noise_ug"] * 1e-6
+    per_pos = {id(g): accuracy_per_position(g, n, sigma) for g in cg}
+    bound = crlb_per_position(cg, n, sigma)
+    L += [f"Truth calibration on the verification set: {fmt(truth_ver, '.2f')} µg (the noise floor). "
+          f"Cramér-Rao bound per position (CRLB·√N/σ, N = {n or '–'}, σ = {spec['noise_ug']:g} µg): "
+          f"{fmt(bound, '.3g')}.", ""]
     header = (SUMMARY_HEADER[:3] + (["RMSE/CRLB with presets"] if _has_presets_bound(cg) else [])
-              + SUMMARY_HEADER[3:] + ([NAV_HEADER] if has_nav else []) + ["failed"])
-    L += md_table(header, _summary_rows(cg, has_nav, cis))
+              + [PER_POSITION_HEADER] + SUMMARY_HEADER[3:] + ([NAV_HEADER] if has_nav else []) + ["failed"])
+    L += md_table(header, _summary_rows(cg, has_nav, cis, per_pos))
     records = [{**g.summary(), **{f"{k}_ci": list(v) for k, v in cis[id(g)].items()},
+                "positions": n, "accuracy_per_position": per_pos[id(g)], "crlb_per_position": bound,
                 "reference": g.reference, "reference_error_arcsec": g.reference_error_arcsec} for g in cg]
-    ttl = f"{spec['name']}: {model}, {scheme} positions"
+    ttl = f"{spec['name']}: {model}, {scheme_phrase(scheme)}"
     # the turntable fit minimises another cost (3-D residuals): not on the cost figures
     norm = [g for g in cg if not g.reference] or cg
     f1 = render.draw(figures.cost_per_run, figdir / f"cost_{slug}.png", norm, f"{ttl}: final cost per run")

@@ -48,6 +48,54 @@ def label_of(g: Group) -> str:
     return g.solver
 
 
+def positions_of(scheme: str) -> int | None:
+    """How many positions a scheme name holds (docs/design.md §4): 6, 24 and 36 by name, N in plan:<D|A|E>N
+    and random:N, the rows of a scheme file; None when not known (a scheme file no longer there)."""
+    name = str(scheme)
+    if name.isdigit():
+        return int(name)
+    head, _, rest = name.partition(":")
+    digits = rest.split(":")[0].lstrip("DAE") if head == "plan" else rest
+    if head in ("plan", "random") and digits.isdigit():
+        return int(digits)
+    if name.lower().endswith(".csv"):
+        from optcal.errors import InputError
+        from optcal.plan.schemefile import read_scheme
+
+        try:
+            return len(read_scheme(name))
+        except (InputError, OSError):
+            return None
+    return None
+
+
+def scheme_phrase(scheme: str) -> str:
+    """A scheme as the report names it: "24 positions", "plan:D15 (15 positions)"."""
+    n = positions_of(scheme)
+    if str(scheme).isdigit():
+        return f"{scheme} positions"
+    return f"{scheme} ({n} positions)" if n else f"scheme {scheme}"
+
+
+def schemes_phrase(schemes) -> str:
+    """Several schemes: "24, 36 positions" when all are named by their size, else each as :func:`scheme_phrase`."""
+    if all(str(s).isdigit() for s in schemes):
+        return f"{', '.join(map(str, schemes))} positions"
+    return ", ".join(scheme_phrase(s) for s in schemes)
+
+
+def per_position(values, n: int | None, sigma: float) -> float:
+    """Accuracy per position: the RMS of ``values`` (per-parameter RMSEs or Cramér-Rao bounds, in the
+    model's natural units with outputs in g) times √n over the noise SD σ (g) of a reading. A scheme's
+    bounds fall as σ/√n at a given geometry, so this number is the geometry's (and the solver's) alone, and
+    compares schemes of different sizes; NaN when n or σ is not known."""
+    v = np.asarray([x for x in values if x is not None], float)
+    v = v[np.isfinite(v)]
+    if not v.size or not n or not sigma or not sigma > 0:
+        return float("nan")
+    return float(np.sqrt(np.mean(v**2)) * math.sqrt(n) / sigma)
+
+
 def ranked_on(presets: bool) -> str:
     """What the report ranks on (:func:`studies.report.rank_value`), in words."""
     return ("RMSE/CRLB with presets (the bound of data and presets together)" if presets
@@ -71,10 +119,11 @@ def preamble(spec: dict, rows: list[dict], spec_hash: str, presets: bool, final_
         + (" (**incomplete**: run the spec again into this folder to finish)" if len(rows) < expected else "")
         + f"; {failed} failed.",
         f"- {spec['runs']} Monte-Carlo runs, base seed {spec['seed']}; models {', '.join(spec['models'])}; "
-        f"schemes {', '.join(spec['schemes'])} positions; noise {spec['noise_ug']:g} µg; placement tilt "
+        f"schemes {schemes_phrase(spec['schemes'])}; noise {spec['noise_ug']:g} µg; placement tilt "
         f"{spec['tilt_deg']:g}°; truth `{spec['truth'] if isinstance(spec['truth'], str) else 'given values'}`; "
         f"presets `{spec['presets']}`; budget: {budget}.",
-        f"- Verification: {spec['verification']['scheme']} positions, {spec['verification']['noise_ug']:g} µg noise. "
+        f"- Verification: {scheme_phrase(spec['verification']['scheme'])}, {spec['verification']['noise_ug']:g} µg "
+        "noise. "
         + (f"Navigation: {spec['navigation']['hours']:g} h static at {spec['navigation']['latitude_deg']:g}° latitude."
            if has_nav else "Navigation: not computed."),
         "@@WALL@@",
@@ -91,6 +140,13 @@ def preamble(spec: dict, rows: list[dict], spec_hash: str, presets: bool, final_
         "the bound of the data and the presets together (the presets as one more measurement of every "
         "parameter, with the manufacturer's error SD); no method can beat it, so a ratio below 1 in the "
         "first column and near 1 here means the accuracy came from the presets, not from the data. "
+        "*RMSE·√N/σ (per position)*: the accuracy per position, to compare schemes of different sizes N (RMSE/CRLB "
+        "cannot: each scheme has its own bound): RMS over parameters of each parameter's RMSE over runs (its "
+        "observable part) times √N over the noise SD σ of a reading, each parameter in the model's natural units "
+        "with outputs in g (scale factors and angles times 1 g, biases in g, K2 times (1 g)²: the specific force "
+        "its error makes at 1 g). A scheme's bounds fall as σ/√N at a given geometry, so this is what its geometry "
+        "and the solver make of each position: the 24- and 36-position rotation schemes have the same bound per "
+        "position (given above each table), a scheme whose positions tell more has a smaller one. "
         f"Solvers are ranked on {ranked_on(presets)}. "
         "*Verification*: |‖A‖ − g| on an independent "
         "verification set with the estimated calibration (2020 paper, Table 5), mean over positions "
@@ -128,7 +184,7 @@ def traditional_section(cell_key, gs: list[Group], figdir: Path, slug: str, rend
     if not ref or not inf:
         return []
     model, scheme = cell_key
-    lines = [f"### Traditional against in-field: {model}, {scheme} positions", ""]
+    lines = [f"### Traditional against in-field: {model}, {scheme_phrase(scheme)}", ""]
     best_in = min(inf, key=lambda g: np.nan_to_num(g.accuracy, nan=np.inf))
     metrics = [("accuracy", "RMSE/CRLB", lambda s: s["accuracy"])]
     metrics.append(("verification", "verification |‖A‖−g| (µg)", lambda s: s["ver_mean_ug"]))
@@ -150,7 +206,8 @@ def traditional_section(cell_key, gs: list[Group], figdir: Path, slug: str, rend
         v = fn(best_in.summary())
         if len(levels) > 1 and np.isfinite(v):
             p = render.draw(figures.traditional, figdir / f"traditional_{key}_{slug}.png", levels,
-                            [(g.solver, fn(g.summary())) for g in inf], name, f"{model}, {scheme} positions: {name}")
+                            [(g.solver, fn(g.summary())) for g in inf], name,
+                            f"{model}, {scheme_phrase(scheme)}: {name}")
             lines.append(f"  ![{name}](figures/{p.name})")
     return lines + [""]
 
@@ -163,7 +220,7 @@ def navigation_section(cell_key, gs: list[Group], nav_spec: dict, figdir: Path, 
     model, scheme = cell_key
     hours = nav_spec["hours"]
     att = ", ".join(f"{a:g}" for a in nav_spec.get("attitude_deg", (0, 0, 0)))
-    lines = [f"### Static navigation ({hours:g} h): {model}, {scheme} positions", "",
+    lines = [f"### Static navigation ({hours:g} h): {model}, {scheme_phrase(scheme)}", "",
              "Median over runs of each run's maximum and mean radial position error "
              f"(2020 paper, Eq. 23 and Table 6); attitude (roll, pitch, yaw) = ({att})°, known initial attitude.", ""]
     if any(g.unobservable() for g in nav if not g.reference):
@@ -178,7 +235,7 @@ def navigation_section(cell_key, gs: list[Group], nav_spec: dict, figdir: Path, 
         rows.append([label_of(g), fmt(s["nav_max_nmi"], ".4f"), fmt(s["nav_mean_nmi"], ".4f")])
     lines += md_table(["calibration", "max error (nmi)", "mean error (nmi)"], rows)
     p = render.draw(figures.navigation, figdir / f"navigation_{slug}.png", nav, hours,
-                    f"{model}, {scheme} positions: static navigation error")
+                    f"{model}, {scheme_phrase(scheme)}: static navigation error")
     return lines + [f"![navigation](figures/{p.name})", ""]
 
 
