@@ -41,6 +41,10 @@ def figure_workers(n_groups: int) -> int:
     return min(cpus, MAX_WORKERS) if n_groups >= PARALLEL_MIN_GROUPS and cpus > 1 else 0
 
 
+def _start() -> None:
+    _plt()
+
+
 def _draw(fn: Callable, path: Path, args: tuple, kwargs: dict) -> Path:
     return fn(*args, path=path, **kwargs)
 
@@ -49,21 +53,29 @@ class Renderer:
     """Draws figures: in ``workers`` worker processes (spawned: a clean interpreter, whatever threads the
     calling process holds), or at once in this process when ``workers`` is 0. :meth:`finish` waits for
     every figure and raises a figure's error; a figure whose worker died (the pool broke) is drawn here.
-    Used as a context manager, which stops the workers however the report ends."""
+    ``prepare`` maps each argument of a figure to what the figure gets, in either case (the report cuts its
+    groups' rows to the columns the figures draw, so that a worker unpickles less). ``start``: start the
+    workers at once, each importing matplotlib, instead of at the first figure. Used as a context manager,
+    which stops the workers however the report ends."""
 
-    def __init__(self, workers: int = 0):
+    def __init__(self, workers: int = 0, prepare: Callable | None = None, start: bool = False):
+        self.prepare = prepare or (lambda a: a)
         self.pool = None
         if workers > 0:
             import multiprocessing as mp
             from concurrent.futures import ProcessPoolExecutor
 
             self.pool = ProcessPoolExecutor(max_workers=workers, mp_context=mp.get_context("spawn"))
+            if start:  # start every worker now (a pool starts one per task submitted, up to its size)
+                for _ in range(workers):
+                    self.pool.submit(_start)
         self.jobs: list[tuple] = []
 
     def draw(self, fn: Callable, path: Path, *args, **kwargs) -> Path:
         """``fn(*args, path=path, **kwargs)``, now or in a worker; returns ``path``."""
         from concurrent.futures.process import BrokenProcessPool
 
+        args, kwargs = tuple(map(self.prepare, args)), {k: self.prepare(v) for k, v in kwargs.items()}
         if self.pool is None:
             return _draw(fn, path, args, kwargs)
         job = (fn, path, args, kwargs)

@@ -3,6 +3,7 @@ per-parameter statistic, and ``summary.json`` (one record per solver Ã— scheme Ã
 
 from __future__ import annotations
 
+import copy
 import dataclasses
 import functools
 import json
@@ -67,6 +68,42 @@ class FinishedGroup(Group):
 
     def unobservable(self) -> list[dict]:
         return [dict(d) for d in self._unobservable]
+
+    def for_figures(self) -> FinishedGroup:
+        """A copy for the figures: every statistic computed from the whole rows, the rows cut to
+        :data:`FIGURE_COLUMNS` (about 40 % of a row), which is what a figure worker unpickles."""
+        for name in ("ok", "success_rate", "failures", "accuracy", "accuracy_presets", "_parameters", "_summary",
+                     "_unobservable"):
+            getattr(self, name)
+        c = copy.copy(self)
+        c.rows = [{k: r.get(k) for k in FIGURE_COLUMNS} for r in self.rows]
+        c.__dict__["ok"] = [r for r in c.rows if r["status"] == "ok"]
+        return c
+
+
+# The row columns studies.figures draws from (beside the groups' statistics).
+FIGURE_COLUMNS = ("run", "status", "converged", "names", "fun", "trace", "ver_err", "ver_truth", "nav_curve",
+                  "nav_max_nmi")
+
+
+class FigureInputs:
+    """The report's :class:`studies.figures.Renderer` ``prepare``: a group, a list of groups or a dict of
+    lists of groups (the cells) becomes the same of :meth:`FinishedGroup.for_figures` copies, each group's
+    made once; anything else goes as it is."""
+
+    def __init__(self):
+        self.copies: dict[int, FinishedGroup] = {}
+
+    def __call__(self, a):
+        if isinstance(a, FinishedGroup):
+            if id(a) not in self.copies:
+                self.copies[id(a)] = a.for_figures()
+            return self.copies[id(a)]
+        if isinstance(a, list) and a and all(isinstance(g, FinishedGroup) for g in a):
+            return [self(g) for g in a]
+        if isinstance(a, dict) and a and all(isinstance(v, list) for v in a.values()):
+            return type(a)((k, self(v)) for k, v in a.items())
+        return a
 
 
 def finished_groups(rows: list[dict], order: list[str] | None = None) -> list[FinishedGroup]:
@@ -356,10 +393,18 @@ def write_report(folder: str | Path, workers: int | None = None) -> Path:
     folder = Path(folder)
     with Store.open_existing(folder) as store:
         spec = store.spec
-        rows = store.rows()
-        sessions = json.loads(store.meta("sessions") or "[]")
-        wall = float(store.meta("wall_s") or 0)
-        spec_hash = store.meta("spec_hash")
+        n_groups = len(spec["solvers"]) * len(spec["models"]) * len(spec["schemes"])
+        # the workers start (Python, NumPy, matplotlib) while this process reads the trials
+        render = figures.Renderer(figures.figure_workers(n_groups) if workers is None else workers,
+                                  prepare=FigureInputs(), start=True)
+        try:
+            rows = store.rows()
+            sessions = json.loads(store.meta("sessions") or "[]")
+            wall = float(store.meta("wall_s") or 0)
+            spec_hash = store.meta("spec_hash")
+        except BaseException:
+            render.close()
+            raise
     figdir = folder / "figures"
     figdir.mkdir(exist_ok=True)
     order = [s["label"] for s in spec["solvers"]]
@@ -367,7 +412,7 @@ def write_report(folder: str | Path, workers: int | None = None) -> Path:
     cs = cells(gs)
     presets = any(_has_presets_bound(cg) for cg in cs.values())
     has_nav = any(r.get("nav_max_nmi") is not None for r in rows)
-    with figures.Renderer(figures.figure_workers(len(gs)) if workers is None else workers) as render:
+    with render:
         cis = {id(g): anytime.group_ci(g, spec["seed"]) for g in gs}
         L = preamble(spec, rows, spec_hash, presets, _final_gap())
         if len(cs) > 1:
