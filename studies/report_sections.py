@@ -1,8 +1,9 @@
 """Parts of a study's ``report.md`` (:func:`studies.report.write_report`): the markdown helpers the report
-shares (numbers with their bootstrap interval, tables, a group's label) and the sections a report has only
-when the study calls for them: traditional against in-field calibration (docs/design.md §11.7), static
-navigation (2020 paper, Eq. 23 and Table 6) and anytime performance (runtime ECDFs, data and performance
-profiles; :mod:`studies.anytime`).
+shares (numbers with their bootstrap interval, tables, a group's label, a scheme's name with its size, the
+accuracy per position), the report's head (the study and how to read its tables), and the sections a
+report has only when the study calls for them: traditional against in-field calibration (docs/design.md
+§11.7), static navigation (2020 paper, Eq. 23 and Table 6) and anytime performance (runtime ECDFs, data and
+performance profiles; :mod:`studies.anytime`).
 """
 
 from __future__ import annotations
