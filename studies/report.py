@@ -17,6 +17,7 @@ from optcal.errors import InputError
 from . import anytime, figures, paired
 from .metrics import Group, cells, groups
 from .report_sections import (
+    accelerometer,
     anytime_section,
     fmt,
     label_of,
@@ -474,18 +475,25 @@ def _cell_section(spec: dict, model: str, scheme: str, cg: list[FinishedGroup], 
     whether the study computed navigation (a column of the table)."""
     slug = f"{model}_{scheme}".replace(":", "-")
     L = [f"## {model}, {scheme_phrase(scheme)}", ""]
-    truth_ver = np.nanmean([g.summary()["ver_truth_ug"] for g in cg if g.ok]) if any(g.ok for g in cg) else np.nan
-    n, sigma = positions_of(scheme), spec["noise_ug"] * 1e-6
-    per_pos = {id(g): accuracy_per_position(g, n, sigma) for g in cg}
-    bound = crlb_per_position(cg, n, sigma)
-    L += [f"Truth calibration on the verification set: {fmt(truth_ver, '.2f')} µg (the noise floor). "
-          f"Cramér-Rao bound per position (CRLB·√N/σ, N = {n or '–'}, σ = {spec['noise_ug']:g} µg): "
-          f"{fmt(bound, '.3g')}.", ""]
+    vt = [v for v in (g.summary()["ver_truth_ug"] for g in cg if g.ok) if np.isfinite(v)]
+    truth_ver = float(np.mean(vt)) if vt else np.nan  # none without a verification set (the gyroscope's)
+    n = positions_of(scheme)
+    head = f"Truth calibration on the verification set: {fmt(truth_ver, '.2f')} µg (the noise floor)."
+    per_pos, bound = None, float("nan")
+    if accelerometer(spec):  # σ is the accelerometer's noise per reading, the parameters its
+        sigma = spec["noise_ug"] * 1e-6
+        per_pos = {id(g): accuracy_per_position(g, n, sigma) for g in cg}
+        bound = crlb_per_position(cg, n, sigma)
+        head += (f" Cramér-Rao bound per position (CRLB·√N/σ, N = {n or '–'}, σ = {spec['noise_ug']:g} µg): "
+                 f"{fmt(bound, '.3g')}.")
+    L += [head, ""]
     header = (SUMMARY_HEADER[:3] + (["RMSE/CRLB with presets"] if _has_presets_bound(cg) else [])
-              + [PER_POSITION_HEADER] + SUMMARY_HEADER[3:] + ([NAV_HEADER] if has_nav else []) + ["failed"])
+              + ([PER_POSITION_HEADER] if per_pos is not None else []) + SUMMARY_HEADER[3:]
+              + ([NAV_HEADER] if has_nav else []) + ["failed"])
     L += md_table(header, _summary_rows(cg, has_nav, cis, per_pos))
-    records = [{**g.summary(), **{f"{k}_ci": list(v) for k, v in cis[id(g)].items()},
-                "positions": n, "accuracy_per_position": per_pos[id(g)], "crlb_per_position": bound,
+    records = [{**g.summary(), **{f"{k}_ci": list(v) for k, v in cis[id(g)].items()}, "positions": n,
+                "accuracy_per_position": per_pos[id(g)] if per_pos is not None else float("nan"),
+                "crlb_per_position": bound,
                 "reference": g.reference, "reference_error_arcsec": g.reference_error_arcsec} for g in cg]
     ttl = f"{spec['name']}: {model}, {scheme_phrase(scheme)}"
     # the turntable fit minimises another cost (3-D residuals): not on the cost figures

@@ -97,6 +97,22 @@ def per_position(values, n: int | None, sigma: float) -> float:
     return float(np.sqrt(np.mean(v**2)) * math.sqrt(n) / sigma)
 
 
+PER_POSITION_TEXT = (
+    "*RMSE·√N/σ (per position)*: the accuracy per position, to compare schemes of different sizes N (RMSE/CRLB "
+    "cannot: each scheme has its own bound): RMS over parameters of each parameter's RMSE over runs (its "
+    "observable part) times √N over the noise SD σ of a reading, each parameter in the model's natural units "
+    "with outputs in g (scale factors and angles times 1 g, biases in g, K2 times (1 g)²: the specific force "
+    "its error makes at 1 g). A scheme's bounds fall as σ/√N at a given geometry, so this is what its geometry "
+    "and the solver make of each position: the 24- and 36-position rotation schemes have the same bound per "
+    "position (given above each table), a scheme whose positions tell more has a smaller one. ")
+
+
+def accelerometer(spec: dict) -> bool:
+    """Whether a study is of the accelerometer's problem (a spec without ``problem`` is): the accuracy per
+    position divides by its noise per reading, which the gyroscope's problem does not have."""
+    return spec.get("problem", "accelerometer") == "accelerometer"
+
+
 def ranked_on(presets: bool) -> str:
     """What the report ranks on (:func:`studies.report.rank_value`), in words."""
     return ("RMSE/CRLB with presets (the bound of data and presets together)" if presets
@@ -141,13 +157,7 @@ def preamble(spec: dict, rows: list[dict], spec_hash: str, presets: bool, final_
         "the bound of the data and the presets together (the presets as one more measurement of every "
         "parameter, with the manufacturer's error SD); no method can beat it, so a ratio below 1 in the "
         "first column and near 1 here means the accuracy came from the presets, not from the data. "
-        "*RMSE·√N/σ (per position)*: the accuracy per position, to compare schemes of different sizes N (RMSE/CRLB "
-        "cannot: each scheme has its own bound): RMS over parameters of each parameter's RMSE over runs (its "
-        "observable part) times √N over the noise SD σ of a reading, each parameter in the model's natural units "
-        "with outputs in g (scale factors and angles times 1 g, biases in g, K2 times (1 g)²: the specific force "
-        "its error makes at 1 g). A scheme's bounds fall as σ/√N at a given geometry, so this is what its geometry "
-        "and the solver make of each position: the 24- and 36-position rotation schemes have the same bound per "
-        "position (given above each table), a scheme whose positions tell more has a smaller one. "
+        + (PER_POSITION_TEXT if accelerometer(spec) else "") +
         f"Solvers are ranked on {ranked_on(presets)}. "
         "*Verification*: |‖A‖ − g| on an independent "
         "verification set with the estimated calibration (2020 paper, Table 5), mean over positions "

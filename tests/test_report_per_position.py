@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import json
 import math
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -122,3 +123,18 @@ def test_the_bound_per_position_is_the_geometry_s(sizes):
     b = {r["scheme"]: r["crlb_per_position"] for r in doc["records"] if r["solver"] == "scipy-lm"}
     assert b["24"] == pytest.approx(b["36"], rel=0.01)
     assert abs(b["plan:D15"] / b["24"] - 1) > 0.03
+
+
+def test_a_gyroscope_study_has_no_accuracy_per_position(tmp_path):
+    """The gyroscope's problem has no noise per reading in the spec's units (noise_ug is the accelerometer's
+    on each rest), so its report leaves the column, its definition and the bound per position out."""
+    sp = parse({**tomllib.loads((Path(__file__).parents[1] / "studies/specs/gyro_compare.toml").read_text()),
+                "runs": 2, "models": ["gyro9"], "schemes": ["24"], "solvers": [{"name": "scipy-lm"}],
+                "executor": {"kind": "serial"}}, "gyro_compare.toml")
+    run_study(sp, tmp_path, progress=False)
+    text = write_report(tmp_path).read_text()
+    doc = json.loads((tmp_path / "summary.json").read_text())
+    assert "## gyro9, 24 positions" in text and "| `scipy-lm` |" in text
+    assert "RMSE·√N/σ" not in text and "bound per position" not in text
+    rec = doc["records"][0]
+    assert rec["positions"] == 24 and rec["accuracy_per_position"] is None and rec["crlb_per_position"] is None
