@@ -146,9 +146,10 @@ def crlb_per_position(gs: list[Group], n: int | None, sigma: float) -> float:
 
 
 def _summary_rows(gs: list[Group], nav: bool, cis: dict | None = None,
-                  per_pos: dict | None = None) -> list[list[str]]:
+                  per_pos: dict | None = None, verification: bool = True) -> list[list[str]]:
     """The per-cell table's rows; ``cis`` maps id(group) to its bootstrap intervals (anytime.group_ci),
-    ``per_pos`` to its accuracy per position (a column when given)."""
+    ``per_pos`` to its accuracy per position (a column when given); ``verification``: the verification
+    column (the accelerometer's; the gyroscope's problem has no verification set)."""
     rows = []
     presets = _has_presets_bound(gs)
     for g in _rank(gs):
@@ -159,7 +160,7 @@ def _summary_rows(gs: list[Group], nav: bool, cis: dict | None = None,
             with_ci(s["accuracy"], ci.get("accuracy"), ".2f"),
             *([with_ci(s["accuracy_presets"], ci.get("accuracy_presets"), ".2f")] if presets else []),
             *([fmt(per_pos[id(g)], ".3g")] if per_pos is not None else []),
-            f"{fmt(s['ver_mean_ug'], '.2f')} ({fmt(s['ver_sd_ug'], '.2f')})",
+            *([f"{fmt(s['ver_mean_ug'], '.2f')} ({fmt(s['ver_sd_ug'], '.2f')})"] if verification else []),
             f"{fmt(s['cost_median'], '.2e')} [{fmt(s['cost_min'], '.2e')}, {fmt(s['cost_max'], '.2e')}]",
             (with_ci(s["runtime_median_s"], ci.get("runtime_median_s"), ".3g") if cis is not None else
              f"{fmt(s['runtime_median_s'], '.3g')} "
@@ -179,20 +180,36 @@ SUMMARY_HEADER = ["solver", "at noise floor", "RMSE/CRLB", "verification µg mea
                   "evaluations/s"]
 NAV_HEADER = "5-h navigation error max / mean (nautical miles)"
 PER_POSITION_HEADER = "RMSE·√N/σ (per position)"
+GYRO_COST_HEADER = "final χ² median [min, max]"  # the gyroscope's whitened residuals: no unit
 
 
-def _parameters_md(cs) -> str:
+def parameter_units(spec: dict, model: str) -> dict[str, str]:
+    """{parameter: unit} of a study's model: the accelerometer's with outputs in g (the studies simulate
+    specific force in g), the gyroscope's with outputs in counts (its simulated sensor's)."""
+    if accelerometer(spec):
+        from optcal.model import get_model
+
+        return get_model(model).units("g")
+    from optcal.gyro.model import param_units
+
+    return param_units("counts")
+
+
+def _parameters_md(cs, spec: dict) -> str:
     lines = ["# Per-parameter statistics", "",
-             "Error = estimate − truth over the runs that did not fail. CRLB: Cramér-Rao SD at the truth with "
-             "the simulation noise; ratio = RMSE of the observable part / CRLB. Parameters marked * have weight "
-             "in an unobservable direction: their ratio scores only their observable part.", ""]
+             "Error = estimate − truth over the runs that did not fail, in the parameter's unit. CRLB: Cramér-Rao "
+             "SD at the truth with the simulation noise; ratio = RMSE of the observable part / CRLB. Parameters "
+             "marked * have weight in an unobservable direction: their ratio scores only their observable part.",
+             ""]
     for (model, scheme), gs in cs.items():
+        units = parameter_units(spec, model)
         for g in gs:
             lines.append(f"## {model}, {scheme_phrase(scheme)}: `{label_of(g)}`")
             lines.append("")
-            rows = [[p["name"] + ("" if p["observable"] else "*"), fmt(p["mean"], ".3e"), fmt(p["rmse"], ".3e"),
-                     fmt(p["sd"], ".3e"), fmt(p["crlb"], ".3e"), fmt(p["ratio"], ".3g")] for p in g.parameters()]
-            lines += md_table(["parameter", "mean error", "RMSE", "SD", "CRLB", "RMSE/CRLB"], rows)
+            rows = [[p["name"] + ("" if p["observable"] else "*"), units.get(p["name"], "–"), fmt(p["mean"], ".3e"),
+                     fmt(p["rmse"], ".3e"), fmt(p["sd"], ".3e"), fmt(p["crlb"], ".3e"), fmt(p["ratio"], ".3g")]
+                    for p in g.parameters()]
+            lines += md_table(["parameter", "unit", "mean error", "RMSE", "SD", "CRLB", "RMSE/CRLB"], rows)
     return "\n".join(lines)
 
 
@@ -216,12 +233,13 @@ def headline(folder: str | Path, top: int = 8) -> str:
     for (model, scheme), cg in cells(finished_groups(rows, [s["label"] for s in spec["solvers"]])).items():
         ranked = _rank(cg)
         out.append(f"{model}, {scheme_phrase(scheme)} ({min(top, len(ranked))} best of {len(ranked)}):")
-        wp = _has_presets_bound(cg)
+        wp, acc = _has_presets_bound(cg), accelerometer(spec)
         out += md_table(["solver", "at noise floor", "RMSE/CRLB"] + (["with presets"] if wp else [])
-                      + ["verification µg", "runtime s"],
+                      + (["verification µg"] if acc else []) + ["runtime s"],
                       [[f"`{label_of(g)}`", f"{100 * g.success_rate:.0f} %", fmt(g.accuracy, ".2f")]
                        + ([fmt(g.accuracy_presets, ".2f")] if wp else [])
-                       + [fmt(g.summary()["ver_mean_ug"], ".2f"), fmt(g.summary()["runtime_median_s"], ".3g")]
+                       + ([fmt(g.summary()["ver_mean_ug"], ".2f")] if acc else [])
+                       + [fmt(g.summary()["runtime_median_s"], ".3g")]
                        for g in ranked[:top]])
     return "\n".join(out)
 
@@ -440,7 +458,7 @@ def write_report(folder: str | Path, workers: int | None = None) -> Path:
               f"({prov['machine']['cpus']} CPUs), Python {prov['python']}; "
               + ", ".join(f"{k} {v}" for k, v in prov["libraries"].items()) + ".", ""]
         render.finish()
-    (folder / "parameters.md").write_text(_parameters_md(cs))
+    (folder / "parameters.md").write_text(_parameters_md(cs, spec))
     t_rep = time.perf_counter() - t_report
     L[L.index("@@WALL@@")] = (
         f"- Wall time {wall + t_rep:.1f} s: the study {wall:.1f} s over {len(sessions)} session(s) ("
@@ -478,19 +496,21 @@ def _cell_section(spec: dict, model: str, scheme: str, cg: list[FinishedGroup], 
     vt = [v for v in (g.summary()["ver_truth_ug"] for g in cg if g.ok) if np.isfinite(v)]
     truth_ver = float(np.mean(vt)) if vt else np.nan  # none without a verification set (the gyroscope's)
     n = positions_of(scheme)
-    head = f"Truth calibration on the verification set: {fmt(truth_ver, '.2f')} µg (the noise floor)."
+    acc = accelerometer(spec)
+    head = f"Truth calibration on the verification set: {fmt(truth_ver, '.2f')} µg (the noise floor)." if acc else ""
     per_pos, bound = None, float("nan")
-    if accelerometer(spec):  # σ is the accelerometer's noise per reading, the parameters its
+    if acc:  # σ is the accelerometer's noise per reading, the parameters its
         sigma = spec["noise_ug"] * 1e-6
         per_pos = {id(g): accuracy_per_position(g, n, sigma) for g in cg}
         bound = crlb_per_position(cg, n, sigma)
         head += (f" Cramér-Rao bound per position (CRLB·√N/σ, N = {n or '–'}, σ = {spec['noise_ug']:g} µg): "
                  f"{fmt(bound, '.3g')}.")
-    L += [head, ""]
+    L += [head, ""] if head else []
+    rest = SUMMARY_HEADER[3:] if acc else [GYRO_COST_HEADER] + SUMMARY_HEADER[5:]
     header = (SUMMARY_HEADER[:3] + (["RMSE/CRLB with presets"] if _has_presets_bound(cg) else [])
-              + ([PER_POSITION_HEADER] if per_pos is not None else []) + SUMMARY_HEADER[3:]
+              + ([PER_POSITION_HEADER] if per_pos is not None else []) + rest
               + ([NAV_HEADER] if has_nav else []) + ["failed"])
-    L += md_table(header, _summary_rows(cg, has_nav, cis, per_pos))
+    L += md_table(header, _summary_rows(cg, has_nav, cis, per_pos, verification=acc))
     records = [{**g.summary(), **{f"{k}_ci": list(v) for k, v in cis[id(g)].items()}, "positions": n,
                 "accuracy_per_position": per_pos[id(g)] if per_pos is not None else float("nan"),
                 "crlb_per_position": bound,
@@ -502,12 +522,13 @@ def _cell_section(spec: dict, model: str, scheme: str, cg: list[FinishedGroup], 
     f2 = render.draw(figures.convergence, figdir / f"convergence_{slug}.png", norm, f"{ttl}: convergence")
     f3 = render.draw(figures.error_vs_crlb, figdir / f"crlb_{slug}.png", cg,
                      f"{ttl}: error against the Cramér-Rao bound")
-    f4 = render.draw(figures.verification, figdir / f"verification_{slug}.png", cg,
-                     f"{ttl}: verification error per position")
+    f4 = (render.draw(figures.verification, figdir / f"verification_{slug}.png", cg,
+                      f"{ttl}: verification error per position") if acc else None)
     f0 = render.draw(figures.ranking, figdir / f"ranking_{slug}.png", cg, f"{ttl}: accuracy of every solver")
     L += [f"![ranking](figures/{f0.name})", "",
           f"![final cost per run](figures/{f1.name})", "", f"![convergence](figures/{f2.name})", "",
-          f"![error against CRLB](figures/{f3.name})", "", f"![verification](figures/{f4.name})", ""]
+          f"![error against CRLB](figures/{f3.name})", ""]
+    L += [f"![verification](figures/{f4.name})", ""] if f4 is not None else []
     # per-parameter ratios
     names = cg[0].names
     obs = cg[0].ok[0]["observable"] if cg[0].ok else [1] * len(names)

@@ -131,18 +131,27 @@ def preamble(spec: dict, rows: list[dict], spec_hash: str, presets: bool, final_
     L = [f"# Study `{spec['name']}`", ""]
     if spec.get("description"):
         L += [spec["description"], ""]
+    truth = spec['truth'] if isinstance(spec['truth'], str) else 'given values'
+    if accelerometer(spec):
+        setting = (f"noise {spec['noise_ug']:g} µg; placement tilt {spec['tilt_deg']:g}°; truth `{truth}`")
+        extra = (f"- Verification: {scheme_phrase(spec['verification']['scheme'])}, "
+                 f"{spec['verification']['noise_ug']:g} µg noise. "
+                 + (f"Navigation: {spec['navigation']['hours']:g} h static at "
+                    f"{spec['navigation']['latitude_deg']:g}° latitude." if has_nav else "Navigation: not computed."))
+    else:
+        g = spec["gyroscope"]
+        setting = (f"the gyroscope's problem: {g['rate_hz']:g} Hz, rests of {g['rest_s']:g} s, {g['profile']} turns "
+                   f"of {g['motion_s']:g} s, white rate noise {g['noise_rad_s_rthz']:g} rad/s/√Hz, bias random walk "
+                   f"{g['bias_walk_rad_s2_rthz']:g} rad/s²/√Hz, nominal scale {g['scale']:g} counts per rad/s, "
+                   f"{spec['noise_ug']:g} µg on each rest's mean specific force; truth `{truth}`")
+        extra = "- Verification and navigation: none (the gyroscope's problem has neither)."
     L += [
         f"- Spec hash `{spec_hash}`; {len(rows)} of {expected} trials stored"
         + (" (**incomplete**: run the spec again into this folder to finish)" if len(rows) < expected else "")
         + f"; {failed} failed.",
         f"- {spec['runs']} Monte-Carlo runs, base seed {spec['seed']}; models {', '.join(spec['models'])}; "
-        f"schemes {schemes_phrase(spec['schemes'])}; noise {spec['noise_ug']:g} µg; placement tilt "
-        f"{spec['tilt_deg']:g}°; truth `{spec['truth'] if isinstance(spec['truth'], str) else 'given values'}`; "
-        f"presets `{spec['presets']}`; budget: {budget}.",
-        f"- Verification: {scheme_phrase(spec['verification']['scheme'])}, {spec['verification']['noise_ug']:g} µg "
-        "noise. "
-        + (f"Navigation: {spec['navigation']['hours']:g} h static at {spec['navigation']['latitude_deg']:g}° latitude."
-           if has_nav else "Navigation: not computed."),
+        f"schemes {schemes_phrase(spec['schemes'])}; {setting}; presets `{spec['presets']}`; budget: {budget}.",
+        extra,
         "@@WALL@@",
         "",
         "**How to read.** *At noise floor*: share of runs whose final cost is within the 99.9 % χ² quantile of "
@@ -159,9 +168,12 @@ def preamble(spec: dict, rows: list[dict], spec_hash: str, presets: bool, final_
         "first column and near 1 here means the accuracy came from the presets, not from the data. "
         + (PER_POSITION_TEXT if accelerometer(spec) else "") +
         f"Solvers are ranked on {ranked_on(presets)}. "
-        "*Verification*: |‖A‖ − g| on an independent "
-        "verification set with the estimated calibration (2020 paper, Table 5), mean over positions "
-        "(SD over positions), averaged over runs. *Final cost*: Σ (‖A‖ − g)² over the positions, in g². "
+        + ("*Verification*: |‖A‖ − g| on an independent "
+           "verification set with the estimated calibration (2020 paper, Table 5), mean over positions "
+           "(SD over positions), averaged over runs. *Final cost*: Σ (‖A‖ − g)² over the positions, in g². "
+           if accelerometer(spec) else
+           "*Final cost*: the χ² of the whitened residuals (each motion's two, each rest's three when the bias is "
+           "fitted; docs/gyroscope.md), no unit. ") +
         "*Runtime*: solver time per calibration. *Evaluations*: evaluations of the cost over the whole data set "
         "per calibration; a Jacobian counts as one (so a Levenberg-Marquardt fit's few evaluations are residual "
         "vectors and Jacobians together), and a trial stops once its cost is within "

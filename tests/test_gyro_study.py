@@ -231,6 +231,14 @@ def test_the_report_and_exports_take_a_gyro_study_unchanged(tiny):
     res, out = tiny
     text = (out / "report.md").read_text()
     assert "## gyro21, 24 positions" in text and "| G_zz |" in text and "0 failed" in text
+    # the report speaks of the gyroscope's recording and cost, not of the accelerometer's verification set
+    assert "the gyroscope's problem: 100 Hz, rests of 3 s, smooth turns of 2 s" in text
+    assert "Verification and navigation: none" in text and "final χ² median [min, max]" in text
+    assert "verification" not in text.lower().replace("verification and navigation: none", "")
+    assert "g²" not in text and "Truth calibration" not in text
+    params = (out / "parameters.md").read_text()
+    assert "| K_x | counts/(rad/s) |" in params and "| G_zz | (rad/s)/g |" in params
+    assert "| T_xy | rad |" in params and "| b_x | rad/s |" in params
     summary = json.loads((out / "summary.json").read_text())
     rec = {(r["model"], r["solver"]): r for r in summary["records"]}
     for _, r in res.summary.iterrows():
