@@ -195,14 +195,6 @@ class CalibrationFile:
         return out
 
 
-def __getattr__(name: str):
-    if name == "REQUIRED_FIELDS":  # the schema's, from optcal.calfile_schema (pydantic: imported on reading)
-        from .calfile_schema import REQUIRED_FIELDS
-
-        return REQUIRED_FIELDS
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
-
-
 def read_calibration(path) -> CalibrationFile:
     """Read and validate a calibration file. Another format or version, a missing or unknown field, a value
     of the wrong type or out of range (the schema :class:`optcal.calfile_schema.CalibrationRecord`) is an

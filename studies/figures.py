@@ -447,6 +447,10 @@ def _curve_panels(panels: list[dict], title: str, path: Path, order: list[str] |
     return _save(fig, path)
 
 
+# The title of an ECDF panel per kind of target: its words and the format of each target
+ECDF_TARGETS = {"cost": ("cost targets (f − f_opt) / f_opt ≤ ", "{:g}"), "accuracy": ("accuracy targets ≤ ", "{:g}")}
+
+
 def runtime_ecdf(at, title: str, path: Path, order: list[str] | None = None, only: list[str] | None = None) -> Path:
     """Runtime ECDFs (COCO / IOHprofiler): per solver the fraction of (trial, target) pairs reached against
     evaluations, one panel for the cost targets and one for the accuracy targets (:mod:`studies.anytime`).
@@ -454,10 +458,9 @@ def runtime_ecdf(at, title: str, path: Path, order: list[str] | None = None, onl
     from .anytime import grid
 
     x = grid(at.top)
-    words = {"cost": ("cost targets (f − f_opt) / f_opt ≤ ", "{:g}"), "accuracy": ("accuracy targets ≤ ", "{:g}")}
     panels = []
     for kind, targets in at.targets.items():
-        head, fmt = words[kind]
+        head, fmt = ECDF_TARGETS[kind]
         panels.append({
             "title": head + ", ".join(fmt.format(t) for t in targets), "xlabel": "cost evaluations",
             "ylabel": "fraction of (trial, target) pairs reached", "x": x, "legend_title": "solver (ECDF area)",
@@ -475,10 +478,9 @@ def runtime_ecdf_time(at, title: str, path: Path, order: list[str] | None = None
     lo = np.nanmin([np.nanmin(np.where(np.isfinite(h) & (h > 0), h, np.nan)) for h in at.hits_s.values()])
     hi = at.top_s
     x = np.logspace(np.log10(max(lo, 1e-6)), np.log10(max(hi, 2 * lo)), 200)
-    words = {"cost": ("cost targets (f − f_opt) / f_opt ≤ ", "{:g}"), "accuracy": ("accuracy targets ≤ ", "{:g}")}
     panels = []
     for kind, targets in at.targets.items():
-        head, fmt = words[kind]
+        head, fmt = ECDF_TARGETS[kind]
         panels.append({
             "title": head + ", ".join(fmt.format(t) for t in targets), "xlabel": "solver time (s)",
             "ylabel": "fraction of (trial, target) pairs reached", "x": x, "legend_title": "solver (reached)",

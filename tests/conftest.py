@@ -1,3 +1,4 @@
+import re
 from pathlib import Path
 
 import matplotlib
@@ -13,3 +14,21 @@ def rng():
 
 # Real recordings made by others, kept in the repository with their licences (tests/data/README.md).
 REAL_DATA = Path(__file__).resolve().parent / "data"
+
+
+# The noise report's counts, levels and slopes; every other number's key names its unit (docs/noise.md)
+UNITLESS_NOISE_KEYS = {"n_samples", "ci_level", "edf", "local_slope"}
+
+
+def assert_numbers_carry_units(obj, unit: re.Pattern, unitless=UNITLESS_NOISE_KEYS, keys=()) -> None:
+    """Every number in the JSON-like ``obj`` sits under a key that ``unit`` matches (its unit as a suffix) or
+    one of ``unitless``; ``value``, ``low`` and ``high`` (an estimate and its interval) take their parent's."""
+    if isinstance(obj, dict):
+        for k, v in obj.items():
+            assert_numbers_carry_units(v, unit, unitless, (*keys, k))
+    elif isinstance(obj, list):
+        for v in obj:
+            assert_numbers_carry_units(v, unit, unitless, keys)
+    elif isinstance(obj, (int, float)) and not isinstance(obj, bool):
+        named = [k for k in keys if k not in {"value", "low", "high"}]
+        assert unit.search(named[-1]) or named[-1] in unitless, keys

@@ -13,6 +13,7 @@ import re
 
 import numpy as np
 import pytest
+from conftest import assert_numbers_carry_units
 
 from optcal.cli import main
 from optcal.gravity import G0
@@ -91,20 +92,7 @@ def test_json_gyroscope_keys_carry_units(analysed):
     res, _ = analysed
     unit = re.compile(r"_(s|hz|rad_s|rad_s_per_sqrt_hz|rad_s2_per_sqrt_hz|deg_per_sqrt_h|deg_per_h|"
                       r"deg_per_h_per_sqrt_h|units_per_rad_s)$")
-    unitless = {"n_samples", "ci_level", "edf", "local_slope"}
-
-    def walk(obj, keys):
-        if isinstance(obj, dict):
-            for k, v in obj.items():
-                walk(v, keys + [k])
-        elif isinstance(obj, list):
-            for v in obj:
-                walk(v, keys)
-        elif isinstance(obj, (int, float)) and not isinstance(obj, bool):
-            named = [k for k in keys if k not in {"value", "low", "high"}]
-            assert unit.search(named[-1]) or named[-1] in unitless, keys
-
-    walk(res["gyroscope"], [])
+    assert_numbers_carry_units(res["gyroscope"], unit)
     assert not any("_g_" in k or k.endswith("_ug") for k in res["gyroscope"]["axes"]["x"])
 
 

@@ -11,6 +11,7 @@ from dataclasses import replace
 
 import numpy as np
 import pytest
+from conftest import assert_numbers_carry_units
 
 from optcal.cli import main
 from optcal.noise import FLICKER_FACTOR, G0, WhiteNoise, analyse, analyse_axis, octave_m
@@ -172,21 +173,7 @@ def test_json_has_units_in_every_key(static_recording, capsys):
 
     # every number sits under a key that names its unit, or is a count, a level, an EDF or a slope
     unit = re.compile(r"_(s|hz|ug|g|g_per_sqrt_hz|ug_per_sqrt_hz|ug_per_sqrt_s|units_per_g)$")
-    unitless = {"n_samples", "ci_level", "edf", "local_slope"}
-    coefficient_fields = {"value", "low", "high"}
-
-    def walk(obj, keys):
-        if isinstance(obj, dict):
-            for k, v in obj.items():
-                walk(v, keys + [k])
-        elif isinstance(obj, list):
-            for v in obj:
-                walk(v, keys)
-        elif isinstance(obj, (int, float)) and not isinstance(obj, bool):
-            named = [k for k in keys if k not in coefficient_fields]
-            assert unit.search(named[-1]) or named[-1] in unitless, keys
-
-    walk(res, [])
+    assert_numbers_carry_units(res, unit)
 
 
 def test_kalibr_yaml_is_the_si_form_of_the_ug_figures(static_recording, capsys, tmp_path):
