@@ -197,7 +197,27 @@ def with_flags(message: str, flags: dict[str, str]) -> str:
     return re.sub(r"`([A-Za-z_][A-Za-z0-9_]*)`", lambda m: flags.get(m.group(1), m.group(0)), message)
 
 
+def _keep_freed_memory() -> None:
+    """Let glibc's malloc keep freed memory for reuse instead of returning it to the system at every free.
+
+    NumPy's temporaries over 128 KiB (16,384 numbers: one column of a minute at 100 Hz, or of an integration
+    over the motions) are otherwise mapped and unmapped, or the heap trimmed, at every operation, and the
+    page faults make an array operation four to five times slower than its arithmetic: the whole ``optcal
+    calibrate --raw`` on imu_tk's recording takes a sixth less with this (docs/performance.md, "Memory
+    allocation"). Both thresholds are glibc's documented tunables (mallopt(3): M_TRIM_THRESHOLD, -1;
+    M_MMAP_THRESHOLD, -3, at most 32 MiB); elsewhere (no glibc) nothing changes."""
+    import ctypes
+
+    try:
+        libc = ctypes.CDLL("libc.so.6")
+        libc.mallopt(-1, 64 << 20)  # M_TRIM_THRESHOLD
+        libc.mallopt(-3, 32 << 20)  # M_MMAP_THRESHOLD
+    except (OSError, AttributeError):
+        pass
+
+
 def main(argv: list[str] | None = None) -> int:
+    _keep_freed_memory()
     parser = build_parser(sys.argv[1:] if argv is None else argv)
     args = parser.parse_args(argv)
     logger = logging.getLogger("optcal")

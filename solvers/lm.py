@@ -86,6 +86,12 @@ def levenberg_marquardt(fun, jac, x0, *, ftol=1e-15, xtol=1e-15, gtol=1e-15, max
                 break
             if small_step or mu > 1e30:  # no decrease even along a vanishing step: the rounding floor
                 return x, 3, nfev, njev
+            if predicted <= ftol * F and mu <= 1.0:
+                # the lightly damped model promises less than ftol of the cost and the evaluation cannot show
+                # even that (its own rounding is larger): converged in ftol's sense, as MINPACK's test, which it
+                # also applies to rejected trials; raising μ would only shrink the step to xtol, evaluating
+                # the residuals a dozen times more for nothing
+                return x, 2, nfev, njev
             mu *= nu
             nu *= 2.0
 

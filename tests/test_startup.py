@@ -186,3 +186,31 @@ def test_calibrating_a_raw_recording_imports_no_heavy_module(tmp_path):
     """
     assert imported(code, HEAVY + ("pydantic", "ruptures")) == []
     assert out.is_file()
+
+
+def test_calibrating_an_imu_imports_no_heavy_module(tmp_path):
+    """The whole ``optcal imu`` on imu_tk's Xsens pair (issue #23: the process's time against imu_tk's): the
+    gyroscope's least squares integrate in NumPy (optcal.gyro.integrate), so neither numba nor scipy is
+    loaded, and of the command modules only imu's."""
+    import gzip
+    from pathlib import Path
+
+    paths = []
+    for name in ("xsens_acc.mat", "xsens_gyro.mat"):
+        paths.append(tmp_path / name)
+        paths[-1].write_bytes(gzip.decompress((Path(__file__).parent / "data" / "imu_tk" / f"{name}.gz").read_bytes()))
+    out = tmp_path / "imu.json"
+    argv = ["imu", str(paths[0]), "--gyro", str(paths[1]), "--gyro-units", "counts", "--gyro-scale", "6258",
+            "--units", "counts", "--model", "linear9", "--threshold-k", "3", "-o", str(out)]
+    code = f"""
+        import contextlib, io, sys
+        from optcal.cli import main
+        with contextlib.redirect_stdout(io.StringIO()):
+            assert main({argv!r}) == 0
+        commands = sorted(m for m in sys.modules
+                          if m.startswith("optcal.commands.") and not m.split(".")[-1].startswith("_"))
+        assert commands == ["optcal.commands.imu"], commands
+        assert "optcal.kernels.gyro" not in sys.modules
+    """
+    assert imported(code, HEAVY + ("pydantic", "ruptures")) == []
+    assert out.is_file()

@@ -87,7 +87,8 @@ class GyroData:
     """Samples and their rests. ``t`` (n,) s, ``W`` (n, 3) raw gyroscope outputs in ``units``, ``F`` (n, 3)
     calibrated specific force in g, ``rests`` (r, 2) sample ranges [start, stop) of the static intervals in
     time order, trimmed to where the gyroscope is still (:func:`still_rests`; ``detected_rests`` keeps them
-    as given). ``saturated`` (n,) marks gyroscope samples at a rail."""
+    as given; ``trim_rests`` False takes them as they are). ``saturated`` (n,) marks gyroscope samples at a
+    rail."""
 
     t: np.ndarray
     W: np.ndarray
@@ -96,6 +97,7 @@ class GyroData:
     units: str = "counts"
     saturated: np.ndarray | None = None
     extra: dict = field(default_factory=dict)
+    trim_rests: bool = True
 
     def __post_init__(self):
         self.t = np.ascontiguousarray(self.t, float)
@@ -117,7 +119,8 @@ class GyroData:
         if np.any(r[:, 1] - r[:, 0] < 2) or np.any(r[1:, 0] <= r[:-1, 1] - 1) or r[0, 0] < 0 or r[-1, 1] > n:
             raise InputError("the rests must be ordered, non-overlapping sample ranges of at least 2 samples each")
         self.detected_rests = self.rests
-        self.rests = still_rests(self.W, self.t, self.rests)
+        if self.trim_rests:
+            self.rests = still_rests(self.W, self.t, self.rests)
         self._derive()
 
     def _derive(self) -> None:
@@ -156,7 +159,8 @@ class GyroData:
         offset = np.column_stack([np.interp(self.t, mid, self.rest_W[:, i]) for i in range(3)])
         out = GyroData(self.t, self.W - offset, self.F, self.rests, units=self.units, saturated=self.saturated,
                        extra=dict(self.extra, bias_from_rests=offset,
-                                  offset_raw=np.array([offset[a:b].mean(axis=0) for a, b in self.rests]).mean(axis=0)))
+                                  offset_raw=np.array([offset[a:b].mean(axis=0) for a, b in self.rests]).mean(axis=0)),
+                       trim_rests=False)  # trimmed already, by the raw rates
         out.detected_rests = self.detected_rests
         return out
 
@@ -168,7 +172,7 @@ class GyroData:
         would name them undetermined."""
         offset = np.mean(self.rest_W, axis=0)
         out = GyroData(self.t, self.W - offset, self.F, self.rests, units=self.units, saturated=self.saturated,
-                       extra=dict(self.extra, offset_raw=offset))
+                       extra=dict(self.extra, offset_raw=offset), trim_rests=False)
         out.detected_rests = self.detected_rests
         return out
 

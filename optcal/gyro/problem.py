@@ -42,6 +42,39 @@ def _kernel():
     return gyro
 
 
+# How a problem integrates the motions (GyroProblem's ``backend``), as the accelerometer's problem
+BACKENDS = ("kernel", "numpy")
+
+
+class _KernelRotations:
+    """The compiled integrator (:mod:`optcal.kernels.gyro`) behind the interface of
+    :class:`optcal.gyro.integrate.NumpyRotations`."""
+
+    def __init__(self, data: GyroData):
+        self.data = data
+
+    def rotate_batch(self, P: np.ndarray) -> np.ndarray:
+        d = self.data
+        R = np.empty((len(P), d.n_motions, 2))
+        _kernel().rotate_batch(np.ascontiguousarray(P), d.W, d.F, d.t, d.start, d.stop, d.u0, d.E, R)
+        return R
+
+    def rotate_jacobian(self, P: np.ndarray, n_dir: int) -> np.ndarray:
+        d = self.data
+        J = np.empty((d.n_motions, 2, n_dir))
+        _kernel().rotate_jacobian(np.ascontiguousarray(P), n_dir, d.W, d.F, d.t, d.start, d.stop, d.u0, d.E, J)
+        return J
+
+
+def rotations(data: GyroData, backend: str):
+    """The motions' residuals and Jacobian of ``data`` by ``backend`` (:data:`BACKENDS`)."""
+    if backend == "numpy":
+        from .integrate import NumpyRotations
+
+        return NumpyRotations(data.W, data.F, data.t, data.start, data.stop, data.u0, data.E)
+    return _KernelRotations(data)
+
+
 # Search half-widths around the centre (the box of the search methods; least squares ignores it): 5 % of
 # the scale, 0.05 rad of misalignment, 0.02 rad/s of bias around the rests' mean, 0.01 (rad/s)/g of G.
 HALFWIDTH = {"K": 0.05, "T": 0.05, "b": 0.02, "G": 0.01}
@@ -62,15 +95,17 @@ def start_vector(model: GyroModel, data: GyroData, K: np.ndarray) -> np.ndarray:
     return x
 
 
-def common_scale(model: GyroModel, data: GyroData, k_min: float, k_max: float, n: int = 240) -> float:
+def common_scale(model: GyroModel, data: GyroData, k_min: float, k_max: float, n: int = 240,
+                 rotations=None) -> float:
     """The one scale factor (output units per rad/s, every axis) under which the motions best carry each
     rest's gravity direction onto the next's: a log-spaced grid of ``n`` candidates in one batched call,
-    then a finer grid around the best. For raw counts with no nominal scale."""
+    then a finer grid around the best. For raw counts with no nominal scale. ``rotations``: the
+    integrator (:func:`rotations`; the compiled one by default)."""
+    rot = rotations or _KernelRotations(data)
+
     def best(ks):
         X = np.array([start_vector(model, data, k) for k in ks])
-        P = np.ascontiguousarray(model.affine(X))
-        R = np.empty((len(ks), data.n_motions, 2))
-        _kernel().rotate_batch(P, data.W, data.F, data.t, data.start, data.stop, data.u0, data.E, R)
+        R = rot.rotate_batch(model.affine(X))
         return ks[int(np.argmin(np.sum(R**2, axis=(1, 2))))]
 
     k = best(np.geomspace(k_min, k_max, n))
@@ -103,13 +138,18 @@ class GyroProblem(ParameterViews):
     units (``data.extra["offset_raw"]``: with ``fit`` the rests' mean output, :meth:`GyroData.centred`),
     and the bias parameters are the rate bias beyond it. ``scale``: nominal scale factor (output units per
     rad/s, one number or three); without it, :func:`common_scale` finds one. ``presets``: a
-    :class:`GyroPresets` to centre the search elsewhere."""
+    :class:`GyroPresets` to centre the search elsewhere. ``backend``: ``"kernel"``, the compiled integrator
+    (:mod:`optcal.kernels.gyro`, for populations), or ``"numpy"`` (:mod:`optcal.gyro.integrate`: the same
+    residuals and Jacobian to rounding without loading numba, for the tens of evaluations of least squares)."""
 
     reference = False
     g_local = 1.0
 
     def __init__(self, data: GyroData, *, g_sensitivity: bool = False, bias: str = "fit", scale=None,
-                 presets: GyroPresets | None = None):
+                 presets: GyroPresets | None = None, backend: str = "kernel"):
+        if backend not in BACKENDS:
+            raise InputError(f"`backend` {backend!r}: use one of {', '.join(BACKENDS)}")
+        self.backend = backend
         if bias not in BIAS_MODES:
             raise InputError(f"unknown gyroscope bias mode {bias!r}; use one of {', '.join(BIAS_MODES)}")
         if bias == "rests" and g_sensitivity:
@@ -125,8 +165,9 @@ class GyroProblem(ParameterViews):
             raise InputError("no motion turns the gravity direction by 5° or more: the recording has no rotation "
                              "between its rests; turn the sensor between rests")
         _check_rotation_seen(data)
+        self._rotations = rotations(data, backend)
         if scale is None:
-            scale = common_scale(self.model, data, 1e-3, 1e7)
+            scale = common_scale(self.model, data, 1e-3, 1e7, rotations=self._rotations)
         K = np.broadcast_to(np.asarray(scale, float), (3,)).copy()
         if not np.all(np.isfinite(K) & (K > 0)):
             raise InputError(f"the gyroscope's nominal scale must be positive (output units per rad/s), got {scale}")
@@ -150,6 +191,7 @@ class GyroProblem(ParameterViews):
         self.x_fixed = self.centre.copy()
         self.is_normalised = False
         self.counter = Counter()
+        self._last_jacobian = None
 
     # -- residuals --------------------------------------------------------------------------
     @property
@@ -178,9 +220,7 @@ class GyroProblem(ParameterViews):
             P = np.ascontiguousarray(self.model.affine(X))
         bad = ~np.all(np.isfinite(P), axis=1)
         P[bad] = 0.0
-        R = np.empty((len(X), d.n_motions, 2))
-        _kernel().rotate_batch(P, d.W, d.F, d.t, d.start, d.stop, d.u0, d.E, R)
-        R /= self.sd_motion[None, :, None]
+        R = self._rotations.rotate_batch(P) / self.sd_motion[None, :, None]
         parts = [R.reshape(len(X), -1)]
         if self.model.bias:
             rest = (np.einsum("sij,rj->sri", P[:, :9].reshape(-1, 3, 3), d.rest_W) + P[:, None, 9:12]
@@ -213,9 +253,11 @@ class GyroProblem(ParameterViews):
     def rotation(self, x_full, start: int, stop: int) -> np.ndarray:
         """Rotation vector (3,) in rad, body frame, of the attitude change from sample ``start`` to ``stop``
         integrated with the rate ``x_full`` calibrates (the integrator of the residuals)."""
-        P = np.ascontiguousarray(self.model.affine(np.asarray(x_full, float)[None])[0])
+        from .integrate import NumpyRotations
+
         d = self.data
-        q = np.array(_kernel()._integrate(P, d.W, d.F, d.t, int(start), int(stop)))
+        one = NumpyRotations(d.W, d.F, d.t, [int(start)], [int(stop)], d.u0[:1], d.E[:1])
+        q = one.integrator.attitudes(one.rates(self.model.affine(np.asarray(x_full, float)[None])))[:, 0, 0]
         v = q[1:] * np.sign(q[0] if q[0] != 0 else 1.0)
         n = np.linalg.norm(v)
         return np.zeros(3) if n == 0 else v / n * 2.0 * np.arctan2(n, abs(q[0]))
@@ -251,13 +293,15 @@ class GyroProblem(ParameterViews):
         x = np.asarray(x_full, float)
         if x.shape != (self.model.n_params,):
             raise ValueError(f"expected {self.model.n_params} parameters, got shape {x.shape}")
+        # the last one kept: a fit asks for it at the start (observability, then the solver's first step) and
+        # at the solution (the solver's last, observability, the Cramér-Rao bound)
+        if self._last_jacobian is not None and np.array_equal(self._last_jacobian[0], x):
+            return self._last_jacobian[1].copy()
         d = self.data
         P = np.ascontiguousarray(self.model.affine(x[None])[0])
         # the affine numbers that can move: M always, c with a bias, D with g-sensitivity (which needs c)
         n_dir = 21 if self.model.g_sensitivity else 12 if self.model.bias else 9
-        Jm = np.empty((d.n_motions, 2, n_dir))
-        _kernel().rotate_jacobian(P, n_dir, d.W, d.F, d.t, d.start, d.stop, d.u0, d.E, Jm)
-        Jm /= self.sd_motion[:, None, None]
+        Jm = self._rotations.rotate_jacobian(P, n_dir) / self.sd_motion[:, None, None]
         rows = [Jm.reshape(-1, n_dir)]
         if self.model.bias:  # rests: ω = M·W̄ + c + D·f̄, linear in the affine numbers
             Jr = np.zeros((d.n_rests, 3, n_dir))
@@ -267,7 +311,9 @@ class GyroProblem(ParameterViews):
                 if n_dir == 21:
                     Jr[:, i, 12 + 3 * i:15 + 3 * i] = d.rest_F
             rows.append((Jr / self.sd_rest[:, :, None]).reshape(-1, n_dir))
-        return np.concatenate(rows) @ self.model.affine_jacobian(x)[:n_dir]
+        J = np.concatenate(rows) @ self.model.affine_jacobian(x)[:n_dir]
+        self._last_jacobian = (x.copy(), J)
+        return J.copy()
 
     def jacobian(self, x) -> np.ndarray:
         self.counter.allow(1)

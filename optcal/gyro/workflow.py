@@ -34,9 +34,12 @@ class GyroFit:
 def _fit(data, *, g_sensitivity, bias, scale, solver, options, seed, budget) -> GyroFit:
     from solvers.registry import get
 
-    p = GyroProblem(data, g_sensitivity=g_sensitivity, bias=bias, scale=scale)
+    slv = get(solver, **(options or {}))
+    # least squares (tens of evaluations) integrates in NumPy, a population method with the compiled kernel
+    backend = "numpy" if getattr(slv, "few_evaluations", False) else "kernel"
+    p = GyroProblem(data, g_sensitivity=g_sensitivity, bias=bias, scale=scale, backend=backend)
     check_observable(p, p.centre)  # before solving: a solver wanders along an undetermined direction
-    res = get(solver, **(options or {})).solve(p, rng=np.random.default_rng(seed), budget=budget)
+    res = slv.solve(p, rng=np.random.default_rng(seed), budget=budget)
     if not np.isfinite(res.fun):
         raise InputError(f"the gyroscope fit found no finite cost ({res.message}); check the gyroscope's columns "
                          "and units")
