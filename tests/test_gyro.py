@@ -185,3 +185,50 @@ def test_ellipsoid_fit_refuses_the_gyroscope_problem_in_one_line():
     p, _ = _fit(sim.data, False)
     with pytest.raises(InputError, match="the ellipsoid fit is the accelerometer's convex fit"):
         get("ellipsoid").solve(p, rng=1)
+
+
+def _without(data, drop):
+    """The recording with the rests ``drop`` left out of its rest list (as a detector that missed them)."""
+    keep = np.delete(data.detected_rests, drop, axis=0)
+    return GyroData(data.t, data.W, data.F, keep, units=data.units)
+
+
+def test_missed_rests_are_found_by_the_gyroscope():
+    """Two poses taken out of the rest list are found again inside the motions that now span them, each
+    covering at least 90 % of the pose and nothing more than the turns' first and last 0.05 s; with every
+    rest given nothing is found (the
+    trimmed ends of the rests are not poses), nor a still gyroscope whose accelerometer shakes (a
+    translation, not a pose)."""
+    from optcal.gyro.data import missed_rests
+
+    sim, _ = _sim(41)
+    data = sim.data
+    assert len(missed_rests(data)) == 0
+    missing = _without(data, [5, 12])
+    found = missed_rests(missing)
+    assert len(found) == 2
+    edge = 5  # samples: the smooth turn's first and last 0.05 s move the sensor by less than its noise
+    for (a, b), (ta, tb) in zip(found, data.detected_rests[[5, 12]], strict=True):
+        assert ta - edge <= a and b <= tb + edge and (b - a) >= 0.9 * (tb - ta), ((a, b), (ta, tb))
+    joined = missing.with_rests(found)
+    assert joined.n_rests == data.n_rests and np.all(np.diff(joined.rests[:, 0]) > 0)
+    shaken = _without(data, [5])
+    a, b = data.detected_rests[5]
+    F = shaken.F.copy()
+    F[a:b] += np.random.default_rng(0).normal(0, 0.05, (b - a, 3))  # 0.05 g: a hand moving it, not turning it
+    assert len(missed_rests(GyroData(shaken.t, shaken.W, F, shaken.detected_rests, units="counts"))) == 0
+
+
+def test_missed_rests_mend_the_fit():
+    """A fit whose motions span a missed pose: with the pose found again, the scale factors are those of the
+    full rest list to within 0.1 of their standard errors."""
+    from optcal.gyro.data import missed_rests
+
+    sim, _ = _sim(43)
+    full = GyroProblem(sim.data, bias="rests", scale=SCALE)
+    missing = _without(sim.data, [3, 9, 15])
+    mended = GyroProblem(missing.with_rests(missed_rests(missing)), bias="rests", scale=SCALE)
+    assert mended.data.n_rests == full.data.n_rests
+    a, b = (get("lm").solve(p, rng=0) for p in (full, mended))
+    sd, _ = analysis.crlb(full, a.x_full)
+    assert np.max(np.abs(a.x_full - b.x_full) / sd) < 0.1

@@ -78,7 +78,7 @@ def run(args) -> int:
     from ..calfile import calibration_to_dict
     from ..fit import calibrate
     from ..gyro.calfile import NOMINAL_SCALE, gyro_block, write_imu_calibration
-    from ..gyro.data import GyroData
+    from ..gyro.data import MISSED_REST_MIN_S, GyroData, missed_rests
     from ..gyro.recording import join_times
     from ..gyro.workflow import calibrate_gyro
 
@@ -108,6 +108,14 @@ def run(args) -> int:
     join_times(acc.t, gyr.t)
     F = cal.model.inverse(np.asarray(cal.x, float)[None], acc.N)[0]
     data = GyroData(acc.t, gyr.N, F, det.intervals, units=args.gyro_units)
+    found = missed_rests(data)
+    notes = []
+    if len(found):  # poses the accelerometer's detection took for motion: the gyroscope is still there
+        data = data.with_rests(found)
+        notes.append(f"{len(found)} rest(s) the accelerometer's detection left inside motions were found by the "
+                     f"gyroscope (still for {MISSED_REST_MIN_S:g} s or more) and used for the gyroscope only, at t = "
+                     + ", ".join(f"{acc.t[a]:.1f}-{acc.t[b - 1]:.1f} s" for a, b in found[:6])
+                     + (" …" if len(found) > 6 else ""))
     moving = np.flatnonzero([gyr.saturated[a:b + 1].any() for a, b in zip(data.start, data.stop, strict=True)])
     if moving.size:
         k = int(moving[0])
@@ -124,7 +132,7 @@ def run(args) -> int:
         write_imu_calibration(record, block, args.output, overwrite=args.force)
     if args.json:
         print(json.dumps({"accelerometer": {**cal.to_dict(), "units": cal.model.units(positions.units)},
-                          "gyroscope": block, "notes": list(cal.notes) + fit.notes}, indent=2))
+                          "gyroscope": block, "notes": list(cal.notes) + notes + fit.notes}, indent=2))
         return 0
     angles = np.rad2deg(fit.problem.motion_angles(fit.x))
     before = np.rad2deg(fit.problem.motion_angles(fit.problem.centre))
@@ -135,7 +143,7 @@ def run(args) -> int:
           f"{fit.chi2_dof:.2f}; motion residual RMS {np.sqrt(np.mean(before**2)):.3f}° at the nominal scale, "
           f"{np.sqrt(np.mean(angles**2)):.3f}° calibrated")
     print("observability: " + fit.observability.describe())
-    for note in list(cal.notes) + fit.notes:
+    for note in list(cal.notes) + notes + fit.notes:
         print(f"note: {note}")
     units = block["units"]["parameters"]
     print(parameter_table(fit.problem.model.names, fit.x, fit.stderr, units=units))

@@ -73,6 +73,53 @@ def still_rests(W: np.ndarray, t: np.ndarray, rests: np.ndarray) -> np.ndarray:
     return out
 
 
+# A stretch inside a motion where the gyroscope stays still for at least this long (s), with the accelerometer
+# as quiet as in the rests (its sample SD within this factor of theirs), is a pose of its own.
+MISSED_REST_MIN_S = 1.0
+MISSED_REST_ACC_FACTOR = 3.0
+
+
+def missed_rests(data: GyroData, min_s: float = MISSED_REST_MIN_S) -> np.ndarray:
+    """Rests (q, 2) the accelerometer's detection left inside motions, found by the gyroscope.
+
+    The accelerometer's segmentation may take a pose whose specific force settles slowly (a hand letting go:
+    a few noise SDs over seconds) for the end of a motion; the motion then spans two turns and the pose
+    between, and integrating through it costs the gyroscope accuracy (on imu_tk's recording two such motions
+    carry 2.5° and 3.2°). The gyroscope sees a pose directly: a sample is still as in :func:`still_rests`,
+    its rate's moving average over ``STILL_WINDOW_S`` within ``STILL_Z`` noise SDs (the rests' median SD per
+    axis, over √window) of the bias level, here interpolated in time between the rests on either side.
+    A still run of at least ``min_s`` with moving samples on both sides (not the edge of a rest) and the
+    accelerometer's sample SD within :data:`MISSED_REST_ACC_FACTOR` of the rests' on every axis (no
+    translation) is returned. ``data``'s rests are not changed; ``data.with_rests`` joins them."""
+    t, W, F, r = data.t, data.W, data.F, data.rests
+    n = len(t)
+    mid = np.array([t[a:b].mean() for a, b in r])
+    level = np.column_stack([np.interp(t, mid, data.rest_W[:, i]) for i in range(3)])
+    sd = np.maximum(np.median(data.rest_sd_W, axis=0), 1e-300)
+    dt = float(np.median(np.diff(t))) if n > 1 else 1.0
+    w = max(1, int(round(STILL_WINDOW_S / dt)))
+    z = (W - level) / sd
+    if w > 1:
+        kernel = np.ones(w) / w
+        z = np.column_stack([np.convolve(z[:, i], kernel, mode="same") for i in range(3)])
+    moving = np.ones(n, bool)  # inside a motion: between one rest's end and the next one's start
+    moving[: r[0, 1]] = False
+    moving[r[-1, 0]:] = False
+    for a, b in r:
+        moving[a:b] = False
+    still = moving & np.all(np.abs(z) < STILL_Z / np.sqrt(w), axis=1)
+    edges = np.flatnonzero(np.diff(np.concatenate([[0], still.astype(np.int8), [0]])))
+    sd_f = np.median([F[a:b].std(axis=0, ddof=1) for a, b in r], axis=0)
+    found = []
+    min_n = max(2, int(round(min_s / dt)))
+    for a, b in zip(edges[0::2], edges[1::2], strict=True):
+        if b - a < min_n or not (moving[a - 1] and b < n and moving[b]):
+            continue  # too short, or the edge of a rest the detector found (its trimmed end)
+        if np.all(F[a:b].std(axis=0, ddof=1) <= MISSED_REST_ACC_FACTOR * sd_f):
+            found.append((a, b))
+    return np.array(found, np.int64).reshape(-1, 2)
+
+
 def tangent_basis(u: np.ndarray) -> np.ndarray:
     """Two unit vectors (m, 2, 3) orthogonal to each unit vector of u (m, 3) and to each other."""
     a = np.where(np.abs(u[:, [0]]) < 0.9, np.array([[1.0, 0.0, 0.0]]), np.array([[0.0, 1.0, 0.0]]))
@@ -173,6 +220,15 @@ class GyroData:
         offset = np.mean(self.rest_W, axis=0)
         out = GyroData(self.t, self.W - offset, self.F, self.rests, units=self.units, saturated=self.saturated,
                        extra=dict(self.extra, offset_raw=offset), trim_rests=False)
+        out.detected_rests = self.detected_rests
+        return out
+
+    def with_rests(self, extra: np.ndarray) -> GyroData:
+        """The same recording with the rests ``extra`` (q, 2) added in time order (trimmed already, as these are;
+        e.g. :func:`missed_rests`)."""
+        rests = np.concatenate([self.rests, np.asarray(extra, np.int64).reshape(-1, 2)])
+        out = GyroData(self.t, self.W, self.F, rests[np.argsort(rests[:, 0])], units=self.units,
+                       saturated=self.saturated, extra=dict(self.extra), trim_rests=False)
         out.detected_rests = self.detected_rests
         return out
 

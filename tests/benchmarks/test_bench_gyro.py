@@ -86,7 +86,9 @@ def test_bench_imu_xsens_process(benchmark, tmp_path):
     if peer and os.access(peer, os.X_OK):
         def run_peer() -> float:
             t = time.perf_counter()
-            proc = subprocess.run([peer, str(acc), str(gyr)], capture_output=True, text=True, timeout=300)
+            # in the temporary folder: test_imu_calib writes its two .calib files where it runs
+            proc = subprocess.run([peer, str(acc), str(gyr)], capture_output=True, text=True, timeout=300,
+                                  cwd=tmp_path)
             assert proc.returncode == 0, proc.stderr
             return time.perf_counter() - t
 
