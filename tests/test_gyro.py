@@ -165,6 +165,34 @@ def test_unknown_scale_found_by_the_common_scale_search():
     assert res.fun == pytest.approx(ref.fun, rel=1e-8)
 
 
+def test_scale_search_on_the_most_turning_motions_finds_the_every_motion_grid_point():
+    """The coarse grid over the eight motions that turn gravity the most, then the fine grid over every
+    motion, lands on the very scale of the coarse and fine grids over every motion (written out here), on
+    both back ends, for ten simulated recordings of 24 and 36 poses with the bias from the rests and fitted."""
+    from optcal.gyro.problem import common_scale, rotations, start_vector
+
+    def every_motion(model, data, n=240, k_min=1e-3, k_max=1e7):
+        rot = rotations(data, "numpy")
+
+        def best(ks):
+            R = rot.rotate_batch(model.affine(np.array([start_vector(model, data, k) for k in ks])))
+            return ks[int(np.argmin(np.sum(R**2, axis=(1, 2))))]
+
+        k = best(np.geomspace(k_min, k_max, n))
+        step = (k_max / k_min) ** (1.0 / (n - 1))
+        return best(np.geomspace(k / step, k * step, 41))
+
+    for seed in range(10):
+        sim, _ = _sim(300 + seed, poses=24 if seed % 2 else 36)
+        for bias in ("rests", "fit"):
+            data = sim.data.debiased() if bias == "rests" else sim.data.centred()
+            model = get_gyro_model(False, bias=bias == "fit")
+            ref = every_motion(model, data)
+            assert common_scale(model, data, 1e-3, 1e7, backend="numpy") == pytest.approx(ref, rel=1e-12)
+            if seed < 2:
+                assert common_scale(model, data, 1e-3, 1e7, backend="kernel") == pytest.approx(ref, rel=1e-12)
+
+
 @pytest.mark.parametrize("solver", ["scipy-trf", "casadi-ipopt", "nlopt-bobyqa", "cmaes", "bsas", "staged:scipy-lm"])
 def test_registry_solvers_reach_the_least_squares_optimum_unchanged(solver):
     """The registry's solvers, local and metaheuristic and the staged wrapper, run on the gyroscope

@@ -48,31 +48,37 @@ BACKENDS = ("kernel", "numpy")
 
 class _KernelRotations:
     """The compiled integrator (:mod:`optcal.kernels.gyro`) behind the interface of
-    :class:`optcal.gyro.integrate.NumpyRotations`."""
+    :class:`optcal.gyro.integrate.NumpyRotations`, over the motions ``motions`` (indices; all by default)."""
 
-    def __init__(self, data: GyroData):
-        self.data = data
+    def __init__(self, data: GyroData, motions=None):
+        k = np.arange(data.n_motions) if motions is None else np.asarray(motions, np.intp)
+        self.data, self.n_motions = data, len(k)
+        self.start, self.stop = np.ascontiguousarray(data.start[k]), np.ascontiguousarray(data.stop[k])
+        self.u0, self.E = np.ascontiguousarray(data.u0[k]), np.ascontiguousarray(data.E[k])
 
     def rotate_batch(self, P: np.ndarray) -> np.ndarray:
         d = self.data
-        R = np.empty((len(P), d.n_motions, 2))
-        _kernel().rotate_batch(np.ascontiguousarray(P), d.W, d.F, d.t, d.start, d.stop, d.u0, d.E, R)
+        R = np.empty((len(P), self.n_motions, 2))
+        _kernel().rotate_batch(np.ascontiguousarray(P), d.W, d.F, d.t, self.start, self.stop, self.u0, self.E, R)
         return R
 
     def rotate_jacobian(self, P: np.ndarray, n_dir: int) -> np.ndarray:
         d = self.data
-        J = np.empty((d.n_motions, 2, n_dir))
-        _kernel().rotate_jacobian(np.ascontiguousarray(P), n_dir, d.W, d.F, d.t, d.start, d.stop, d.u0, d.E, J)
+        J = np.empty((self.n_motions, 2, n_dir))
+        _kernel().rotate_jacobian(np.ascontiguousarray(P), n_dir, d.W, d.F, d.t, self.start, self.stop, self.u0,
+                                  self.E, J)
         return J
 
 
-def rotations(data: GyroData, backend: str):
-    """The motions' residuals and Jacobian of ``data`` by ``backend`` (:data:`BACKENDS`)."""
+def rotations(data: GyroData, backend: str, motions=None):
+    """The residuals and Jacobian of ``data``'s motions (``motions``: indices, all by default) by ``backend``
+    (:data:`BACKENDS`)."""
     if backend == "numpy":
         from .integrate import NumpyRotations
 
-        return NumpyRotations(data.W, data.F, data.t, data.start, data.stop, data.u0, data.E)
-    return _KernelRotations(data)
+        k = np.arange(data.n_motions) if motions is None else np.asarray(motions, np.intp)
+        return NumpyRotations(data.W, data.F, data.t, data.start[k], data.stop[k], data.u0[k], data.E[k])
+    return _KernelRotations(data, motions)
 
 
 # Search half-widths around the centre (the box of the search methods; least squares ignores it): 5 % of
@@ -95,22 +101,28 @@ def start_vector(model: GyroModel, data: GyroData, K: np.ndarray) -> np.ndarray:
     return x
 
 
-def common_scale(model: GyroModel, data: GyroData, k_min: float, k_max: float, n: int = 240,
-                 rotations=None) -> float:
-    """The one scale factor (output units per rad/s, every axis) under which the motions best carry each
-    rest's gravity direction onto the next's: a log-spaced grid of ``n`` candidates in one batched call,
-    then a finer grid around the best. For raw counts with no nominal scale. ``rotations``: the
-    integrator (:func:`rotations`; the compiled one by default)."""
-    rot = rotations or _KernelRotations(data)
+# The scale search's coarse grid integrates only this many motions, those that turn gravity the most
+SCALE_SEARCH_MOTIONS = 8
 
-    def best(ks):
+
+def common_scale(model: GyroModel, data: GyroData, k_min: float, k_max: float, n: int = 240,
+                 backend: str = "kernel") -> float:
+    """The one scale factor (output units per rad/s, every axis) under which the motions best carry each
+    rest's gravity direction onto the next's: a log-spaced grid of ``n`` candidates over the
+    :data:`SCALE_SEARCH_MOTIONS` motions that turn gravity the most (a wrong scale by a grid step or more
+    shows on any turn), then a grid 20 times finer over two coarse steps either side of the best, over
+    every motion (the same points as a fine grid around the best of every motion's coarse search, whenever
+    that is within a step of this one's). For raw counts with no nominal scale. ``backend``: the
+    integrator's (:data:`BACKENDS`)."""
+    def best(rot, ks):
         X = np.array([start_vector(model, data, k) for k in ks])
         R = rot.rotate_batch(model.affine(X))
         return ks[int(np.argmin(np.sum(R**2, axis=(1, 2))))]
 
-    k = best(np.geomspace(k_min, k_max, n))
+    turning = np.sort(np.argsort(data.turn, kind="stable")[::-1][:SCALE_SEARCH_MOTIONS])
+    k = best(rotations(data, backend, turning), np.geomspace(k_min, k_max, n))
     step = (k_max / k_min) ** (1.0 / (n - 1))
-    return float(best(np.geomspace(k / step, k * step, 41)))
+    return float(best(rotations(data, backend), np.geomspace(k / step**2, k * step**2, 81)))
 
 
 BIAS_MODES = ("fit", "rests")
@@ -167,7 +179,7 @@ class GyroProblem(ParameterViews):
         _check_rotation_seen(data)
         self._rotations = rotations(data, backend)
         if scale is None:
-            scale = common_scale(self.model, data, 1e-3, 1e7, rotations=self._rotations)
+            scale = common_scale(self.model, data, 1e-3, 1e7, backend=backend)
         K = np.broadcast_to(np.asarray(scale, float), (3,)).copy()
         if not np.all(np.isfinite(K) & (K > 0)):
             raise InputError(f"the gyroscope's nominal scale must be positive (output units per rad/s), got {scale}")
