@@ -10,6 +10,9 @@ from ..errors import InputError
 from ..model import Context, get_model
 from .data import GyroData
 
+# How the gyroscope's units are given to the reader, which only labels the samples with them
+_READER_UNITS = {"counts": "counts", "deg/s": "volts", "rad/s": "volts", "volts": "volts"}
+
 # Two time columns agree when no sample differs by more than this fraction of the median step.
 TIME_TOLERANCE = 0.1
 
@@ -26,6 +29,39 @@ def join_times(t_acc: np.ndarray, t_gyro: np.ndarray) -> None:
         i = int(np.argmax(np.abs(t_acc - t_gyro)))
         raise InputError(f"the accelerometer's and gyroscope's times disagree by {worst:.3g} s at sample {i} "
                          f"(more than {TIME_TOLERANCE:g} of the {step:.3g} s step); resample them to common times")
+
+
+def _columns(spec, n: int) -> list[str] | None:
+    if spec is None:
+        return None
+    parts = [c.strip() for c in spec.split(",")] if isinstance(spec, str) else [str(c).strip() for c in spec]
+    if len(parts) != n or not all(parts):
+        raise InputError(f"`gyro_columns` {','.join(parts) if not isinstance(spec, str) else spec!r} must name {n} "
+                         "columns separated by commas")
+    return parts
+
+
+def read_gyro(data, acc, *, gyro=None, gyro_columns=None, units: str, rate: float | None = None,
+              time_unit: str | None = None):
+    """The gyroscope's samples as a :class:`~optcal.recording.Recording` (its ``N`` holds them), read from the
+    file ``gyro`` (times and three rates; ``gyro_columns`` names the four, "t,gx,gy,gz", or its first four
+    columns are taken) or from the accelerometer's file ``data``, whose recording ``acc`` is, in the columns
+    ``gyro_columns`` ("gx,gy,gz" or a list) beside its time column. ``units``: the gyroscope's (counts, deg/s,
+    rad/s, volts)."""
+    from ..recording.reading import read_recording
+
+    label = _READER_UNITS.get(units, "volts")
+    if gyro is not None:
+        cols = _columns(gyro_columns, 4)
+        spec = None if cols is None else f"t={cols[0]},ax={cols[1]},ay={cols[2]},az={cols[3]}"
+        return read_recording(gyro, spec, rate, label, time_unit=time_unit)
+    cols = _columns(gyro_columns, 3)
+    if cols is None:
+        raise InputError("name the gyroscope's columns in DATA with `gyro_columns` gx,gy,gz, or give them in a "
+                         "second file with `gyro`")
+    time = acc.columns.get("t")
+    spec = (f"t={time}," if time is not None else "") + f"ax={cols[0]},ay={cols[1]},az={cols[2]}"
+    return read_recording(data, spec, rate, label, time_unit=time_unit)
 
 
 def saturated_motion(W: np.ndarray, rails: tuple[float, float] | None, data: GyroData) -> int | None:

@@ -75,3 +75,4 @@ def calibrate_gyro(data: GyroData, *, bias: str = "rests", g_sensitivity: bool =
         f"{test.dof} degrees of freedom, p = {test.p_value:.2g} (threshold 1e-3)"
         + ("" if test.detected else "; the file holds the model without it"))
     return chosen
+

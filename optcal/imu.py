@@ -1,0 +1,104 @@
+"""The whole IMU from one recording (application layer: it runs registered solvers): the accelerometer's fit,
+then the gyroscope's over the same rests and the rotations between them (``optcal imu``, ``optcal.calibrate_imu``;
+docs/gyroscope.md §4)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .errors import InputError
+from .gyro.data import GyroData
+from .gyro.workflow import GyroFit, calibrate_gyro
+
+
+def check_imu_options(*, gyro_scale=None, gyro_bias: str = "rests", g_sensitivity: bool = False) -> None:
+    """Refuse options of :func:`calibrate_imu` that cannot hold, before anything is read."""
+    if g_sensitivity and gyro_bias != "fit":
+        raise InputError("`g_sensitivity` needs `gyro_bias` fit: the rests' outputs hold both the bias and G")
+    if gyro_scale is not None and not (np.isfinite(gyro_scale) and gyro_scale > 0):
+        raise InputError(f"`gyro_scale` {gyro_scale} must be a positive number of output units per rad/s")
+
+
+@dataclass
+class ImuCalibration:
+    """An IMU's accelerometer and gyroscope calibrated from one recording (``optcal imu``, docs/gyroscope.md §4):
+    the accelerometer's :class:`optcal.fit.Calibration`, the gyroscope's :class:`GyroFit`, the gyroscope's
+    rests and motions (:class:`GyroData`), the accelerometer's raw ``units`` and the notes of both fits."""
+
+    accelerometer: object
+    gyroscope: GyroFit
+    data: GyroData
+    units: str
+    solver: str
+    notes: list = field(default_factory=list)
+
+    def gyro_block(self) -> dict:
+        """The file's ``gyroscope`` block (docs/gyroscope.md §4)."""
+        from .gyro.calfile import gyro_block
+
+        fit = self.gyroscope
+        return gyro_block(fit.problem, fit.x, fit.stderr, solver=self.solver,
+                          observability=fit.observability.to_dict(), g_test=fit.g_test)
+
+    def to_dict(self, source: str | None = None) -> dict:
+        """The IMU calibration file's content: the accelerometer's record with the gyroscope block."""
+        from .calfile import calibration_to_dict
+
+        return {**calibration_to_dict(self.accelerometer, units_in="g", units_out=self.units, source=source),
+                "gyroscope": self.gyro_block()}
+
+    def write(self, path, *, overwrite: bool = False, source: str | None = None) -> None:
+        """Write the IMU calibration file (``optcal apply`` and ``optcal export`` read it); an existing file is
+        kept unless ``overwrite``."""
+        from .jsonfile import write_json_object
+
+        write_json_object(self.to_dict(source), path, overwrite=overwrite)
+
+
+def calibrate_imu(positions, gyro, *, model=None, solver: str = "lm", options: dict | None = None,
+                  g_local: float = 1.0, seed: int = 0, budget: int | None = None, gyro_units: str,
+                  gyro_scale: float | None = None, gyro_bias: str = "rests",
+                  g_sensitivity: bool = False) -> ImuCalibration:
+    """Calibrate the accelerometer from ``positions`` (found in a raw recording: their ``extra["detection"]``
+    holds its rests and samples), then the gyroscope from ``gyro`` (a :class:`~optcal.recording.Recording`
+    whose ``N`` holds the rates, at the same times) over the same rests and the rotations between them, the
+    calibrated accelerometer giving each rest's gravity direction (Tedaldi et al., ICRA 2014). Poses the
+    accelerometer's detection took for motion are found by the gyroscope (:func:`missed_rests`) and used for
+    it, with a note. ``model`` None: the accelerometer's default with its fallback (as ``optcal calibrate``);
+    ``gyro_scale``: nominal output units per rad/s (exact for deg/s and rad/s, searched for otherwise when
+    None). A motion during which the gyroscope sits at a rail is refused."""
+    from .fit import calibrate
+    from .gyro.calfile import NOMINAL_SCALE
+    from .gyro.data import MISSED_REST_MIN_S, missed_rests
+    from .gyro.recording import join_times
+
+    check_imu_options(gyro_scale=gyro_scale, gyro_bias=gyro_bias, g_sensitivity=g_sensitivity)
+    det = positions.extra.get("detection") if positions.extra else None
+    if det is None:
+        raise InputError("the IMU calibration needs the positions of a raw recording (its rests and samples); "
+                         "read the recording as a raw one")
+    acc = det.recording
+    cal = calibrate(positions, model, solver=solver, options=options, g_local=g_local, seed=seed, budget=budget)
+    join_times(acc.t, gyro.t)
+    F = cal.model.inverse(np.asarray(cal.x, float)[None], acc.N)[0]
+    data = GyroData(acc.t, gyro.N, F, det.intervals, units=gyro_units)
+    found = missed_rests(data)
+    notes = list(cal.notes)
+    if len(found):  # poses the accelerometer's detection took for motion: the gyroscope is still there
+        data = data.with_rests(found)
+        notes.append(f"{len(found)} rest(s) the accelerometer's detection left inside motions were found by the "
+                     f"gyroscope (still for {MISSED_REST_MIN_S:g} s or more) and used for the gyroscope only, at t = "
+                     + ", ".join(f"{acc.t[a]:.1f}-{acc.t[b - 1]:.1f} s" for a, b in found[:6])
+                     + (" …" if len(found) > 6 else ""))
+    moving = np.flatnonzero([gyro.saturated[a:b + 1].any() for a, b in zip(data.start, data.stop, strict=True)])
+    if moving.size:
+        k = int(moving[0])
+        raise InputError(f"the gyroscope is saturated during motion {k + 1} (t = {acc.t[data.start[k]]:.2f}-"
+                         f"{acc.t[data.stop[k]]:.2f} s): its rotation cannot be integrated; turn the sensor more "
+                         "slowly or cut that motion out")
+    scale = gyro_scale if gyro_scale is not None else NOMINAL_SCALE.get(gyro_units)
+    fit = calibrate_gyro(data, bias=gyro_bias, g_sensitivity=g_sensitivity, scale=scale, solver=solver,
+                         options=options, seed=seed, budget=budget)
+    return ImuCalibration(cal, fit, data, positions.units, solver, notes + fit.notes)
