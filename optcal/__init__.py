@@ -7,9 +7,10 @@ does (CONTRIBUTING.md, "Layers"). This package is a facade over both: its names 
 
 The public names are loaded at first use (PEP 562), so that ``import optcal`` and ``optcal --help`` do not
 import NumPy, SciPy or anything heavier; ``from optcal import simulate`` works as before. The front door for
-Python users is ``optcal.calibrate``, ``optcal.apply``, ``optcal.read_recording`` and ``optcal.noise``
-(``optcal.api``, docs/api.md). As ``optcal.simulate`` is the function and not its submodule, ``optcal.noise``
-is the analysis function; the module's names are imported from it (``from optcal.noise import analyse``).
+Python users is ``optcal.calibrate``, ``optcal.apply``, ``optcal.read_recording`` and ``optcal.noise``, with
+``optcal.calibrate_imu`` and ``optcal.apply_gyro`` for an IMU (``optcal.api``, docs/api.md). As
+``optcal.simulate`` is the function and not its submodule, ``optcal.noise`` is the analysis function; the
+module's names are imported from it (``from optcal.noise import analyse``).
 """
 
 from __future__ import annotations
@@ -25,13 +26,14 @@ __version__ = "0.1.0"
 __all__ = [
     "NAMED_MODELS", "TERMS", "Budget", "BudgetExhausted", "CalibrationProblem", "Context", "InputError", "Model",
     "DiscoveryReport", "PositionsData", "Simulation", "discover", "get_model", "read_positions", "simulate",
-    "apply", "calibrate", "noise", "read_recording", "study",
+    "apply", "apply_gyro", "calibrate", "calibrate_imu", "noise", "read_recording", "study",
 ]
 
 # name -> the submodule that defines it, imported when the name is first looked up.
 _LAZY = {
     # the front door (docs/api.md): optcal.calibrate, optcal.apply, optcal.read_recording, optcal.noise
     "apply": "api", "calibrate": "api", "noise": "api", "read_recording": "api",
+    "calibrate_imu": "api", "apply_gyro": "api",  # the IMU: accelerometer and gyroscope (docs/gyroscope.md)
     "PositionsData": "data", "read_positions": "data",
     "DiscoveryReport": "discovery", "discover": "discovery",
     "NAMED_MODELS": "model", "TERMS": "model", "Context": "model", "Model": "model", "get_model": "model",

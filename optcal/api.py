@@ -108,19 +108,103 @@ def calibrate(data, model=None, *, solver: str = "lm", units: str | None = None,
     if unknown:
         raise InputError(f"calibrate() got unknown keyword(s) {', '.join(unknown)}; the recording options are "
                          f"{', '.join(_READING)}")
+
+    positions = _positions_for(data, model, units, raw, g_local, reading)
+    return fit(positions, model, solver=solver, options=options, g_local=g_local, reference=reference,
+               presets=presets, seed=seed, budget=budget, noise_g=noise_g, force_weak=force_weak)
+
+
+def _positions_for(data, model, units, raw: bool, g_local: float, reading: dict) -> PositionsData:
+    """A raw recording's intervals are found for the model asked for; for the default, for nonlinear12, or, when
+    the recording has too few intervals for it, for the next model of the fallback chain."""
     from .determination import FALLBACK
 
-    # A raw recording's intervals are found for the model asked for; for the default, for nonlinear12, or,
-    # when the recording has too few intervals for it, for the next model of the fallback chain.
     for k, name in enumerate((model,) if model is not None else FALLBACK):
         try:
-            positions = _positions(data, units, raw, g_local, name, reading)
-            break
+            return _positions(data, units, raw, g_local, name, reading)
         except InputError:
             if model is not None or not raw or k == len(FALLBACK) - 1:
                 raise
-    return fit(positions, model, solver=solver, options=options, g_local=g_local, reference=reference,
-               presets=presets, seed=seed, budget=budget, noise_g=noise_g, force_weak=force_weak)
+    raise AssertionError("unreachable")  # pragma: no cover
+
+
+GYRO_UNITS = ("counts", "deg/s", "rad/s", "volts")
+
+
+def calibrate_imu(data, gyro=None, *, gyro_units: str, gyro_columns=None, gyro_scale: float | None = None,
+                  gyro_bias: str = "rests", g_sensitivity: bool = False, model=None, solver: str = "lm",
+                  units: str | None = None, g_local: float = 1.0, options: dict | None = None, seed: int = 0,
+                  budget=None, **reading):
+    """Calibrate an IMU's accelerometer and gyroscope from one raw recording of rests with rotations between
+    them, as ``optcal imu`` does (docs/gyroscope.md): an :class:`optcal.imu.ImuCalibration` (``accelerometer``,
+    ``gyroscope``, ``notes``; ``write(path)`` writes the IMU file that ``optcal apply`` and ``optcal export``
+    read).
+
+    ``data``: the path of the raw recording with the accelerometer's columns, read with ``units`` and the
+    recording options of :func:`calibrate` (``columns``, ``rate``, ``method``, ``threshold_k``, ...).
+    ``gyro``: the path of a second file with the gyroscope's samples at the same times (t, gx, gy, gz, or
+    as ``gyro_columns`` names them, as imu_tk's data come); without it, ``gyro_columns`` names the three
+    columns in ``data``. ``gyro_units``: counts, deg/s, rad/s or volts; ``gyro_scale``: nominal output units
+    per rad/s (exact for deg/s and rad/s; otherwise searched for from the motions when None);
+    ``gyro_bias``: ``rests`` (interpolated between them) or ``fit``; ``g_sensitivity`` (with ``gyro_bias``
+    fit): fit G and keep it when the likelihood-ratio test finds it. ``model``, ``solver``, ``options``,
+    ``g_local``, ``seed`` and ``budget`` as :func:`calibrate`'s, for both fits."""
+    from .gyro.recording import read_gyro
+    from .imu import calibrate_imu as fit_imu
+    from .imu import check_imu_options
+
+    if gyro_units not in GYRO_UNITS:
+        raise InputError(f"gyro_units {gyro_units!r}: use one of {', '.join(GYRO_UNITS)}")
+    unknown = sorted(set(reading) - set(_READING))
+    if unknown:
+        raise InputError(f"calibrate_imu() got unknown keyword(s) {', '.join(unknown)}; the recording options are "
+                         f"{', '.join(_READING)}")
+    if not _is_path(data):
+        raise InputError(f"calibrate_imu needs the path of a raw recording, got {type(data).__name__}")
+    if gyro is not None and not _is_path(gyro):
+        raise InputError(f"gyro must be the path of the gyroscope's file, got {type(gyro).__name__}")
+    check_imu_options(gyro_scale=gyro_scale, gyro_bias=gyro_bias, g_sensitivity=g_sensitivity)
+    positions = _positions_for(data, model, units, True, g_local, reading)
+    acc = positions.extra["detection"].recording
+    rates = read_gyro(os.fspath(data), acc, gyro=None if gyro is None else os.fspath(gyro), gyro_columns=gyro_columns,
+                      units=gyro_units, rate=reading.get("rate"), time_unit=reading.get("time_unit"))
+    return fit_imu(positions, rates, model=model, solver=solver, options=options, g_local=g_local, seed=seed,
+                   budget=budget, gyro_units=gyro_units, gyro_scale=gyro_scale, gyro_bias=gyro_bias,
+                   g_sensitivity=g_sensitivity)
+
+
+def apply_gyro(calibration, rates, force=None) -> np.ndarray:
+    """Body rates in rad/s of raw gyroscope outputs ``rates`` (an (n, 3) array, or one sample of three, in the
+    calibration's raw units). ``calibration``: what :func:`calibrate_imu` returns or the path of an IMU file
+    (``optcal imu -o``). ``force``: the specific force (g) at the same samples (``optcal.apply`` of the
+    accelerometer's), needed when the gyroscope was calibrated with g-sensitivity."""
+    import json
+
+    import numpy as np
+
+    from .gyro.calfile import read_gyro_block
+    from .imu import ImuCalibration
+
+    if isinstance(calibration, ImuCalibration):
+        gcal = read_gyro_block(calibration.to_dict(), "the IMU calibration")
+    elif _is_path(calibration):
+        path = os.fspath(calibration)
+        try:
+            with open(path, encoding="utf-8") as fh:
+                content = json.load(fh)
+        except OSError as exc:
+            raise InputError(f"{path}: cannot read it ({exc.strerror}); give an IMU calibration file") from None
+        except ValueError:
+            raise InputError(f"{path} is not a JSON calibration file; give an IMU file (optcal imu -o)") from None
+        gcal = read_gyro_block(content if isinstance(content, dict) else {}, path)
+    else:
+        raise InputError(f"calibration must be what optcal.calibrate_imu returns or an IMU file's path; got "
+                         f"{type(calibration).__name__}")
+    W = np.asarray(rates, dtype=float)
+    one = W.shape == (3,)
+    F = None if force is None else np.asarray(force, dtype=float).reshape(-1, 3)
+    out = gcal.apply(W.reshape(1, 3) if one else W, F)
+    return out[0] if one else out
 
 
 def _calibration_file(calibration) -> CalibrationFile:

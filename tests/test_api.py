@@ -45,7 +45,7 @@ def session(tmp_path_factory):
 
 def test_every_front_door_function_has_a_section():
     text = DOC.read_text()
-    for name in ("calibrate", "apply", "read_recording", "noise"):
+    for name in ("calibrate", "apply", "read_recording", "noise", "calibrate_imu"):
         assert f"## `optcal.{name}`" in text, name
         assert getattr(optcal, name) is getattr(__import__("optcal.api", fromlist=[name]), name)
 
@@ -174,3 +174,33 @@ def test_the_front_door_names_import_nothing_heavy():
     proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120, cwd=ROOT)
     assert proc.returncode == 0, proc.stderr
     assert proc.stdout.strip() == "[]"
+
+
+def test_calibrate_imu_on_imu_tk_recording(session):
+    """docs/api.md's IMU block: imu_tk's Xsens pair gives the command's calibration (40 rests, of which the
+    gyroscope found 4), scale factors within 3 standard errors of imu_tk's own, and the written file applies
+    as the object does."""
+    ns, out = session
+    imu, fit = ns["imu"], ns["imu"].gyroscope
+    assert imu.data.n_rests == 40 and imu.data.n_motions == 39
+    imu_tk = 1 / np.array([0.000209295, 0.000209899, 0.000209483])
+    assert np.all(np.abs(fit.x[:3] - imu_tk) < 3 * fit.stderr[:3])
+    assert any("found by the gyroscope" in n for n in imu.notes)
+    assert "40 rests, 39 motions; chi2/dof 23.7" in out
+    rest = optcal.apply_gyro(imu, ns["W"][:500])
+    assert np.all(np.abs(rest.mean(axis=0)) < 2e-3)  # the bias's wander between rests, rad/s
+
+
+@pytest.mark.parametrize("call, message", [
+    (lambda: optcal.calibrate_imu(np.zeros((10, 3)), gyro_units="counts"), "needs the path of a raw recording"),
+    (lambda: optcal.calibrate_imu(str(MPU), gyro_units="furlongs"), "gyro_units 'furlongs': use one of"),
+    (lambda: optcal.calibrate_imu(str(MPU), gyro_units="deg/s", speed=3), "unknown keyword(s) speed"),
+    (lambda: optcal.calibrate_imu(str(MPU), gyro_units="deg/s", g_sensitivity=True), "needs `gyro_bias` fit"),
+    (lambda: optcal.calibrate_imu(str(MPU), gyro_units="counts", gyro_scale=-1.0), "`gyro_scale` -1.0 must be"),
+    (lambda: optcal.apply_gyro(42, np.zeros(3)), "calibration must be what optcal.calibrate_imu returns"),
+    (lambda: optcal.apply_gyro(str(MPU), np.zeros(3)), "is not a JSON calibration file"),
+])
+def test_imu_functions_refuse_in_one_line(call, message):
+    with pytest.raises(InputError) as exc:
+        call()
+    assert message in str(exc.value) and "\n" not in str(exc.value)
