@@ -178,8 +178,6 @@ def apply_gyro(calibration, rates, force=None) -> np.ndarray:
     calibration's raw units). ``calibration``: what :func:`calibrate_imu` returns or the path of an IMU file
     (``optcal imu -o``). ``force``: the specific force (g) at the same samples (``optcal.apply`` of the
     accelerometer's), needed when the gyroscope was calibrated with g-sensitivity."""
-    import json
-
     import numpy as np
 
     from .gyro.calfile import read_gyro_block
@@ -188,15 +186,10 @@ def apply_gyro(calibration, rates, force=None) -> np.ndarray:
     if isinstance(calibration, ImuCalibration):
         gcal = read_gyro_block(calibration.to_dict(), "the IMU calibration")
     elif _is_path(calibration):
-        path = os.fspath(calibration)
-        try:
-            with open(path, encoding="utf-8") as fh:
-                content = json.load(fh)
-        except OSError as exc:
-            raise InputError(f"{path}: cannot read it ({exc.strerror}); give an IMU calibration file") from None
-        except ValueError:
-            raise InputError(f"{path} is not a JSON calibration file; give an IMU file (optcal imu -o)") from None
-        gcal = read_gyro_block(content if isinstance(content, dict) else {}, path)
+        from .calfile import read_calibration
+
+        # checked as optcal apply checks it (format, version, the accelerometer's part), then its gyroscope
+        gcal = read_gyro_block(read_calibration(calibration).meta, os.fspath(calibration))
     else:
         raise InputError(f"calibration must be what optcal.calibrate_imu returns or an IMU file's path; got "
                          f"{type(calibration).__name__}")

@@ -199,6 +199,7 @@ def test_calibrate_imu_on_imu_tk_recording(session):
     (lambda: optcal.calibrate_imu(str(MPU), gyro_units="counts", gyro_scale=-1.0), "`gyro_scale` -1.0 must be"),
     (lambda: optcal.apply_gyro(42, np.zeros(3)), "calibration must be what optcal.calibrate_imu returns"),
     (lambda: optcal.apply_gyro(str(MPU), np.zeros(3)), "is not a JSON calibration file"),
+    (lambda: optcal.apply_gyro(str(ROOT / "tests" / "data" / "no_such.json"), np.zeros(3)), "cannot read"),
 ])
 def test_imu_functions_refuse_in_one_line(call, message):
     with pytest.raises(InputError) as exc:

@@ -109,7 +109,6 @@ class MotionIntegrator:
         real = place < steps[self.block_motion][None, :]
         ia = np.where(real, start[self.block_motion][None, :] + place, stop[self.block_motion][None, :])
         self.h = np.where(real, np.diff(np.asarray(t, float), append=np.inf)[ia], 0.0)
-        self.real = real
         # the samples the steps touch, and each cell's two columns among them (padding: its motion's last)
         self.samples, inverse = np.unique(np.concatenate([ia.ravel(), np.where(real, ia + 1, ia).ravel()]),
                                           return_inverse=True)
