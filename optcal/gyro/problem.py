@@ -205,6 +205,21 @@ class GyroProblem(ParameterViews):
         self.counter = Counter()
         self._last_jacobian = None
 
+    @property
+    def whitening_scale(self) -> np.ndarray:
+        """The scale factors (3,) with which the rests' output noise is turned into rad/s (:meth:`whiten_at`)."""
+        return self._K0.copy()
+
+    def whiten_at(self, K: np.ndarray) -> None:
+        """Whiten with scale factors ``K`` (3,) output units per rad/s, the rests' output noise turned into
+        rad/s with them (by default the nominal scale, the search centre's): the fit's own scale once it is
+        known (:func:`optcal.gyro.workflow.calibrate_gyro`)."""
+        K = np.abs(np.broadcast_to(np.asarray(K, float), (3,)))
+        self._K0 = K.copy()
+        self.sd_motion = self.data.motion_sd(K)
+        self.sd_rest = self.data.rest_sd(K)
+        self._last_jacobian = None
+
     # -- residuals --------------------------------------------------------------------------
     @property
     def n_motion_residuals(self) -> int:
