@@ -76,6 +76,13 @@ _READING = ("columns", "rate", "saturation", "adc", "time_unit", "labels", "labe
             "method", "threshold_k", "window_s", "min_static_s", "init_s")
 
 
+def _check_reading(function: str, reading: dict) -> None:
+    unknown = sorted(set(reading) - set(_READING))
+    if unknown:
+        raise InputError(f"{function}() got unknown keyword(s) {', '.join(unknown)}; the recording options are "
+                         f"{', '.join(_READING)}")
+
+
 def calibrate(data, model=None, *, solver: str = "lm", units: str | None = None, raw: bool = False,
               g_local: float = 1.0, options: dict | None = None, reference: bool = False,
               presets: Presets | None = None, seed: int | None = 0, budget=None, noise_g: float | None = None,
@@ -104,10 +111,7 @@ def calibrate(data, model=None, *, solver: str = "lm", units: str | None = None,
     """
     from .fit import calibrate as fit
 
-    unknown = sorted(set(reading) - set(_READING))
-    if unknown:
-        raise InputError(f"calibrate() got unknown keyword(s) {', '.join(unknown)}; the recording options are "
-                         f"{', '.join(_READING)}")
+    _check_reading("calibrate", reading)
 
     positions = _positions_for(data, model, units, raw, g_local, reading)
     return fit(positions, model, solver=solver, options=options, g_local=g_local, reference=reference,
@@ -155,10 +159,7 @@ def calibrate_imu(data, gyro=None, *, gyro_units: str, gyro_columns=None, gyro_s
 
     if gyro_units not in GYRO_UNITS:
         raise InputError(f"gyro_units {gyro_units!r}: use one of {', '.join(GYRO_UNITS)}")
-    unknown = sorted(set(reading) - set(_READING))
-    if unknown:
-        raise InputError(f"calibrate_imu() got unknown keyword(s) {', '.join(unknown)}; the recording options are "
-                         f"{', '.join(_READING)}")
+    _check_reading("calibrate_imu", reading)
     if not _is_path(data):
         raise InputError(f"calibrate_imu needs the path of a raw recording, got {type(data).__name__}")
     if gyro is not None and not _is_path(gyro):

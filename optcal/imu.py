@@ -72,7 +72,7 @@ def calibrate_imu(positions, gyro, *, model=None, solver: str = "lm", options: d
     from .fit import calibrate
     from .gyro.calfile import NOMINAL_SCALE
     from .gyro.data import MISSED_REST_MIN_S, missed_rests
-    from .gyro.recording import join_times
+    from .gyro.recording import join_times, refuse_saturated_motion
 
     check_imu_options(gyro_scale=gyro_scale, gyro_bias=gyro_bias, g_sensitivity=g_sensitivity)
     det = positions.extra.get("detection") if positions.extra else None
@@ -92,12 +92,7 @@ def calibrate_imu(positions, gyro, *, model=None, solver: str = "lm", options: d
                      f"gyroscope (still for {MISSED_REST_MIN_S:g} s or more) and used for the gyroscope only, at t = "
                      + ", ".join(f"{acc.t[a]:.1f}-{acc.t[b - 1]:.1f} s" for a, b in found[:6])
                      + (" …" if len(found) > 6 else ""))
-    moving = np.flatnonzero([gyro.saturated[a:b + 1].any() for a, b in zip(data.start, data.stop, strict=True)])
-    if moving.size:
-        k = int(moving[0])
-        raise InputError(f"the gyroscope is saturated during motion {k + 1} (t = {acc.t[data.start[k]]:.2f}-"
-                         f"{acc.t[data.stop[k]]:.2f} s): its rotation cannot be integrated; turn the sensor more "
-                         "slowly or cut that motion out")
+    refuse_saturated_motion(gyro.saturated, data)
     scale = gyro_scale if gyro_scale is not None else NOMINAL_SCALE.get(gyro_units)
     fit = calibrate_gyro(data, bias=gyro_bias, g_sensitivity=g_sensitivity, scale=scale, solver=solver,
                          options=options, seed=seed, budget=budget)

@@ -32,3 +32,12 @@ def assert_numbers_carry_units(obj, unit: re.Pattern, unitless=UNITLESS_NOISE_KE
     elif isinstance(obj, (int, float)) and not isinstance(obj, bool):
         named = [k for k in keys if k not in {"value", "low", "high"}]
         assert unit.search(named[-1]) or named[-1] in unitless, keys
+
+
+def run_cli(argv, capsys):
+    """optcal's command line in this process (arguments turned into strings): exit code, stdout, stderr."""
+    from optcal.cli import main
+
+    code = main([str(a) for a in argv])
+    out = capsys.readouterr()
+    return code, out.out, out.err

@@ -12,6 +12,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from conftest import run_cli
 from scipy.spatial.transform import Rotation
 
 from optcal.cli import main
@@ -20,12 +21,6 @@ from optcal.gyro.calfile import read_gyro_block
 
 ROOT = Path(__file__).resolve().parents[1]
 G_SITE = 9.81744  # m/s², imu_tk's test_imu_calib.cpp (tests/test_gyro_imu_command.py)
-
-
-def _cli(argv, capsys):
-    code = main([str(a) for a in argv])
-    out = capsys.readouterr()
-    return code, out.out, out.err
 
 
 @pytest.fixture(scope="module")
@@ -162,11 +157,11 @@ def one_file(tmp_path_factory):
 def test_one_file_named_or_found_by_header_gives_the_same_rates(one_file, capsys):
     d = one_file["dir"]
     by_name, by_header = d / "named.csv", d / "header.csv"
-    code, out, err = _cli(["apply", one_file["cal"], one_file["imu"], "--gyro-columns", "gx,gy,gz", "-o", by_name],
-                          capsys)
+    code, out, err = run_cli(["apply", one_file["cal"], one_file["imu"], "--gyro-columns", "gx,gy,gz", "-o", by_name],
+                              capsys)
     assert code == 0, err
     assert "wx, wy, wz in rad/s by gyroscope model gyro9, outputs in counts" in out
-    code, out, err = _cli(["apply", one_file["cal"], one_file["imu"], "-o", by_header], capsys)
+    code, out, err = run_cli(["apply", one_file["cal"], one_file["imu"], "-o", by_header], capsys)
     assert code == 0, err
     assert by_name.read_text() == by_header.read_text()
     a = np.loadtxt(by_name, delimiter=",", skiprows=1)
@@ -180,18 +175,18 @@ def test_what_is_missing_is_said_in_one_line(one_file, capsys):
     d = one_file["dir"]
     # an IMU file on a recording without the gyroscope's columns: the accelerometer, and a note
     out = d / "acc_applied.csv"
-    code, text, err = _cli(["apply", one_file["cal"], one_file["plain"], "-o", out], capsys)
+    code, text, err = run_cli(["apply", one_file["cal"], one_file["plain"], "-o", out], capsys)
     assert code == 0, err
     assert out.read_text().splitlines()[0] == "t,ax,ay,az"
     notes = [line for line in text.splitlines() if "no gyroscope columns" in line]
     assert len(notes) == 1 and notes[0].startswith("note: ") and "--gyro-columns" in notes[0]
     # the gyroscope's columns asked for, but the file has no gyroscope: exit 2, one line, nothing written
     out2 = d / "none.csv"
-    code, text, err = _cli(["apply", one_file["acc_only"], one_file["imu"], "--gyro-columns", "gx,gy,gz", "-o",
-                            out2], capsys)
+    code, text, err = run_cli(["apply", one_file["acc_only"], one_file["imu"], "--gyro-columns", "gx,gy,gz", "-o",
+                                out2], capsys)
     assert code == 2 and len(err.strip().splitlines()) == 1 and "has no gyroscope block" in err
     assert not out2.exists()
     # the same recording with the accelerometer-only file: its gyroscope's columns are left, with a note
-    code, text, err = _cli(["apply", one_file["acc_only"], one_file["imu"], "-o", out2], capsys)
+    code, text, err = run_cli(["apply", one_file["acc_only"], one_file["imu"], "-o", out2], capsys)
     assert code == 0 and "are not calibrated" in text
     assert out2.read_text().splitlines()[0] == "t,ax,ay,az"

@@ -12,6 +12,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from conftest import run_cli
 
 from optcal.calfile import read_calibration
 from optcal.cli import main
@@ -22,12 +23,6 @@ from optcal.gyro.model import get_gyro_model
 
 ROOT = Path(__file__).resolve().parents[1]
 DEG = 180.0 / math.pi
-
-
-def _cli(argv, capsys):
-    code = main([str(a) for a in argv])
-    out = capsys.readouterr()
-    return code, out.out, out.err
 
 
 def gyro_block(model, x, units, offset=None) -> dict:
@@ -86,14 +81,14 @@ def test_imu_tk_round_trip_two_files(tmp_path, capsys):
     (bias from the rests) comes back as gyro12 with the same K and T and the same output offset."""
     cal = imu_file(tmp_path / "imu.json", _counts_gyro9(), "counts")
     acc, gyr, back = tmp_path / "acc.calib", tmp_path / "gyro.calib", tmp_path / "back.json"
-    code, out, err = _cli(["export", cal, "--format", "imu_tk", "-o", acc, "--gyro-output", gyr], capsys)
+    code, out, err = run_cli(["export", cal, "--format", "imu_tk", "-o", acc, "--gyro-output", gyr], capsys)
     assert code == 0, err
     assert f"wrote {gyr}" in out and "raw W in counts, calibrated ω = T·K·(W − B) in rad/s" in out
     T, K, B = (np.array(b.split(), float) for b in gyr.read_text().split("\n\n") if b.strip())
     assert T.reshape(3, 3).diagonal().tolist() == [1.0, 1.0, 1.0]
     np.testing.assert_array_equal(B, [32777.2, 32459.9, 32511.9])  # the rests' offset, as imu_tk's bias
-    code, out, err = _cli(["import", acc, "--format", "imu_tk", "--units", "counts", "--gyro", gyr, "--gyro-units",
-                           "counts", "-o", back], capsys)
+    code, out, err = run_cli(["import", acc, "--format", "imu_tk", "--units", "counts", "--gyro", gyr, "--gyro-units",
+                               "counts", "-o", back], capsys)
     assert code == 0, err
     assert "gyroscope gyro12, raw outputs in counts" in out
     g = json.loads(back.read_text())["gyroscope"]
@@ -109,12 +104,12 @@ def test_imucal_round_trip_with_g_sensitivity(tmp_path, capsys):
     block = _gyro21("counts", 3)
     cal = imu_file(tmp_path / "imu.json", block, "counts")
     out_file, back = tmp_path / "imucal.json", tmp_path / "back.json"
-    code, out, err = _cli(["export", cal, "--format", "imucal", "-o", out_file], capsys)
+    code, out, err = run_cli(["export", cal, "--format", "imucal", "-o", out_file], capsys)
     assert code == 0, err
     assert "with its gyroscope" in out
     info = json.loads(out_file.read_text())
     assert info["from_gyr_unit"] == "a.u." and info["gyr_unit"] == "deg/s" and np.any(np.array(info["K_ga"]) != 0)
-    code, out, err = _cli(["import", out_file, "--format", "imucal", "-o", back], capsys)
+    code, out, err = run_cli(["import", out_file, "--format", "imucal", "-o", back], capsys)
     assert code == 0, err
     g = json.loads(back.read_text())["gyroscope"]
     assert g["model"] == "gyro21"
@@ -133,7 +128,7 @@ def test_kalibr_round_trip_and_noise_fields(tmp_path, capsys):
     noise.write_text("accelerometer_noise_density: 8.5e-04  # [m/s^2/sqrt(Hz)]\naccelerometer_random_walk: 4.8e-04\n"
                      "gyroscope_noise_density: 5.85e-04\ngyroscope_random_walk: 2.6e-05\nupdate_rate: 100  # [Hz]\n")
     out_file, back = tmp_path / "imu.yaml", tmp_path / "back.json"
-    code, out, err = _cli(["export", cal, "--format", "kalibr", "-o", out_file, "--noise", noise], capsys)
+    code, out, err = run_cli(["export", cal, "--format", "kalibr", "-o", out_file, "--noise", noise], capsys)
     assert code == 0, err
     yaml = pytest.importorskip("yaml")
     entry = yaml.safe_load(out_file.read_text())["imu0"]
@@ -144,7 +139,7 @@ def test_kalibr_round_trip_and_noise_fields(tmp_path, capsys):
     assert "accelerometer_random_walk: 0.00048  # [m/s^3/sqrt(Hz)]" in text
     Mg, A = np.array(entry["gyroscopes"]["M"]), np.array(entry["gyroscopes"]["A"])
     assert np.all(np.triu(Mg, 1) == 0) and np.any(A != 0)
-    code, out, err = _cli(["import", out_file, "--format", "kalibr", "--gyro-units", "deg/s", "-o", back], capsys)
+    code, out, err = run_cli(["import", out_file, "--format", "kalibr", "--gyro-units", "deg/s", "-o", back], capsys)
     assert code == 0, err
     assert "noise fields" in out and "not kept" in out
     g = json.loads(back.read_text())["gyroscope"]
@@ -166,8 +161,8 @@ def test_xsens_calibration_round_trips_through_imu_tk_and_imucal(tmp_path, capsy
                                       ["--units", "counts", "--gyro", tmp_path / "g.calib", "--gyro-units", "counts"]),
                                      ("imucal", [], [])):
         out_file, back = tmp_path / f"e.{fmt}", tmp_path / f"b_{fmt}.json"
-        assert _cli(["export", cal, "--format", fmt, "-o", out_file, *extra_out], capsys)[0] == 0
-        code, _, err = _cli(["import", out_file, "--format", fmt, "-o", back, *extra_in], capsys)
+        assert run_cli(["export", cal, "--format", fmt, "-o", out_file, *extra_out], capsys)[0] == 0
+        code, _, err = run_cli(["import", out_file, "--format", fmt, "-o", back, *extra_in], capsys)
         assert code == 0, err
         assert_same_gyroscope(gyro_of(cal), gyro_of(back))
         np.testing.assert_allclose(read_calibration(back).x, read_calibration(cal).x, rtol=1e-12)
@@ -195,7 +190,7 @@ def test_imucal_applies_the_exported_gyroscope_as_optcal_apply_does(tmp_path, ca
     """A gyro21 calibration exported to imucal: imucal's calibrate (its K_ga takes the calibrated acceleration
     in m/s²) gives optcal apply's rates (deg/s against rad/s) to 1e-9 relative (apply writes 10 digits)."""
     cal = imu_file(tmp_path / "imu.json", _gyro21("counts", 5), "counts")
-    assert _cli(["export", cal, "--format", "imucal", "-o", tmp_path / "imucal.json"], capsys)[0] == 0
+    assert run_cli(["export", cal, "--format", "imucal", "-o", tmp_path / "imucal.json"], capsys)[0] == 0
     rng = np.random.default_rng(6)
     acc_cal = read_calibration(cal)
     A = rng.standard_normal((500, 3))
@@ -204,7 +199,7 @@ def test_imucal_applies_the_exported_gyroscope_as_optcal_apply_does(tmp_path, ca
     W = 300 * rng.standard_normal((500, 3)) + 20
     rec = _recording(tmp_path / "rec.csv", N, W)
     out = tmp_path / "applied.csv"
-    code, _, err = _cli(["apply", cal, rec, "-o", out, "--output-units", "m/s2"], capsys)
+    code, _, err = run_cli(["apply", cal, rec, "-o", out, "--output-units", "m/s2"], capsys)
     assert code == 0, err
     ours = np.loadtxt(out, delimiter=",", skiprows=1)
     acc_theirs, gyr_theirs = _imucal_calibrate(tmp_path / "imucal.json", N, W)
@@ -220,7 +215,7 @@ def test_imucals_own_calibration_imported_gives_imucals_rates(tmp_path, capsys):
     calibrated rates to 1e-9 relative."""
     data = ROOT / "tests" / "data" / "imucal"
     cal = tmp_path / "imported.json"
-    code, out, err = _cli(["import", data / "example_cal.json", "--format", "imucal", "-o", cal], capsys)
+    code, out, err = run_cli(["import", data / "example_cal.json", "--format", "imucal", "-o", cal], capsys)
     assert code == 0, err
     assert "gyroscope gyro21, raw outputs in counts" in out
     raw = np.genfromtxt(data / "annotated_session.csv", delimiter=",", names=True, dtype=None, encoding="utf-8")
@@ -228,7 +223,7 @@ def test_imucals_own_calibration_imported_gives_imucals_rates(tmp_path, capsys):
     W = np.column_stack([raw["gyr_x"], raw["gyr_y"], raw["gyr_z"]]).astype(float)
     rec = _recording(tmp_path / "session.csv", N, W, 204.8)
     out_csv = tmp_path / "applied.csv"
-    code, _, err = _cli(["apply", cal, rec, "-o", out_csv], capsys)
+    code, _, err = run_cli(["apply", cal, rec, "-o", out_csv], capsys)
     assert code == 0, err
     ours = DEG * np.loadtxt(out_csv, delimiter=",", skiprows=1)[:, 4:7]
     _, theirs = _imucal_calibrate(data / "example_cal.json", N, W)
@@ -260,20 +255,20 @@ def test_refusals_are_one_line_and_write_nothing(tmp_path, capsys):
         (["export", nobias, "--format", "imu_tk", "-o", out, "--gyro-output", out], "name the same file"),
     ]
     for argv, fragment in cases:
-        code, text, err = _cli(argv, capsys)
+        code, text, err = run_cli(argv, capsys)
         assert code == 2, (argv, err)
         lines = err.strip().splitlines()
         assert len(lines) == 1 and fragment in lines[0], (fragment, err)
         assert not out.exists() and not gout.exists()
     # the accelerometer alone, when asked for: the matrix format, and imucal with the identity gyroscope
-    code, text, err = _cli(["export", g21, "--format", "matrix", "-o", out, "--accelerometer-only"], capsys)
+    code, text, err = run_cli(["export", g21, "--format", "matrix", "-o", out, "--accelerometer-only"], capsys)
     assert code == 0, err
-    code, text, err = _cli(["export", g21, "--format", "imucal", "-o", tmp_path / "i.json", "--accelerometer-only"],
-                           capsys)
+    code, text, err = run_cli(["export", g21, "--format", "imucal", "-o", tmp_path / "i.json", "--accelerometer-only"],
+                               capsys)
     assert code == 0 and "identity" in text
     assert json.loads((tmp_path / "i.json").read_text())["K_g"] == np.eye(3).tolist()
     # an imucal file with the identity gyroscope imports without one
-    code, text, err = _cli(["import", tmp_path / "i.json", "--format", "imucal", "-o", tmp_path / "i_back.json"],
-                           capsys)
+    code, text, err = run_cli(["import", tmp_path / "i.json", "--format", "imucal", "-o", tmp_path / "i_back.json"],
+                               capsys)
     assert code == 0, err
     assert "gyroscope" not in json.loads((tmp_path / "i_back.json").read_text())

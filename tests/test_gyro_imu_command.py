@@ -9,9 +9,9 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from conftest import run_cli
 from scipy.spatial.transform import Rotation
 
-from optcal.cli import main
 from optcal.errors import InputError
 from optcal.gyro import draw_truth, get_gyro_model, simulate_imu
 from optcal.gyro.calfile import read_gyro_block
@@ -20,12 +20,6 @@ ROOT = Path(__file__).resolve().parents[1]
 IMUCAL = ROOT / "tests" / "data" / "imucal" / "example_ferraris_session.csv"
 IMUCAL_ARGS = ["--columns", "ax=acc_x,ay=acc_y,az=acc_z", "--rate", "102.4", "--units", "m/s2",
                "--gyro-columns", "gyr_x,gyr_y,gyr_z", "--gyro-units", "deg/s", "--model", "diag6"]
-
-
-def _cli(argv, capsys):
-    code = main(argv)
-    out = capsys.readouterr()
-    return code, out.out, out.err
 
 
 def _write(path, t, F, W):
@@ -50,7 +44,7 @@ ARGS = ["--gyro-columns", "gx,gy,gz", "--gyro-units", "counts", "--gyro-scale", 
 def test_one_file_gives_one_calibration_file_with_both_sensors(tmp_path, capsys):
     path, x, _ = _recording(tmp_path)
     out = tmp_path / "imu.json"
-    code, text, err = _cli(["imu", str(path), *ARGS, "-o", str(out)], capsys)
+    code, text, err = run_cli(["imu", str(path), *ARGS, "-o", str(out)], capsys)
     assert code == 0, err
     d = json.loads(out.read_text())
     assert d["format"] == "optcal-calibration" and d["model"] == "linear9"
@@ -86,8 +80,8 @@ def test_two_files_sharing_times_as_imu_tk(tmp_path, capsys):
     for f in (acc, gyr):
         f.write_bytes(gzip.decompress((ROOT / "tests" / "data" / "imu_tk" / f"{f.name}.gz").read_bytes()))
     out = tmp_path / "xsens.json"
-    code, text, err = _cli(["imu", str(acc), "--gyro", str(gyr), "--gyro-units", "counts", "--units", "counts",
-                            "--gravity-ms2", "9.81744", "--model", "linear9", "-o", str(out)], capsys)
+    code, text, err = run_cli(["imu", str(acc), "--gyro", str(gyr), "--gyro-units", "counts", "--units", "counts",
+                                "--gravity-ms2", "9.81744", "--model", "linear9", "-o", str(out)], capsys)
     assert code == 0, err
     g = json.loads(out.read_text())["gyroscope"]
     K = np.array([g["parameters"][f"K_{a}"] for a in "xyz"])
@@ -109,7 +103,7 @@ def test_imucal_ferraris_session_end_to_end(tmp_path, capsys):
     own axis's scale) gives angles nearer 360° than the nominal scale, within 1.5 % on every axis; the
     motions' residual drops fourfold (docs/gyroscope.md §6)."""
     out = tmp_path / "imucal.json"
-    code, text, err = _cli(["imu", str(IMUCAL), *IMUCAL_ARGS, "-o", str(out)], capsys)
+    code, text, err = run_cli(["imu", str(IMUCAL), *IMUCAL_ARGS, "-o", str(out)], capsys)
     assert code == 0, err
     d = json.loads(out.read_text())
     g = d["gyroscope"]
@@ -191,7 +185,7 @@ def test_bad_input_exit_2_one_line_nothing_written(tmp_path, capsys, case, extra
     else:
         path = _no_rotation(tmp_path)
     out = tmp_path / "out.json"
-    code, text, err = _cli(["imu", str(path), *gyro_args, *extra, "-o", str(out)], capsys)
+    code, text, err = run_cli(["imu", str(path), *gyro_args, *extra, "-o", str(out)], capsys)
     assert code == 2
     assert message in err and len(err.strip().splitlines()) == 1
     assert not out.exists()

@@ -13,7 +13,7 @@ import re
 
 import numpy as np
 import pytest
-from conftest import assert_numbers_carry_units
+from conftest import assert_numbers_carry_units, run_cli
 
 from optcal.cli import main
 from optcal.gravity import G0
@@ -24,12 +24,6 @@ N_GYRO = 5e-4  # rad/s/√Hz: an angle random walk of 1.72 °/√h
 K_GYRO = 2e-4  # rad/s²/√Hz: the lines cross at τ = √3·N/K ≈ 4.3 s
 N_ACC = 100e-6  # g/√Hz
 DEG = 180.0 / math.pi
-
-
-def _cli(argv, capsys):
-    code = main([str(a) for a in argv])
-    out = capsys.readouterr()
-    return code, out.out, out.err
 
 
 @pytest.fixture(scope="module")
@@ -128,7 +122,7 @@ def test_kalibr_export_takes_the_noise_file(analysed, tmp_path, capsys):
     cal = tmp_path / "imu.json"
     cal.write_text(json.dumps(doc))
     out = tmp_path / "imu.yaml"
-    code, text, err = _cli(["export", cal, "--format", "kalibr", "-o", out, "--noise", yml], capsys)
+    code, text, err = run_cli(["export", cal, "--format", "kalibr", "-o", out, "--noise", yml], capsys)
     assert code == 0, err
     yaml = pytest.importorskip("yaml")
     entry = yaml.safe_load(out.read_text())["imu0"]
@@ -143,16 +137,16 @@ def test_header_and_second_file_give_the_same_numbers(recording, analysed, capsy
     """The gyroscope's columns found by their header names, or in a second file sharing the times (imu_tk's
     layout): the same analysis."""
     res, _ = analysed
-    code, out, err = _cli(["noise", recording["both"], "--units", "m/s2", "--gyro-units", "deg/s", "--json"], capsys)
+    code, out, err = run_cli(["noise", recording["both"], "--units", "m/s2", "--gyro-units", "deg/s", "--json"], capsys)
     assert code == 0, err
     assert json.loads(out)["gyroscope"]["axes"] == res["gyroscope"]["axes"]
-    code, out, err = _cli(["noise", recording["acc"], "--units", "m/s2", "--gyro", recording["gyro"],
-                           "--gyro-units", "deg/s", "--json"], capsys)
+    code, out, err = run_cli(["noise", recording["acc"], "--units", "m/s2", "--gyro", recording["gyro"],
+                               "--gyro-units", "deg/s", "--json"], capsys)
     assert code == 0, err
     assert json.loads(out)["gyroscope"]["axes"] == res["gyroscope"]["axes"]
     # the table names the sensor and the gyroscope's units
-    code, out, err = _cli(["noise", recording["both"], "--units", "m/s2", "--gyro-units", "deg/s",
-                           "--interval", "0:600"], capsys)
+    code, out, err = run_cli(["noise", recording["both"], "--units", "m/s2", "--gyro-units", "deg/s",
+                               "--interval", "0:600"], capsys)
     assert code == 0, err
     assert "gyroscope, " in out and "angle random walk [°/√h]" in out and "σ_x [°/h]" in out
 
@@ -164,9 +158,9 @@ def test_counts_need_a_scale_and_it_is_used(recording, analysed, capsys, tmp_pat
     counts = tmp_path / "counts.txt"
     np.savetxt(counts, np.column_stack([gyro[:, 0], np.round(gyro[:, 1:] * 1000)]), fmt="%.10g")  # 1000 per °/s
     argv = ["noise", recording["acc"], "--units", "m/s2", "--gyro", counts, "--gyro-units", "counts", "--json"]
-    code, out, err = _cli(argv, capsys)
+    code, out, err = run_cli(argv, capsys)
     assert code == 2 and "--gyro-scale" in err and len(err.strip().splitlines()) == 1
-    code, out, err = _cli(argv + ["--gyro-scale", str(1000 * DEG)], capsys)
+    code, out, err = run_cli(argv + ["--gyro-scale", str(1000 * DEG)], capsys)
     assert code == 0, err
     got = json.loads(out)["gyroscope"]["axes"]["x"]["white_noise_density_rad_s_per_sqrt_hz"]["value"]
     ref = res["gyroscope"]["axes"]["x"]["white_noise_density_rad_s_per_sqrt_hz"]["value"]
@@ -179,16 +173,16 @@ def test_counts_need_a_scale_and_it_is_used(recording, analysed, capsys, tmp_pat
     (["--gyro-units", "deg/s", "--gyro-scale", "-1"], "--gyro-scale -1"),
 ])
 def test_bad_gyroscope_options_one_line(recording, capsys, extra, fragment):
-    code, out, err = _cli(["noise", recording["both"], "--units", "m/s2", *extra], capsys)
+    code, out, err = run_cli(["noise", recording["both"], "--units", "m/s2", *extra], capsys)
     assert code == 2 and fragment in err and len(err.strip().splitlines()) == 1, err
 
 
 def test_missing_columns_and_disagreeing_times_are_refused(recording, capsys, tmp_path):
     yml = tmp_path / "k.yaml"
-    code, out, err = _cli(["noise", recording["acc"], "--units", "m/s2", "--gyro-units", "deg/s",
-                           "--kalibr-yaml", yml], capsys)
+    code, out, err = run_cli(["noise", recording["acc"], "--units", "m/s2", "--gyro-units", "deg/s",
+                               "--kalibr-yaml", yml], capsys)
     assert code == 2 and "names no gyroscope columns" in err and len(err.strip().splitlines()) == 1
-    code, out, err = _cli(["noise", recording["acc"], "--units", "m/s2", "--gyro", recording["shifted"],
-                           "--gyro-units", "deg/s", "--kalibr-yaml", yml], capsys)
+    code, out, err = run_cli(["noise", recording["acc"], "--units", "m/s2", "--gyro", recording["shifted"],
+                               "--gyro-units", "deg/s", "--kalibr-yaml", yml], capsys)
     assert code == 2 and "times disagree" in err and len(err.strip().splitlines()) == 1
     assert not yml.exists()

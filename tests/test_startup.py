@@ -14,8 +14,11 @@ import subprocess
 import sys
 import textwrap
 import types
+from pathlib import Path
 
 import pytest
+
+IMU_TK = Path(__file__).parent / "data" / "imu_tk"  # imu_tk's Xsens pair (BSD), gzip-compressed
 
 # The libraries that must stay out of the start-up path (top-level package names).
 HEAVY = ("scipy", "matplotlib", "casadi", "cvxpy", "nlopt", "dask", "distributed", "numba", "pandas", "pyarrow",
@@ -160,31 +163,39 @@ def test_without_pyarrow_the_numpy_reader_is_used(tmp_path, monkeypatch):
     assert rec.N[-1].tolist() == [49, -49, 98]
 
 
+def _command_alone(argv: list[str], command: str, checks: str = "") -> list[str]:
+    """Run ``optcal ARGV`` in a fresh interpreter; assert it succeeds and loads no command module but
+    ``command``'s, then the extra ``checks`` (its printed output is ``out``). Returns the heavy (and pydantic,
+    ruptures) modules it imported."""
+    code = f"""
+        import contextlib, io, sys
+        from optcal.cli import main
+        out = io.StringIO()
+        with contextlib.redirect_stdout(out):
+            assert main({argv!r}) == 0
+        commands = sorted(m for m in sys.modules
+                          if m.startswith("optcal.commands.") and not m.split(".")[-1].startswith("_"))
+        assert commands == [{f"optcal.commands.{command}"!r}], commands
+    """
+    return imported(textwrap.dedent(code) + textwrap.dedent(checks), HEAVY + ("pydantic", "ruptures"))
+
+
 def test_calibrating_a_raw_recording_imports_no_heavy_module(tmp_path):
     """The whole ``optcal calibrate RAW --raw --units counts -o cal.json`` on imu_tk's Xsens recording (issue
     #20: the process's time is mostly imports): none of HEAVY, no importlib.metadata (entry points are read
     only for a name that is not built in), no pydantic (the file's schema is for reading), and of the command
     modules only calibrate's. The fit is solvers.lm's."""
     import gzip
-    from pathlib import Path
 
-    raw = Path(__file__).parent / "data" / "imu_tk" / "xsens_acc.mat.gz"
     path = tmp_path / "xsens_acc.mat"
-    path.write_bytes(gzip.decompress(raw.read_bytes()))
+    path.write_bytes(gzip.decompress((IMU_TK / "xsens_acc.mat.gz").read_bytes()))
     out = tmp_path / "cal.json"
-    code = f"""
-        import contextlib, io, sys
-        from optcal.cli import main
-        out = io.StringIO()
-        with contextlib.redirect_stdout(out):
-            assert main(["calibrate", {str(path)!r}, "--raw", "--units", "counts", "-o", {str(out)!r}]) == 0
+    checks = """
         assert "solver lm" in out.getvalue()
-        commands = sorted(m for m in sys.modules
-                          if m.startswith("optcal.commands.") and not m.split(".")[-1].startswith("_"))
-        assert commands == ["optcal.commands.calibrate"], commands
         assert "importlib.metadata" not in sys.modules
     """
-    assert imported(code, HEAVY + ("pydantic", "ruptures")) == []
+    argv = ["calibrate", str(path), "--raw", "--units", "counts", "-o", str(out)]
+    assert _command_alone(argv, "calibrate", checks) == []
     assert out.is_file()
 
 
@@ -192,25 +203,9 @@ def test_calibrating_an_imu_imports_no_heavy_module(tmp_path):
     """The whole ``optcal imu`` on imu_tk's Xsens pair (issue #23: the process's time against imu_tk's): the
     gyroscope's least squares integrate in NumPy (optcal.gyro.integrate), so neither numba nor scipy is
     loaded, and of the command modules only imu's."""
-    import gzip
-    from pathlib import Path
-
-    paths = []
-    for name in ("xsens_acc.mat", "xsens_gyro.mat"):
-        paths.append(tmp_path / name)
-        paths[-1].write_bytes(gzip.decompress((Path(__file__).parent / "data" / "imu_tk" / f"{name}.gz").read_bytes()))
     out = tmp_path / "imu.json"
-    argv = ["imu", str(paths[0]), "--gyro", str(paths[1]), "--gyro-units", "counts", "--gyro-scale", "6258",
-            "--units", "counts", "--model", "linear9", "--threshold-k", "3", "-o", str(out)]
-    code = f"""
-        import contextlib, io, sys
-        from optcal.cli import main
-        with contextlib.redirect_stdout(io.StringIO()):
-            assert main({argv!r}) == 0
-        commands = sorted(m for m in sys.modules
-                          if m.startswith("optcal.commands.") and not m.split(".")[-1].startswith("_"))
-        assert commands == ["optcal.commands.imu"], commands
-        assert "optcal.kernels.gyro" not in sys.modules
-    """
-    assert imported(code, HEAVY + ("pydantic", "ruptures")) == []
+    argv = ["imu", str(IMU_TK / "xsens_acc.mat.gz"), "--gyro", str(IMU_TK / "xsens_gyro.mat.gz"), "--gyro-units",
+            "counts", "--gyro-scale", "6258", "--units", "counts", "--model", "linear9", "--threshold-k", "3",
+            "-o", str(out)]
+    assert _command_alone(argv, "imu", 'assert "optcal.kernels.gyro" not in sys.modules\n') == []
     assert out.is_file()

@@ -93,8 +93,7 @@ def missed_rests(data: GyroData, min_s: float = MISSED_REST_MIN_S) -> np.ndarray
     translation) is returned. ``data``'s rests are not changed; ``data.with_rests`` joins them."""
     t, W, F, r = data.t, data.W, data.F, data.rests
     n = len(t)
-    mid = np.array([t[a:b].mean() for a, b in r])
-    level = np.column_stack([np.interp(t, mid, data.rest_W[:, i]) for i in range(3)])
+    level = np.column_stack([np.interp(t, data.rest_mid_t, data.rest_W[:, i]) for i in range(3)])
     sd = np.maximum(np.median(data.rest_sd_W, axis=0), 1e-300)
     dt = float(np.median(np.diff(t))) if n > 1 else 1.0
     w = max(1, int(round(STILL_WINDOW_S / dt)))
@@ -102,14 +101,16 @@ def missed_rests(data: GyroData, min_s: float = MISSED_REST_MIN_S) -> np.ndarray
     if w > 1:
         kernel = np.ones(w) / w
         z = np.column_stack([np.convolve(z[:, i], kernel, mode="same") for i in range(3)])
-    moving = np.ones(n, bool)  # inside a motion: between one rest's end and the next one's start
-    moving[: r[0, 1]] = False
-    moving[r[-1, 0]:] = False
-    for a, b in r:
-        moving[a:b] = False
+    # inside a motion: in no rest, and between the first rest's start and the last one's end
+    depth = np.zeros(n + 1, np.int64)
+    np.add.at(depth, r[:, 0], 1)
+    np.add.at(depth, r[:, 1], -1)
+    moving = np.cumsum(depth[:n]) == 0
+    moving[: r[0, 0]] = False
+    moving[r[-1, 1]:] = False
     still = moving & np.all(np.abs(z) < STILL_Z / np.sqrt(w), axis=1)
     edges = np.flatnonzero(np.diff(np.concatenate([[0], still.astype(np.int8), [0]])))
-    sd_f = np.median([F[a:b].std(axis=0, ddof=1) for a, b in r], axis=0)
+    sd_f = np.median(data.rest_sd_F, axis=0)
     found = []
     min_n = max(2, int(round(min_s / dt)))
     for a, b in zip(edges[0::2], edges[1::2], strict=True):
@@ -178,7 +179,8 @@ class GyroData:
         self.rest_F = fbar
         self.rest_n = nr
         self.rest_sd_W = np.array([self.W[a:b].std(axis=0, ddof=1) for a, b in r])
-        sd_f = np.array([self.F[a:b].std(axis=0, ddof=1) for a, b in r])
+        self.rest_sd_F = sd_f = np.array([self.F[a:b].std(axis=0, ddof=1) for a, b in r])
+        self.rest_mid_t = np.array([self.t[a:b].mean() for a, b in r])
         norm = np.linalg.norm(fbar, axis=1)
         if np.any(norm < 0.1):
             raise InputError("a rest's mean specific force is below 0.1 g: the accelerometer columns or its "
@@ -202,8 +204,7 @@ class GyroData:
         constant before the first and after the last). A bias that drifts over the recording (warm-up,
         bias instability) is then followed rest by rest instead of fitted as one constant; it leaves the
         scale factors and misalignments to the motions."""
-        mid = np.array([self.t[a:b].mean() for a, b in self.rests])
-        offset = np.column_stack([np.interp(self.t, mid, self.rest_W[:, i]) for i in range(3)])
+        offset = np.column_stack([np.interp(self.t, self.rest_mid_t, self.rest_W[:, i]) for i in range(3)])
         out = GyroData(self.t, self.W - offset, self.F, self.rests, units=self.units, saturated=self.saturated,
                        extra=dict(self.extra, bias_from_rests=offset,
                                   offset_raw=np.array([offset[a:b].mean(axis=0) for a, b in self.rests]).mean(axis=0)),

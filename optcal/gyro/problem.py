@@ -93,11 +93,14 @@ class GyroPresets:
         self.centre, self.halfwidth = np.asarray(centre, float), np.asarray(halfwidth, float)
 
 
-def start_vector(model: GyroModel, data: GyroData, K: np.ndarray) -> np.ndarray:
-    """Nominal scale ``K``, no misalignment or g-sensitivity, the bias of the rests' mean output."""
-    x = model.default_vector(K)
+def start_vector(model: GyroModel, data: GyroData, K) -> np.ndarray:
+    """Nominal scale ``K`` (one number or three), no misalignment or g-sensitivity, the bias of the rests' mean
+    output; ``K`` (S, 1) or (S, 3) gives S such vectors (S, p)."""
+    K = np.asarray(K, float)
+    x = np.zeros(K.shape[:-1] + (model.n_params,) if K.ndim == 2 else (model.n_params,))
+    x[..., :3] = K
     if model.bias:
-        x[model.slice_of("bias")] = np.mean(data.rest_W, axis=0) / K
+        x[..., model.slice_of("bias")] = np.mean(data.rest_W, axis=0) / K
     return x
 
 
@@ -115,8 +118,7 @@ def common_scale(model: GyroModel, data: GyroData, k_min: float, k_max: float, n
     that is within a step of this one's). For raw counts with no nominal scale. ``backend``: the
     integrator's (:data:`BACKENDS`)."""
     def best(rot, ks):
-        X = np.array([start_vector(model, data, k) for k in ks])
-        R = rot.rotate_batch(model.affine(X))
+        R = rot.rotate_batch(model.affine(start_vector(model, data, ks[:, None])))
         return ks[int(np.argmin(np.sum(R**2, axis=(1, 2))))]
 
     turning = np.sort(np.argsort(data.turn, kind="stable")[::-1][:SCALE_SEARCH_MOTIONS])

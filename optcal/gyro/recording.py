@@ -64,15 +64,16 @@ def read_gyro(data, acc, *, gyro=None, gyro_columns=None, units: str, rate: floa
     return read_recording(data, spec, rate, label, time_unit=time_unit)
 
 
-def saturated_motion(W: np.ndarray, rails: tuple[float, float] | None, data: GyroData) -> int | None:
-    """Index of the first motion during which a gyroscope sample sits at a rail, or None."""
-    if rails is None:
-        return None
-    at = np.any((W <= rails[0]) | (W >= rails[1]), axis=1)
-    for k, (a, b) in enumerate(zip(data.start, data.stop, strict=True)):
-        if at[a:b + 1].any():
-            return k
-    return None
+def refuse_saturated_motion(saturated: np.ndarray, data: GyroData) -> None:
+    """Refuse ``data`` when a gyroscope sample flagged in ``saturated`` (n,) lies in a motion (from the last
+    sample of one rest to the first of the next): the rotation integrated over it would be wrong."""
+    seen = np.concatenate([[0], np.cumsum(np.asarray(saturated, bool))])  # flagged samples before each index
+    inside = np.flatnonzero(seen[data.stop + 1] > seen[data.start])
+    if inside.size:
+        k = int(inside[0])
+        raise InputError(f"the gyroscope is saturated during motion {k + 1} (between rests {k + 1} and {k + 2}, "
+                         f"t = {data.t[data.start[k]]:.2f}-{data.t[data.stop[k]]:.2f} s): its rotation cannot be "
+                         "integrated; turn the sensor more slowly or cut that motion out")
 
 
 def gyro_data(t, W, N_acc, intervals, acc_model, x_acc, *, units: str,
@@ -85,9 +86,7 @@ def gyro_data(t, W, N_acc, intervals, acc_model, x_acc, *, units: str,
     ctx = Context.from_columns(temp=temp if "temp" in model.needs else None, t=t if "t" in model.needs else None)
     F = model.inverse(np.asarray(x_acc, float)[None], np.asarray(N_acc, float), ctx)[0]
     data = GyroData(t, W, F, intervals, units=units)
-    k = saturated_motion(np.asarray(W, float), rails, data)
-    if k is not None:
-        raise InputError(f"the gyroscope is saturated during motion {k + 1} (between rests {k + 1} and {k + 2}, "
-                         f"t = {data.t[data.start[k]]:.2f}-{data.t[data.stop[k]]:.2f} s): turn the sensor more "
-                         "slowly, or cut that motion out")
+    if rails is not None:
+        W = np.asarray(W, float)
+        refuse_saturated_motion(np.any((W <= rails[0]) | (W >= rails[1]), axis=1), data)
     return data

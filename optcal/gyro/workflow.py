@@ -44,20 +44,22 @@ def _fit(data, *, g_sensitivity, bias, scale, solver, options, seed, budget) -> 
     backend = "numpy" if getattr(slv, "few_evaluations", False) else "kernel"
     p = GyroProblem(data, g_sensitivity=g_sensitivity, bias=bias, scale=scale, backend=backend)
     check_observable(p, p.centre)  # before solving: a solver wanders along an undetermined direction
-    res = slv.solve(p, rng=np.random.default_rng(seed), budget=budget)
-    if not np.isfinite(res.fun):
-        raise InputError(f"the gyroscope fit found no finite cost ({res.message}); check the gyroscope's columns "
-                         "and units")
+
+    def solve(x0=None):
+        res = slv.solve(p, x0=x0, rng=np.random.default_rng(seed), budget=budget)
+        if not np.isfinite(res.fun):
+            raise InputError(f"the gyroscope fit found no finite cost ({res.message}); check the gyroscope's "
+                             "columns and units")
+        return res
+
+    res = solve()
     if np.max(np.abs(res.x_full[:3] / p.centre[:3] - 1.0)) > RESCALE:
         # the whitening turns the rests' output noise into rad/s with the nominal scale: a nominal scale 30 %
         # off (imu_tk's own for its Xsens recording) makes the χ² 1.7 times what the noise gives. Whitened at
         # the calibrated scale and fitted again from there, the weights and the χ² are the data's, whatever the
         # nominal scale was.
         p.whiten_at(res.x_full[:3])
-        res = slv.solve(p, x0=res.x_full, rng=np.random.default_rng(seed), budget=budget)
-        if not np.isfinite(res.fun):
-            raise InputError(f"the gyroscope fit found no finite cost ({res.message}); check the gyroscope's "
-                             "columns and units")
+        res = solve(res.x_full)
     obs = check_observable(p, res.x_full)
     dof = p.n_residuals - p.model.n_params
     if dof < 3:
