@@ -133,16 +133,27 @@ def raw_options(args) -> dict:
     }
 
 
+def load_raw_positions(args, path, gyro_of=None) -> PositionsData:
+    """Positions from the raw recording ``path`` as the options ``args`` say; ``gyro_of(recording)`` gives the
+    gyroscope's Recording at the same samples (``optcal imu``), whose stillness the detection also judges."""
+    from ..recording.reading import read_recording
+    from ..recording.workflow import positions_from_raw_recording
+
+    opts = raw_options(args)
+    with flag_names():
+        rec = read_recording(path, opts.pop("columns"), opts.pop("rate"), opts.pop("units"),
+                             saturation=opts.pop("saturation"), labels=opts["labels"], adc=opts.pop("adc"),
+                             time_unit=opts.pop("time_unit"), refuse_positions=True)
+        return positions_from_raw_recording(rec, gyro=None if gyro_of is None else gyro_of(rec), **opts)
+
+
 def load_positions(args, path) -> PositionsData:
     """Positions from a positions CSV or MAT file, or (``--raw``) from a raw recording via static-interval
     detection. A raw recording given as positions is named as such (and a positions file given with
     ``--raw`` by the reader): both by the one decision of :func:`optcal.recording.sniff.table_kind`, from the
     data, so that following one advice never meets the other."""
     if getattr(args, "raw", False):
-        from ..recording.workflow import positions_from_raw
-
-        with flag_names():
-            return positions_from_raw(path, **raw_options(args))
+        return load_raw_positions(args, path)
     from pathlib import Path
 
     from ..data import check_units, read_positions

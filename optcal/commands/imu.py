@@ -12,7 +12,7 @@ import json
 
 from ..errors import InputError
 from ._common import check_output_folder, check_seed, parameter_table, parse_options, refuse_overwrite, refuse_same_file
-from ._dataopts import add_data_options, gravity_from_args, load_positions
+from ._dataopts import add_data_options, gravity_from_args, load_raw_positions
 
 HELP = "calibrate an IMU's accelerometer and gyroscope from one recording of rests with rotations between them"
 
@@ -68,12 +68,16 @@ def run(args) -> int:
     args.raw = True
     g_local = gravity_from_args(args)
     named = args.model is not None
-    if not named:  # the rests are found for the default model, as optcal calibrate does
-        from ..determination import DEFAULT_MODEL
+    # the rests are found as optcal calibrate finds them (for the default model, as many as its smallest fallback
+    # needs), judged on the gyroscope too
+    read = {}
 
-        args.model = DEFAULT_MODEL
-    positions = load_positions(args, args.data)
-    gyr = gyro_recording(args, positions.extra["detection"].recording)
+    def gyro_of(acc):
+        read["gyro"] = gyro_recording(args, acc)
+        return read["gyro"]
+
+    positions = load_raw_positions(args, args.data, gyro_of)
+    gyr = read["gyro"]
     imu = calibrate_imu(positions, gyr, model=args.model if named else None, solver=args.solver,
                         options=parse_options(args.option), g_local=g_local, seed=args.seed, budget=args.budget,
                         gyro_units=args.gyro_units, gyro_scale=args.gyro_scale, gyro_bias=args.gyro_bias,

@@ -58,6 +58,12 @@ DEFAULT_MIN_STATIC_S = 0.5  # s: the shortest pose found by default
 DEFAULT_WINDOW_S = 10.0  # s: the rest test's longest window (a slow turn's pieces are tested whole)
 LOCAL_MIN_DOF = 30  # degrees of freedom (3 per block) before a window's own noise may raise the recording's
 NO_RATE_SAMPLES = 50  # samples: the shortest pose of a recording without a rate (its window: twice that)
+LOUD_SIGMAS = 6.0  # a block-to-block step of the means beyond this many block-noise SDs (norm over the axes,
+# χ²(3) p ≈ 4e-4 for white noise) is motion: a segment rejected as shaking is cut at such steps into its parts
+GYRO_WINDOW_S = 0.25  # s: the gyroscope's rate is averaged over this before it is judged (tremor averages out)
+GYRO_Z = 8.0  # an averaged rate this many noise SDs from the level at rest (any axis) is a turn ...
+HOLD_FACTOR = 4.0  # ... when it is also this many times the level at which the rests are held (a hand's sway)
+GYRO_MARGIN_S = 0.05  # s: samples this close to a turning one are left out of a rest (the turn's edge)
 
 
 @dataclass
@@ -74,6 +80,8 @@ class Segmentation:
     n_bad_blocks: int
     kept: np.ndarray  # (k,) bool: at rest and at least min_static_s long (before the ends are trimmed)
     short: np.ndarray  # (k,) bool: at rest but shorter than min_static_s
+    n_split: int = 0  # segments cut into their still parts (a rest sharing a segment with part of a motion)
+    turning: np.ndarray | None = None  # (n,) bool: samples the gyroscope sees turning (None without one)
 
 
 def _noise_sd(d2: np.ndarray) -> np.ndarray:
@@ -341,8 +349,10 @@ def _merge(M: np.ndarray, seg: np.ndarray, rest: np.ndarray, w: int, gap_ok: np.
 
 
 def segment_recording(rec: Recording, min_static_s: float | None = None,
-                      window_s: float | None = None) -> Segmentation:
-    """Segments of ``rec`` and their rest flags (steps 1-5 of the module docstring)."""
+                      window_s: float | None = None, *, W=None, refine: bool = True) -> Segmentation:
+    """Segments of ``rec`` and their rest flags (steps 1-5 of the module docstring); with ``refine`` (the
+    default) the rests that share a segment with a motion are cut out of it (:func:`_refine`), using the
+    gyroscope's rates ``W`` (n, 3) when given. ``refine=False`` is the segmentation of issue #20 alone."""
     N = np.asarray(rec.N, float)
     n = len(N)
     rate = float(rec.rate)
@@ -388,16 +398,27 @@ def segment_recording(rec: Recording, min_static_s: float | None = None,
     excess = _slow_noise_excess(Z, good, w)
     step = np.where(sigma > 0, sigma, np.max(sigma)) / scale  # a sample's noise SD, in block-noise units
     reason = _rest_test(Z, seg, w, excess, step)
+    n_split, turning = 0, None
+    if refine:
+        seg, reason, n_split, turning = _refine(Z, seg, reason, w, excess, step, b, rate,
+                                                None if W is None else np.asarray(W, float))
     # neighbours are joined only across a cut of PELT's, never across a set-aside block
     gap_ok = seg[1:, 0] == seg[:-1, 1]
     seg2, rest2 = _merge(Z, seg, reason == "", w, gap_ok, step, excess)
     if len(seg2) != len(seg):  # joined groups passed the test; the other segments keep their reasons
-        seg, reason = seg2, np.where(rest2, "", _rest_test(Z, seg2, w, excess, step)).astype(object)
+        # a segment the merge left as it was keeps its reason (a piece the gyroscope saw turning stays "turn")
+        same = dict(zip(map(tuple, seg.tolist()), reason))
+        retest = _rest_test(Z, seg2, w, excess, step)
+        seg, reason = seg2, np.array([("" if r else same.get(tuple(sg_), rt)) for sg_, r, rt
+                                      in zip(seg2.tolist(), rest2, retest)], dtype=object)
     # rests long enough to keep are tested against their surroundings (step 4c)
     # long enough: at least min_static_s with a block at each end (a step or a motion inside a block
     # leaves that block to neither side)
     cand = (reason == "") & ((seg[:, 1] - seg[:, 0] + 2) * b >= m)
-    reason[cand & _continues_motion(Z, seg, excess, step)] = "trend"
+    cont = _continues_motion(Z, seg, excess, step)
+    if turning is not None:  # the gyroscope sees whether a piece continues a turn
+        cont &= ~_still(seg, turning[: len(Z) * b].reshape(len(Z), b).any(axis=1))
+    reason[cand & cont] = "trend"
     seg = seg.copy()
     # the hinge search leaves out the end blocks (which may mix motion and rest; they are dropped at the
     # end anyway) and looks at most half way into the rest from each end
@@ -406,7 +427,157 @@ def segment_recording(rec: Recording, min_static_s: float | None = None,
     short = (reason == "") & ~keep
     seg[keep] = _hinge_trim(Z, seg[keep] + [1, -1], H) + [-1, 1]
     rest = reason == ""
-    return Segmentation(b, w, seg, rest, reason, sigma, sigma_b, int((~good).sum()), keep, short)
+    return Segmentation(b, w, seg, rest, reason, sigma, sigma_b, int((~good).sum()), keep, short, n_split, turning)
+
+
+def _refine(Z, seg, reason, w, excess, step, b, rate, W):
+    """Rests that share a segment with part of a motion, cut out of it (docs/segmentation.md, "Every rest"):
+    with a gyroscope ``W`` (n, 3), every segment is cut where the gyroscope sees a turn (:func:`gyro_turning`)
+    and the pieces between turns are tested for rest again; then each segment still rejected as shaking is cut
+    at the steps of its block means beyond :data:`LOUD_SIGMAS` (:func:`_loud_blocks`), and its quiet pieces
+    are tested. Returns the segments, their reasons ("turn" for a piece the gyroscope sees turning, "noisy"
+    for a loud piece), how many segments were cut, and the turning samples (None without a gyroscope)."""
+    n_split, turning = 0, None
+    nb = len(Z)
+    if W is not None:
+        tb, turning = gyro_turning(W, b, seg, reason == "", rate)
+        c = np.concatenate([[0], np.cumsum(tb)])
+        which = (c[seg[:, 1]] - c[seg[:, 0]]) > 0
+        seg, reason, n = _cut(Z, seg, reason, tb, which, "turn", w, excess, step)
+        n_split += n
+        # a piece the gyroscope sees still throughout keeps its gravity direction: a slope of its specific force
+        # is a hand letting go or the sensor settling, not a turn (the gyroscope sees far smaller turns)
+        reason[(reason == "trend") & _still(seg, tb)] = ""
+    loud = _loud_blocks(Z)[:nb]
+    seg, reason, n = _cut(Z, seg, reason, loud, reason == "noisy", "noisy", w, excess, step)
+    return seg, reason, n_split + n, turning
+
+
+def _cut(Z, seg, reason, flag, which, flagged_reason, w, excess, step):
+    """Cut the segments ``which`` at the changes of the block ``flag`` (:func:`_split_at`): the flagged pieces
+    get ``flagged_reason``, the others the rest test again (:func:`_rest_test`); the other segments keep their
+    reasons. Also the number of segments cut."""
+    if not which.any():
+        return seg, reason, 0
+    new, flagged, owner = _split_at(seg, flag, which)
+    out = np.where(flagged, flagged_reason, reason[owner]).astype(object)
+    retest = which[owner] & ~flagged
+    if retest.any():
+        out[retest] = _rest_test(Z, new[retest], w, excess, step)
+    n = int(np.sum(np.bincount(owner, minlength=len(seg)) > 1))
+    return new, out, n
+
+
+def _split_at(seg: np.ndarray, flag: np.ndarray, which: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The segments ``seg`` (k, 2) with each one marked in ``which`` (k,) cut where the block flag ``flag``
+    (blocks,) changes: returns the new segments, whether each is flagged, and the index of the segment it came
+    from. Vectorised: boundaries are the segments' ends plus the flag's changes inside the marked segments."""
+    nb = len(flag)
+    owner = np.full(nb + 1, -1, np.int64)
+    lens = seg[:, 1] - seg[:, 0]
+    idx = np.repeat(np.arange(len(seg)), lens)
+    blocks = np.arange(int(lens.sum())) - np.repeat(np.cumsum(lens) - lens, lens) + np.repeat(seg[:, 0], lens)
+    owner[blocks] = idx
+    mark = np.zeros(nb + 1, bool)
+    mark[seg[:, 0]] = True
+    mark[seg[:, 1]] = True
+    change = np.zeros(nb + 1, bool)
+    change[1:nb] = flag[1:] != flag[:-1]
+    inside = np.zeros(nb + 1, bool)
+    inside[blocks] = which[idx]
+    mark |= change & inside & (owner == np.roll(owner, 1))
+    pos = np.flatnonzero(mark)
+    lo, hi = pos[:-1], pos[1:]
+    keep = (owner[lo] >= 0) & (owner[lo] == owner[hi - 1])
+    lo, hi = lo[keep], hi[keep]
+    return np.column_stack([lo, hi]), flag[lo] & which[owner[lo]], owner[lo]
+
+
+def _still(seg: np.ndarray, turning_blocks: np.ndarray) -> np.ndarray:
+    """Whether each segment of ``seg`` (k, 2) holds no turning block."""
+    c = np.concatenate([[0], np.cumsum(turning_blocks)])
+    return (c[seg[:, 1]] - c[seg[:, 0]]) == 0
+
+
+def _dilate(mask: np.ndarray, r: int) -> np.ndarray:
+    """``mask`` (n,) grown by ``r`` samples on each side (a moving maximum through cumulative sums)."""
+    if r <= 0 or not mask.any():
+        return mask
+    c = np.concatenate([[0], np.cumsum(mask)])
+    i = np.arange(len(mask))
+    return (c[np.minimum(i + r + 1, len(mask))] - c[np.maximum(i - r, 0)]) > 0
+
+
+def _rest_level(G: np.ndarray, t: np.ndarray, seg: np.ndarray, rest: np.ndarray) -> np.ndarray:
+    """The gyroscope's output at rest (its bias) at each of the times ``t``: the median of its block means ``G``
+    over each accelerometer rest ``seg[rest]`` (a median: a turn at a rest's edge does not move it),
+    interpolated linearly in time between the rests' mid-blocks, so that a drifting bias is followed. Without
+    a rest, the median of the fifth of the blocks that change least."""
+    r = seg[rest & (seg[:, 1] - seg[:, 0] >= 4)]
+    if not len(r):
+        d = np.linalg.norm(np.diff(G, axis=0), axis=1)
+        quiet = np.argsort(d)[: max(1, len(d) // 5)]
+        return np.broadcast_to(np.median(G[quiet], axis=0), (len(t), 3))
+    med = _group_stat(G, r, np.nanmedian)
+    mid = (r[:, 0] + r[:, 1] - 1) / 2.0
+    return np.column_stack([np.interp(t, mid, med[:, i]) for i in range(3)])
+
+
+def _group_stat(x: np.ndarray, r: np.ndarray, fn) -> np.ndarray:
+    """``fn`` (a NaN-aware reduction along axis 1, e.g. ``np.nanmedian``) of ``x`` over each range of ``r``
+    (k, 2), all ranges in one call: the ranges are padded with NaN to the longest."""
+    lens = r[:, 1] - r[:, 0]
+    j = np.arange(int(lens.max()))
+    pos = np.minimum(r[:, :1] + j, len(x) - 1)
+    pad = (j < lens[:, None]).reshape(lens.shape + (len(j),) + (1,) * (x.ndim - 1))
+    return fn(np.where(pad, x[pos], np.nan), axis=1)
+
+
+def gyro_turning(W: np.ndarray, b: int, seg: np.ndarray, rest: np.ndarray, rate: float):
+    """Where the gyroscope sees the sensor turn: (blocks (nb,), samples (n,)) bool. ``W`` (n, 3) rates in any
+    unit, ``seg``/``rest`` the accelerometer's segments (blocks of ``b`` samples) and rest flags.
+
+    The rate is averaged over :data:`GYRO_WINDOW_S` (a hand's tremor averages out; the end of a turn does not)
+    and taken from the level at rest (:func:`_rest_level`: a drifting bias is followed), in units of the
+    average's white noise (second differences, :func:`_noise_sd`, never below the quantisation step's q/√12).
+    A sample turns when that exceeds :data:`GYRO_Z`, or :data:`HOLD_FACTOR` times the level at which the
+    accelerometer's rests are held (the median over rests of their 90th percentile): a pose held by hand sways
+    at a fraction of a degree per second, far below a turn between poses but far above the noise, and it is the
+    accelerometer's rest test that judges whether a sway moves the pose. Samples within
+    :data:`GYRO_MARGIN_S` of a turning one turn too; a block turns when it holds a turning sample."""
+    W = np.asarray(W, float)
+    n = len(W)
+    nb = n // b
+    finite = np.isfinite(W).all(axis=1)
+    Wf = np.where(finite[:, None], W, 0.0)
+    q = _quantum(Wf[finite])
+    ok = finite[2:] & finite[1:-1] & finite[:-2]
+    s = np.maximum(_noise_sd(np.diff(Wf, 2, axis=0)[ok]), q / np.sqrt(12.0))
+    s = np.where(s > 0, s, 1.0)
+    G = Wf[: nb * b].reshape(nb, b, 3).mean(axis=1)
+    level = _rest_level(G, (np.arange(n, dtype=float) - (b - 1) / 2.0) / b, seg, rest)
+    w = max(1, int(round(GYRO_WINDOW_S * rate))) if np.isfinite(rate) else 5
+    c = np.concatenate([np.zeros((1, 3)), np.cumsum(Wf - level, axis=0)])
+    lo = np.clip(np.arange(n) - w // 2, 0, max(n - w, 0))
+    hi = np.minimum(lo + w, n)
+    z = np.max(np.abs(c[hi] - c[lo]) / (hi - lo)[:, None] / (s / np.sqrt(w)), axis=1)
+    held = seg[rest & (seg[:, 1] - seg[:, 0] >= 4)] * b
+    p90 = _group_stat(z, held, lambda x, axis: np.nanpercentile(x, 90, axis=axis)) if len(held) else np.zeros(1)
+    hold = float(np.median(p90))
+    samples = (z > max(GYRO_Z, HOLD_FACTOR * hold)) | ~finite
+    samples = _dilate(samples, int(round(GYRO_MARGIN_S * rate)) if np.isfinite(rate) else 2)
+    blocks = samples[: nb * b].reshape(nb, b).any(axis=1)
+    return blocks, samples
+
+
+def _loud_blocks(Z: np.ndarray) -> np.ndarray:
+    """Blocks (nb,) next to a step of the block means beyond :data:`LOUD_SIGMAS` block-noise SDs (unit noise
+    ``Z``), and their neighbours: the shaking of a motion's end or a jolt."""
+    d = np.linalg.norm(np.diff(Z, axis=0), axis=1) > LOUD_SIGMAS
+    loud = np.zeros(len(Z), bool)
+    loud[1:] |= d
+    loud[:-1] |= d
+    return _dilate(loud, 1)
 
 
 def _seconds(value: float | None, default: float, rate: float, param: str) -> int:
@@ -417,12 +588,26 @@ def _seconds(value: float | None, default: float, rate: float, param: str) -> in
 
 
 def segment_static(recording: Recording, *, min_static_s: float | None = None,
-                   window_s: float | None = None) -> DetectionResult:
+                   window_s: float | None = None, gyro=None, refine: bool = True) -> DetectionResult:
     """Static intervals of ``recording`` by change-point segmentation and a rest test (module docstring):
     poses of at least ``min_static_s`` (default 0.5 s) with or without motion between them, each at rest
-    within every ``window_s`` (default 1 s) at the recording's own noise level. Fewer intervals than a model
-    needs is the caller's to refuse (:func:`segment_diagnosis` says why)."""
-    sg = segment_recording(recording, min_static_s, window_s)
+    within every ``window_s`` (default 10 s) at the recording's own noise level. Stillness is judged on the
+    accelerometer and on the gyroscope: ``gyro`` (n, 3) rates at the same samples, by default the recording's
+    own gyroscope columns (``recording.W``); ``gyro=False`` ignores them. A rest that shares a segment with part
+    of a motion is cut to its still part, and with a gyroscope no kept interval holds a sample it sees turning
+    (:func:`gyro_turning`). ``refine=False`` is the accelerometer's segmentation of issue #20 alone (kept for
+    the comparison of docs/segmentation.md). Fewer intervals than a model needs is the caller's to refuse
+    (:func:`segment_diagnosis` says why)."""
+    if gyro is None or gyro is True:
+        gyro = recording.W
+    elif gyro is False:
+        gyro = None
+    if gyro is not None:
+        gyro = np.asarray(gyro, float)
+        if gyro.shape != (len(recording), 3):
+            raise InputError(f"the gyroscope's rates are {gyro.shape}, the accelerometer has {len(recording)} "
+                             "samples: give them at the same samples, as (n, 3)")
+    sg = segment_recording(recording, min_static_s, window_s, W=gyro if refine else None, refine=refine)
     b = sg.block
     rate = float(recording.rate)
     m = (_seconds(min_static_s, DEFAULT_MIN_STATIC_S, rate, "min_static_s") if np.isfinite(rate)
@@ -440,14 +625,22 @@ def segment_static(recording: Recording, *, min_static_s: float | None = None,
         iv[-1, 1] = nb * b + (int(np.argmax(tail)) if tail.any() else len(tail))
     iv = iv[iv[:, 1] > iv[:, 0]]
     notes = []
+    if sg.turning is not None and len(iv):  # no sample the gyroscope sees turning stays in a rest
+        iv, n_cut = _still_parts(iv, sg.turning, m)
+        if n_cut:
+            notes.append(f"{n_cut} rest(s) cut where the gyroscope turns (a motion's edge or a bump)")
     n_short = int(np.sum(sg.short))
     if n_short:
         notes.append(f"{n_short} rest segment(s) shorter than {m} samples ignored")
     moving = ~rest
     if moving.any():
         blocks = int(np.sum(seg[moving, 1] - seg[moving, 0]))
+        turn = int(np.sum(sg.reason == "turn"))
         notes.append(f"{int(moving.sum())} segment(s) ({blocks * b} samples) not at rest: "
-                     f"{int(np.sum(sg.reason == 'trend'))} trend, {int(np.sum(sg.reason == 'noisy'))} too noisy")
+                     f"{int(np.sum(sg.reason == 'trend'))} trend, {int(np.sum(sg.reason == 'noisy'))} too noisy"
+                     + (f", {turn} turning (gyroscope)" if turn else ""))
+    if sg.n_split:
+        notes.append(f"{sg.n_split} segment(s) holding a rest and part of a motion cut to their still parts")
     if sg.n_bad_blocks:
         notes.append(f"{sg.n_bad_blocks} block(s) of {b} samples set aside (saturated or missing samples)")
     res = DetectionResult(recording, iv.astype(np.int64), "segment", None, sg.window * b, m, notes=notes)
@@ -455,6 +648,24 @@ def segment_static(recording: Recording, *, min_static_s: float | None = None,
     res.block = b
     res.segmentation = sg
     return res
+
+
+def _still_parts(iv: np.ndarray, turning: np.ndarray, m: int) -> tuple[np.ndarray, int]:
+    """The parts of the intervals ``iv`` (k, 2) without a ``turning`` sample, those of at least ``m`` samples;
+    and how many intervals held a turning sample. Vectorised over intervals through the runs of still samples."""
+    still = ~turning
+    d = np.diff(np.concatenate([[0], still.astype(np.int8), [0]]))
+    runs = np.column_stack([np.flatnonzero(d == 1), np.flatnonzero(d == -1)])
+    c = np.concatenate([[0], np.cumsum(turning)])
+    n_cut = int(np.sum(c[iv[:, 1]] - c[iv[:, 0]] > 0))
+    # each interval against each run that overlaps it (runs sorted, so a searchsorted range per interval)
+    lo = np.searchsorted(runs[:, 1], iv[:, 0], side="right")
+    hi = np.searchsorted(runs[:, 0], iv[:, 1], side="left")
+    cnt = np.maximum(hi - lo, 0)
+    which = np.repeat(np.arange(len(iv)), cnt)
+    r = np.arange(int(cnt.sum())) - np.repeat(np.cumsum(cnt) - cnt, cnt) + np.repeat(lo, cnt)
+    parts = np.column_stack([np.maximum(iv[which, 0], runs[r, 0]), np.minimum(iv[which, 1], runs[r, 1])])
+    return parts[parts[:, 1] - parts[:, 0] >= m].reshape(-1, 2), n_cut
 
 
 def segment_diagnosis(det: DetectionResult, needed: int) -> tuple[str, str]:

@@ -120,7 +120,7 @@ def positions_from_raw(path: str | Path, *, columns=None, rate: float | None = N
                        method: str | None = None,
                        threshold_k: float | str | Sequence[float] | None = None, window_s: float | None = None,
                        min_static_s: float | None = None, init_s: float | None = None, model="diag6",
-                       g_local: float = 1.0) -> PositionsData:
+                       g_local: float = 1.0, gyro=None) -> PositionsData:
     """Positions from a raw recording. ``columns``, ``rate`` (Hz), ``units``, ``saturation``, ``adc``,
     ``time_unit`` and ``labels`` (a label column) are :func:`~optcal.recording.read_recording`'s. The
     static intervals come from the file ``intervals`` (:func:`~optcal.recording.read_intervals`), else from
@@ -137,17 +137,38 @@ def positions_from_raw(path: str | Path, *, columns=None, rate: float | None = N
       2…10) are searched for the best fit of ``model`` at local gravity ``g_local``
       (:func:`choose_threshold`).
 
+    Segmentation judges stillness on the gyroscope too: the recording's own gyroscope columns (gx, gy, gz), or
+    ``gyro``, a :class:`~optcal.recording.Recording` whose ``N`` holds the rates at the same samples (``optcal
+    imu``'s second file).
+
     Fewer intervals than ``model`` has parameters (a recording without rest among them, said so), or
     outputs whose magnitude does not fit ``units``, are an InputError."""
     rec = read_recording(path, columns, rate, units, saturation=saturation, labels=labels, adc=adc,
                          time_unit=time_unit, refuse_positions=True)
+    return positions_from_raw_recording(rec, gyro=gyro, labels=labels, label_values=label_values,
+                                        intervals=intervals, method=method, threshold_k=threshold_k,
+                                        window_s=window_s, min_static_s=min_static_s, init_s=init_s, model=model,
+                                        g_local=g_local)
+
+
+def positions_from_raw_recording(rec: Recording, *, gyro=None, labels: str | None = None,
+                                 label_values: Sequence[str] | None = None, intervals=None,
+                                 method: str | None = None, threshold_k=None, window_s: float | None = None,
+                                 min_static_s: float | None = None, init_s: float | None = None, model="diag6",
+                                 g_local: float = 1.0) -> PositionsData:
+    """:func:`positions_from_raw` for a recording already read (``rec``; ``gyro`` a Recording of the
+    gyroscope's rates at the same samples, or None for ``rec``'s own gyroscope columns)."""
     model = get_model(model)
     if intervals is not None:
         det = given_intervals(rec, *read_intervals(intervals))
     elif labels is not None:
         det = label_intervals(rec, label_values)
     elif detection_method(method, threshold_k, init_s) == "segment":
-        det = segment_static(rec, min_static_s=min_static_s, window_s=window_s)
+        rates = None if gyro is None else gyro.N
+        if rates is not None and len(rates) != len(rec):
+            raise InputError(f"the accelerometer has {len(rec)} samples and the gyroscope {len(rates)}: the two "
+                             "files must share their sample times; cut them to the same samples")
+        det = segment_static(rec, min_static_s=min_static_s, window_s=window_s, gyro=rates)
         if det.n_intervals < model.n_params:
             raise too_few(det.n_intervals, model, "by segmentation", segment_diagnosis(det, model.n_params))
     else:
