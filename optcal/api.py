@@ -165,10 +165,15 @@ def calibrate_imu(data, gyro=None, *, gyro_units: str, gyro_columns=None, gyro_s
     if gyro is not None and not _is_path(gyro):
         raise InputError(f"gyro must be the path of the gyroscope's file, got {type(gyro).__name__}")
     check_imu_options(gyro_scale=gyro_scale, gyro_bias=gyro_bias, g_sensitivity=g_sensitivity)
-    positions = _positions_for(data, model, units, True, g_local, reading)
-    acc = positions.extra["detection"].recording
+    from .recording.reading import read_recording
+
+    # the gyroscope is read first: the detection of the rests judges its stillness too
+    acc = read_recording(os.fspath(data), reading.get("columns"), reading.get("rate"), units or "g",
+                         saturation=reading.get("saturation"), adc=reading.get("adc"),
+                         time_unit=reading.get("time_unit"), refuse_positions=True)
     rates = read_gyro(os.fspath(data), acc, gyro=None if gyro is None else os.fspath(gyro), gyro_columns=gyro_columns,
                       units=gyro_units, rate=reading.get("rate"), time_unit=reading.get("time_unit"))
+    positions = _positions_for(data, model, units, True, g_local, {**reading, "gyro": rates})
     return fit_imu(positions, rates, model=model, solver=solver, options=options, g_local=g_local, seed=seed,
                    budget=budget, gyro_units=gyro_units, gyro_scale=gyro_scale, gyro_bias=gyro_bias,
                    g_sensitivity=g_sensitivity)

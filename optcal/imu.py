@@ -68,11 +68,12 @@ def calibrate_imu(positions, gyro, *, model=None, solver: str = "lm", options: d
     accelerometer's detection took for motion are found by the gyroscope (:func:`missed_rests`) and used for
     it, with a note. ``model`` None: the accelerometer's default with its fallback (as ``optcal calibrate``);
     ``gyro_scale``: nominal output units per rad/s (exact for deg/s and rad/s, searched for otherwise when
-    None). A motion during which the gyroscope sits at a rail is refused."""
+    None). A motion during which the gyroscope sits at a rail is left out, with a note; too few motions left
+    is refused by the gyroscope's fit."""
     from .fit import calibrate
     from .gyro.calfile import NOMINAL_SCALE
     from .gyro.data import MISSED_REST_MIN_S, missed_rests
-    from .gyro.recording import join_times, refuse_saturated_motion
+    from .gyro.recording import join_times
 
     check_imu_options(gyro_scale=gyro_scale, gyro_bias=gyro_bias, g_sensitivity=g_sensitivity)
     det = positions.extra.get("detection") if positions.extra else None
@@ -83,7 +84,7 @@ def calibrate_imu(positions, gyro, *, model=None, solver: str = "lm", options: d
     cal = calibrate(positions, model, solver=solver, options=options, g_local=g_local, seed=seed, budget=budget)
     join_times(acc.t, gyro.t)
     F = cal.model.inverse(np.asarray(cal.x, float)[None], acc.N)[0]
-    data = GyroData(acc.t, gyro.N, F, det.intervals, units=gyro_units)
+    data = GyroData(acc.t, gyro.N, F, det.intervals, units=gyro_units, saturated=gyro.saturated)
     found = missed_rests(data)
     notes = list(cal.notes)
     if len(found):  # poses the accelerometer's detection took for motion: the gyroscope is still there
@@ -92,7 +93,11 @@ def calibrate_imu(positions, gyro, *, model=None, solver: str = "lm", options: d
                      f"gyroscope (still for {MISSED_REST_MIN_S:g} s or more) and used for the gyroscope only, at t = "
                      + ", ".join(f"{acc.t[a]:.1f}-{acc.t[b - 1]:.1f} s" for a, b in found[:6])
                      + (" …" if len(found) > 6 else ""))
-    refuse_saturated_motion(gyro.saturated, data)
+    if len(data.dropped_motions):
+        notes.append(f"{len(data.dropped_motions)} motion(s) during which the gyroscope reached a rail left out of "
+                     f"its fit ({data.n_motions} used), at t = "
+                     + ", ".join(f"{a:.1f}-{b:.1f} s" for a, b in data.dropped_motions[:6])
+                     + (" …" if len(data.dropped_motions) > 6 else "") + "; turn more slowly to keep them")
     scale = gyro_scale if gyro_scale is not None else NOMINAL_SCALE.get(gyro_units)
     fit = calibrate_gyro(data, bias=gyro_bias, g_sensitivity=g_sensitivity, scale=scale, solver=solver,
                          options=options, seed=seed, budget=budget)

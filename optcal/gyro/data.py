@@ -136,7 +136,7 @@ class GyroData:
     calibrated specific force in g, ``rests`` (r, 2) sample ranges [start, stop) of the static intervals in
     time order, trimmed to where the gyroscope is still (:func:`still_rests`; ``detected_rests`` keeps them
     as given; ``trim_rests`` False takes them as they are). ``saturated`` (n,) marks gyroscope samples at a
-    rail."""
+    rail: a motion holding one is left out of the motions (``dropped_motions``: its start and end times, s)."""
 
     t: np.ndarray
     W: np.ndarray
@@ -188,10 +188,19 @@ class GyroData:
         self.u = fbar / norm[:, None]
         # direction noise (rad) of each rest, per tangent component
         self.rest_sd_u = np.sqrt(np.mean(sd_f**2, axis=1) / nr) / norm
-        self.start = np.ascontiguousarray(r[:-1, 1] - 1)
-        self.stop = np.ascontiguousarray(r[1:, 0])
-        self.u0 = np.ascontiguousarray(self.u[:-1])
-        self.u1 = np.ascontiguousarray(self.u[1:])
+        start, stop = r[:-1, 1] - 1, r[1:, 0]
+        # a motion during which the gyroscope sits at a rail cannot be integrated: it is left out (the rests on
+        # either side still give their bias and gravity direction)
+        keep = np.ones(len(start), bool)
+        if self.saturated is not None and np.any(self.saturated):
+            seen = np.concatenate([[0], np.cumsum(np.asarray(self.saturated, bool))])
+            keep = seen[stop + 1] <= seen[start]
+        self.dropped_motions = np.column_stack([self.t[start[~keep]], self.t[stop[~keep]]])
+        self._keep = keep
+        self.start = np.ascontiguousarray(start[keep])
+        self.stop = np.ascontiguousarray(stop[keep])
+        self.u0 = np.ascontiguousarray(self.u[:-1][keep])
+        self.u1 = np.ascontiguousarray(self.u[1:][keep])
         self.E = np.ascontiguousarray(tangent_basis(self.u1))
         self.turn = np.arccos(np.clip(np.sum(self.u0 * self.u1, axis=1), -1.0, 1.0))
         self.steps = self.stop - self.start
@@ -244,7 +253,7 @@ class GyroData:
     def motion_sd(self, K0: np.ndarray) -> np.ndarray:
         """SD (m,) in rad of each motion's two direction residuals, for nominal scale factors K0 (3,)."""
         sw = np.sqrt(np.mean((self.rest_sd_W / K0) ** 2))  # white rate noise per sample, rad/s
-        return np.sqrt(self.rest_sd_u[:-1] ** 2 + self.rest_sd_u[1:] ** 2 + sw**2 * self._h2)
+        return np.sqrt(self.rest_sd_u[:-1][self._keep] ** 2 + self.rest_sd_u[1:][self._keep] ** 2 + sw**2 * self._h2)
 
     def rest_sd(self, K0: np.ndarray) -> np.ndarray:
         """SD (r, 3) in rad/s of each rest's mean calibrated rate, for nominal scale factors K0 (3,)."""
