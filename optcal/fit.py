@@ -118,7 +118,8 @@ class Calibration:
 def calibrate(data: PositionsData, model: str | Model | None = None, *, solver: str = "lm",
               options: dict | None = None, g_local: float = 1.0, reference: bool = False,
               presets: Presets | None = None, seed: int | None = 0, budget=None, x0=None,
-              noise_g: float | None = None, force_weak: bool = False, backend: str | None = None) -> Calibration:
+              noise_g: float | None = None, force_weak: bool = False, backend: str | None = None,
+              recheck: bool = True) -> Calibration:
     """Fit ``model`` to ``data`` with the named solver and report parameters with standard errors.
 
     A calibration is returned only when the data determine it (:mod:`optcal.determination`, docs/design.md
@@ -129,7 +130,10 @@ def calibrate(data: PositionsData, model: str | Model | None = None, *, solver: 
     the first note says so. ``force_weak`` fits and returns a weak calibration anyway; its ``forced`` lists
     the reasons it would have been refused for (the calibration file records them). ``backend`` is the
     problem's evaluation (:data:`optcal.problem.BACKENDS`); by default NumPy for a solver that needs few
-    evaluations (``few_evaluations``: least squares), the compiled kernel otherwise."""
+    evaluations (``few_evaluations``: least squares), the compiled kernel otherwise. ``recheck``: positions of a
+    raw recording found off the fit of the others are re-examined sample by sample
+    (:func:`optcal.recording.recheck.recheck_poses`: a motion at a pose's ends cut off, a moving pose dropped)
+    and the fit is made again on what survives, said in the notes."""
     requested = get_model(determination.DEFAULT_MODEL if model is None else model)
     slv = get_solver(solver, **(options or {}))
     if backend is None:
@@ -178,7 +182,30 @@ def calibrate(data: PositionsData, model: str | Model | None = None, *, solver: 
                             f"{' → '.join(determination.FALLBACK)} that they determine")
         cal.requested_model = requested.name
     cal.forced = [r.reason for r in refused]
+    if recheck and cal.diagnostics is not None and not cal.model.needs:
+        again = _rechecked(data, cal, model, solver=solver, options=options, g_local=g_local, reference=reference,
+                           presets=presets, seed=seed, budget=budget, x0=x0, noise_g=noise_g,
+                           force_weak=force_weak, backend=backend)
+        if again is not None:
+            return again
     return cal
+
+
+def _rechecked(data: PositionsData, cal: Calibration, model, **kw) -> Calibration | None:
+    """The calibration refitted after its outlying positions were re-examined sample by sample, or None when
+    there are none (or too many to be single poses: then the model or the noise is at fault, not a pose)."""
+    from .recording.recheck import recheck_poses
+
+    idx = np.flatnonzero(cal.diagnostics.outlier)
+    if not idx.size or idx.size > max(2, MANY_OUTLIERS * len(idx if cal.diagnostics.index is None
+                                                               else cal.diagnostics.index)):
+        return None
+    new, notes = recheck_poses(data, cal.model, cal.x, idx, cal.diagnostics.name)
+    if new is None:
+        return None
+    again = calibrate(new, model, recheck=False, **kw)
+    again.notes = notes + again.notes
+    return again
 
 
 @dataclass

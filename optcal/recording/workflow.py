@@ -7,11 +7,12 @@ when the variance detector is asked for (``method="variance"``, or its ``thresho
 The search follows Tedaldi, Pretto & Menegatti (ICRA 2014, §IV-A; imu_tk tries k = 2…10): each k gives a
 set of static intervals, each set is calibrated, and the k whose calibration fits best is kept.
 Differences from imu_tk, and why: imu_tk compares the raw final cost of fits made with different numbers
-of intervals, which favours thresholds that find fewer intervals; here candidates are compared by an
-upper confidence bound of the residual SD per degree of freedom divided by √n (:func:`fit_score`), and a
-candidate must leave at least one degree of freedom. imu_tk averages a fixed 100 samples from the middle
-of each interval; here all samples of the interval are averaged (the variance window already keeps them
-half a window away from motion; :func:`optcal.recording.positions.positions_from_recording`).
+of intervals, which favours thresholds that find fewer intervals; here candidates are compared by how
+precisely their calibrations are known (:func:`fit_score`: the parameters' standard errors at an upper
+confidence bound of the residual SD), and a candidate must leave at least one degree of freedom. imu_tk
+averages a fixed 100 samples from the middle of each interval; here all samples of the interval are
+averaged (the variance window already keeps them half a window away from motion;
+:func:`optcal.recording.positions.positions_from_recording`).
 """
 
 from __future__ import annotations
@@ -33,19 +34,31 @@ from .segment import segment_diagnosis, segment_static
 
 def fit_score(data: PositionsData, model, g_local: float = 1.0, solver: str = "lm",
               alpha: float = 0.10) -> float:
-    """Score of a candidate set of intervals (smaller is better): σ_up/√n, where σ_up = sqrt(cost /
-    χ²_α(n − rank)) is the (1 − α) upper confidence bound of the residual SD and n the number of positions.
+    """Score of a candidate set of intervals (smaller is better): how precisely its calibration is known, the
+    RMS over the parameters of their standard errors as fractions of the output (a scale factor's and a
+    second-order term's relative to the axis' scale, an offset in g, a misalignment in rad), at the (1 − α)
+    upper confidence bound of the residual SD, σ_up = sqrt(cost / χ²_α(dof)).
 
-    The residual SD from few degrees of freedom is uncertain, and a fit that leaves one degree of freedom
-    can show a small residual by chance; comparing upper bounds stops such a candidate from winning on
-    luck. Dividing by √n weighs what a lost interval costs: the parameters' standard errors scale as
-    σ/√n. The fit goes through :func:`optcal.fit.calibrate` (the registry, at run time)."""
+    A threshold that keeps fewer intervals fits tighter but knows the parameters less well (σ/√n, and worse
+    when the orientations it keeps leave a direction weak); one that takes a motion into an interval fits
+    worse. imu_tk compares raw final costs, and an earlier score here compared σ_up/√n: both could prefer a
+    threshold that found 14 intervals where others found 26 (issue #29), and give a scale factor 4 % off.
+    The upper bound stops a fit with few degrees of freedom from winning on luck. The fit goes through
+    :func:`optcal.fit.calibrate` (the registry, at run time)."""
     from ..distributions import chi2_isf
     from ..fit import calibrate
 
     # scoring a candidate writes no calibration, and the score itself weighs few degrees of freedom
-    cal = calibrate(data, model, solver=solver, g_local=g_local, force_weak=True)
-    return float(np.sqrt(cal.fit.cost / chi2_isf(1.0 - alpha, cal.fit.dof) / len(data)))
+    cal = calibrate(data, model, solver=solver, g_local=g_local, force_weak=True, recheck=False)
+    units = cal.model.units(data.units)
+    x = np.asarray(cal.x, float)
+    scale = {n[-1]: abs(v) for n, v in zip(cal.model.names, x) if n.startswith("K_")}
+    rel = np.array([se / scale[n[-1]] if units[n].startswith(data.units) and n[-1] in scale else se
+                    for n, se in zip(cal.model.names, np.asarray(cal.stderr, float))])
+    sigma = np.sqrt(cal.fit.cost / max(cal.fit.dof, 1))
+    sigma_up = np.sqrt(cal.fit.cost / chi2_isf(1.0 - alpha, cal.fit.dof))
+    inflate = sigma_up / sigma if sigma > 0 else 1.0
+    return float(np.sqrt(np.mean(rel**2)) * inflate) if np.all(np.isfinite(rel)) else float("inf")
 
 
 def choose_threshold(recording: Recording, model, fit_cost_fn=None, *, ks=DEFAULT_KS, g_local: float = 1.0,
