@@ -45,7 +45,7 @@ SCALE_TOL = 0.30
 # offset by half of gravity would read +0.5 and +1.5 g where it should read ±1 g, which no working sensor does.
 BIAS_MAX_G = 0.5
 # Installation angles within ±5°: cross-axis sensitivities of MEMS parts are 1-2 % (about 1°), board mounting
-# adds a degree or two; the determined fits of the recordings in tests/data show at most 1.4°.
+# adds a degree or two; the determined fits of the real corpus's recordings (docs/real_data.md) show at most 1.4°.
 ANGLE_MAX_RAD = math.radians(5.0)
 # Nonlinear terms: their effect at 1 g at most 5 % of the scale factor's (50 mg), ten times the 0.5 % of full
 # scale that MEMS datasheets state as nonlinearity. Temperature and drift terms: their effect over the data's

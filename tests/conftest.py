@@ -1,9 +1,10 @@
 import re
-from pathlib import Path
 
 import matplotlib
 import numpy as np
 import pytest
+from corpus import corpus as corpus_dir
+from corpus import corpus_root
 
 matplotlib.use("Agg")
 
@@ -12,8 +13,24 @@ matplotlib.use("Agg")
 def rng():
     return np.random.default_rng(12345)
 
-# Real recordings made by others, kept in the repository with their licences (tests/data/README.md).
-REAL_DATA = Path(__file__).resolve().parent / "data"
+# Real recordings made by others live beside the project, not in it (tests/corpus.py: OPTCAL_CORPUS, else the
+# shared folder beside the clone). REAL_DATA is that folder, present or not; a test that reads it asks for the
+# ``corpus`` fixture (or calls corpus.corpus), which skips it when the folder is absent.
+REAL_DATA = corpus_root()
+
+
+@pytest.fixture(scope="session")
+def corpus():
+    """The real corpus's folder; the test is skipped (one reason, tests/corpus.py) when it is absent."""
+    return corpus_dir()
+
+
+def pytest_runtest_setup(item):
+    """A test that asks for the corpus (directly, through a fixture or ``usefixtures``) is skipped here, before
+    its fixtures, where the corpus is absent: raised outside a fixture, the skip keeps the location of
+    tests/corpus.py, so ``pytest -rs`` folds every such skip into one line."""
+    if "corpus" in item.fixturenames:
+        corpus_dir()
 
 
 # The noise report's counts, levels and slopes; every other number's key names its unit (docs/noise.md)

@@ -1,9 +1,11 @@
 """The front door (optcal/api.py, docs/api.md): every python block of docs/api.md runs, in order, in one
 session from the repository's root, and the values it computes are checked; then the functions' one-line
-errors for what a user can get wrong."""
+errors for what a user can get wrong. The blocks that read the real corpus name it by its default path
+(tests/corpus.py), run on the folder the tests use, and are left out (their tests skipped) where it is absent."""
 
 from __future__ import annotations
 
+import ast
 import contextlib
 import io
 import re
@@ -14,13 +16,19 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from corpus import DEFAULT, corpus, corpus_present, corpus_root
 
 import optcal
 from optcal.errors import InputError
 
 ROOT = Path(__file__).resolve().parents[1]
 DOC = ROOT / "docs" / "api.md"
-MPU = ROOT / "tests" / "data" / "mpu6050" / "example_data_calibration.csv"
+MPU = corpus_root() / "mpu6050" / "example_data_calibration.csv"  # the real corpus (tests/corpus.py)
+
+
+def _mpu():
+    """MPU for a call that reads it: the test is skipped where the corpus is absent."""
+    return corpus("mpu6050", "example_data_calibration.csv")
 
 
 @pytest.fixture(scope="module")
@@ -33,9 +41,15 @@ def session(tmp_path_factory):
     mp = pytest.MonkeyPatch()
     mp.chdir(ROOT)
     mp.setattr(tempfile, "tempdir", str(tmp_path_factory.mktemp("api_doc")))  # the doc's mkdtemp goes here
+    present, left_out = corpus_present(), set()  # without the corpus: the names its blocks would bind
     try:
         with contextlib.redirect_stdout(out):
             for i, code in enumerate(blocks):
+                names = [n for n in ast.walk(ast.parse(code)) if isinstance(n, ast.Name)]
+                if not present and (DEFAULT in code or left_out & {n.id for n in names}):
+                    left_out |= {n.id for n in names if isinstance(n.ctx, ast.Store)}
+                    continue
+                code = code.replace(DEFAULT, str(corpus_root()))
                 exec(compile(code, f"docs/api.md block {i + 1}", "exec"), ns)
     finally:
         mp.undo()
@@ -63,7 +77,7 @@ def test_calibrate_recovers_the_simulated_truth(session):
     np.testing.assert_allclose(ns["from_csv"].x, cal.x, rtol=1e-12)
 
 
-def test_calibrate_a_raw_recording(session):
+def test_calibrate_a_raw_recording(corpus, session):
     ns, _ = session
     mpu = ns["mpu"]
     K = np.array([mpu.parameters[f"K_{a}"] for a in "xyz"])
@@ -77,7 +91,7 @@ def test_calibrate_a_raw_recording(session):
     assert weak.notes[0].startswith("forced although the data do not determine it: 10 positions leave linear9")
 
 
-def test_the_api_refuses_what_the_data_do_not_determine_with_the_clis_line(session, tmp_path, capsys):
+def test_the_api_refuses_what_the_data_do_not_determine_with_the_clis_line(corpus, session, tmp_path, capsys):
     """The same line from optcal.calibrate and optcal calibrate (the CLI puts its option names in for the
     backquoted parameters); a forced fit is applied with a warning naming its reasons."""
     from optcal.cli import main
@@ -115,7 +129,7 @@ def test_apply_returns_the_known_specific_force(session):
     assert np.all(np.abs(np.linalg.norm(ns["A"], axis=1) - 1) < 1e-4)
 
 
-def test_read_recording_and_noise(session):
+def test_read_recording_and_noise(corpus, session):
     ns, _ = session
     rec = ns["rec"]
     assert len(rec) == 10245 and rec.rate == pytest.approx(100.0) and rec.N.shape == (10245, 3)
@@ -140,8 +154,8 @@ def test_calibrate_reads_a_path_given_as_text(session, tmp_path):
 
 @pytest.mark.parametrize("call, message", [
     (lambda: optcal.calibrate("no/such/file.csv"), "does not exist or is not a file"),
-    (lambda: optcal.calibrate(MPU, units="counts"), "pass raw=True"),
-    (lambda: optcal.calibrate(MPU, units="counts", rate=100), "pass raw=True with them"),
+    (lambda: optcal.calibrate(_mpu(), units="counts"), "pass raw=True"),  # these two read the file
+    (lambda: optcal.calibrate(_mpu(), units="counts", rate=100), "pass raw=True with them"),
     (lambda: optcal.calibrate(MPU, raw=True, units="counts", colums="ax,ay,az"), "unknown keyword(s) colums"),
     (lambda: optcal.calibrate(np.ones((24, 2))), "three output columns"),
     (lambda: optcal.calibrate({"a": 1}), "data must be a PositionsData"),
@@ -176,7 +190,7 @@ def test_the_front_door_names_import_nothing_heavy():
     assert proc.stdout.strip() == "[]"
 
 
-def test_calibrate_imu_on_imu_tk_recording(session):
+def test_calibrate_imu_on_imu_tk_recording(corpus, session):
     """docs/api.md's IMU block: imu_tk's Xsens pair gives the command's calibration (40 rests, of which the
     gyroscope found 4), scale factors within 3 standard errors of imu_tk's own, and the written file applies
     as the object does."""
@@ -198,8 +212,8 @@ def test_calibrate_imu_on_imu_tk_recording(session):
     (lambda: optcal.calibrate_imu(str(MPU), gyro_units="deg/s", g_sensitivity=True), "needs `gyro_bias` fit"),
     (lambda: optcal.calibrate_imu(str(MPU), gyro_units="counts", gyro_scale=-1.0), "`gyro_scale` -1.0 must be"),
     (lambda: optcal.apply_gyro(42, np.zeros(3)), "calibration must be what optcal.calibrate_imu returns"),
-    (lambda: optcal.apply_gyro(str(MPU), np.zeros(3)), "is not a JSON calibration file"),
-    (lambda: optcal.apply_gyro(str(ROOT / "tests" / "data" / "no_such.json"), np.zeros(3)), "cannot read"),
+    (lambda: optcal.apply_gyro(str(_mpu()), np.zeros(3)), "is not a JSON calibration file"),
+    (lambda: optcal.apply_gyro(str(ROOT / "tests" / "no_such.json"), np.zeros(3)), "cannot read"),
 ])
 def test_imu_functions_refuse_in_one_line(call, message):
     with pytest.raises(InputError) as exc:

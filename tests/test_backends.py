@@ -9,7 +9,6 @@ import sys
 
 import numpy as np
 import pytest
-from conftest import REAL_DATA
 
 from optcal.fit import calibrate
 from optcal.model import get_model
@@ -53,12 +52,12 @@ def test_unknown_backend_is_one_line():
         CalibrationProblem(m, sim.data, backend="gpu")
 
 
-def test_raw_calibration_loads_no_heavy_library(tmp_path):
+def test_raw_calibration_loads_no_heavy_library(tmp_path, corpus):
     """optcal calibrate --raw on imu_tk's Xsens recording (51,175 samples), in a fresh interpreter."""
     import gzip
 
     path = tmp_path / "xsens_acc.mat"
-    path.write_bytes(gzip.decompress((REAL_DATA / "imu_tk" / "xsens_acc.mat.gz").read_bytes()))
+    path.write_bytes(gzip.decompress((corpus / "imu_tk" / "xsens_acc.mat.gz").read_bytes()))
     code = ("import contextlib, io, json, sys\n"
             "from optcal.cli import main\n"
             "with contextlib.redirect_stdout(io.StringIO()):\n"

@@ -26,20 +26,20 @@ with the upstream bytes.
 import gzip
 import hashlib
 import json
-from pathlib import Path
 
 import numpy as np
 import pytest
+from corpus import corpus_root
 
 from optcal.cli import main
 from optcal.fit import calibrate
 from optcal.recording import choose_threshold, given_intervals, positions_from_recording, read_recording
 
-CORPUS = Path(__file__).resolve().parent / "data"
+CORPUS = corpus_root()  # the real corpus, beside the project (tests/corpus.py)
 IMU_TK, HB = CORPUS / "imu_tk", CORPUS / "hassan_bao"
 G0 = 9.80665
 
-pytestmark = pytest.mark.skipif(not (IMU_TK.is_dir() and HB.is_dir()), reason="corpus recordings not available")
+pytestmark = pytest.mark.usefixtures("corpus")  # skipped, with the one reason, where the corpus is absent
 
 
 def _cli(argv, capsys):

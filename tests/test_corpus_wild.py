@@ -1,5 +1,5 @@
-"""The acceptance test of the real corpus (issue #20, item 6): every recording in ``tests/data/`` run through
-the *default command*, as a new user would run it,
+"""The acceptance test of the real corpus (issue #20, item 6): every accelerometer recording of CORPUS below (the
+real corpus lives beside the project: tests/corpus.py) run through the *default command*, as a new user would run it,
 
     optcal calibrate FILE [--raw] --units U [--gravity-ms2 G] -o cal.json
 
@@ -46,19 +46,19 @@ xfail: a failure here is a recording optcal does not yet handle as the issue dem
 """
 
 import json
-from pathlib import Path
 
 import numpy as np
 import pytest
+from corpus import corpus_root
 
 from optcal.cli import main
 from optcal.fit import calibrate
 from optcal.recording import given_intervals, positions_from_recording, read_intervals, read_recording
 
-DATA = Path(__file__).resolve().parent / "data"
+DATA = corpus_root()  # the real corpus, beside the project (tests/corpus.py)
 G0 = 9.80665
 
-pytestmark = pytest.mark.skipif(not DATA.is_dir(), reason="corpus recordings not available")
+pytestmark = pytest.mark.usefixtures("corpus")  # skipped, with the one reason, where the corpus is absent
 
 
 # == references ===========================================================================================

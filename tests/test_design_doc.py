@@ -1,7 +1,8 @@
 """docs/design.md against the code: the term table and the named models list every parameter in the
 code's order, the positions CSV section names every column ``optcal.data`` reads, the calibration-file
-section names every field ``optcal.calfile`` writes, and no file of the repository points outside it
-(the conventions and the data the tests read live in the repository)."""
+section names every field ``optcal.calfile`` writes, and no file of the repository points outside it (the
+conventions live in the repository) but for one path: the real corpus's default folder, which the corpus
+locator (tests/corpus.py) and the Markdown pages that say where the corpus lives may name (issue #28)."""
 
 import re
 from pathlib import Path
@@ -9,6 +10,7 @@ from types import SimpleNamespace
 
 import numpy as np
 import pytest
+from corpus import DEFAULT as CORPUS_DEFAULT
 
 from optcal import calfile, calfile_schema, data
 from optcal.data import PositionsData
@@ -104,6 +106,9 @@ def test_calibration_file_fields_are_documented():
 # The patterns are assembled here so that this file does not contain them itself.
 OUTSIDE = ["../" + "shared", "/work/" + "shared", "shared/" + "data", "shared/" + "docs", "DESIGN" + ".md",
            "DESIGN" + " §", "ALGORITHMS" + ".md", "shared " + "DESIGN"]
+# The one path outside allowed: the real corpus's default folder, in its locator and in the pages that say where
+# the corpus lives (README, CONTRIBUTING, docs/*.md); everywhere else it is an offence like the others.
+CORPUS_LOCATOR = Path("tests") / "corpus.py"
 SKIP_DIRS = {".git", ".venv", "__pycache__", ".hypothesis", ".pytest_cache", ".ruff_cache", ".benchmarks", "build",
              "out", ".asv"}  # .asv: asv's environments and results (git-ignored)
 
@@ -116,6 +121,16 @@ def _repository_files():
         yield rel, path
 
 
+def _offences(rel: Path, text: str) -> list[str]:
+    corpus_allowed = rel == CORPUS_LOCATOR or rel.suffix == ".md"
+    offenders = []
+    for i, line in enumerate(text.splitlines(), 1):
+        if corpus_allowed:
+            line = line.replace(CORPUS_DEFAULT, "")
+        offenders += [f"{rel}:{i}: {pattern!r}" for pattern in OUTSIDE if pattern in line]
+    return offenders
+
+
 def test_no_file_points_outside_the_repository():
     offenders = []
     for rel, path in _repository_files():
@@ -123,11 +138,19 @@ def test_no_file_points_outside_the_repository():
             text = path.read_text(encoding="utf-8")
         except (UnicodeDecodeError, OSError):
             continue  # figures and other binary files
-        for pattern in OUTSIDE:
-            for i, line in enumerate(text.splitlines(), 1):
-                if pattern in line:
-                    offenders.append(f"{rel}:{i}: {pattern!r}")
+        offenders += _offences(rel, text)
     assert not offenders, "references outside the repository:\n" + "\n".join(offenders)
+
+
+def test_only_the_corpus_path_is_allowed_and_only_where_it_is_said():
+    """The corpus's default folder passes in the locator and in a page; in code, or with anything else outside
+    (another shared folder, an absolute path), it is still an offence."""
+    line = f"the corpus: `{CORPUS_DEFAULT}/imucal/README.md`"
+    assert _offences(Path("docs/real_data.md"), line) == []
+    assert _offences(CORPUS_LOCATOR, f"DEFAULT = {CORPUS_DEFAULT!r}") == []
+    assert _offences(Path("tests/test_x.py"), line) and _offences(Path("docs/scripts/x.py"), line)
+    other = CORPUS_DEFAULT.replace("real", "other")
+    assert _offences(Path("README.md"), f"see {other}") and _offences(Path("README.md"), "/work/" + "shared/x")
 
 
 def test_design_doc_sections_cited_in_the_code_exist():

@@ -133,8 +133,8 @@ def test_nonlinear_temperature_and_drift_bounds():
 
 
 def test_counts_with_an_unsigned_offset_are_plausible():
-    """An unsigned 16-bit ADC reads about 32768 at zero g (the Xsens MTi of tests/data/imu_tk: offsets 32360 to
-    33276 counts, about 8 g as b): the offset is judged against the outputs' sphere centre, not ±0.5 g."""
+    """An unsigned 16-bit ADC reads about 32768 at zero g (the Xsens MTi of the real corpus's imu_tk/: offsets
+    32360 to 33276 counts, about 8 g as b): the offset is judged against the outputs' sphere centre, not ±0.5 g."""
     truth = {**TRUTH9, "K_x": 4070.0, "K_y": 4050.0, "K_z": 4070.0, "b_x": 8.14, "b_y": 8.2, "b_z": 7.95}
     data = replace(_sim(L9, truth, noise_g=30e-6), units="counts")
     nominal, centre = determination.nominal_scale(data)
@@ -236,7 +236,7 @@ def test_means_of_a_slow_tumble_taken_as_static_positions_are_refused():
     assert _refused(data, "diag6").startswith("these positions leave model diag6 unobservable (rank 5 of 6")
 
 
-def test_real_recordings_that_determine_their_fits_are_not_refused():
+def test_real_recordings_that_determine_their_fits_are_not_refused(corpus):
     """Hassan & Bao's 24 and 49 positions (g) with the default model and linear9, and the MPU-6050's ten poses
     at the recording's own intervals (int16 counts, diag6: 4 spare degrees of freedom) pass every check;
     the same ten poses do not determine linear9 (1 spare), which is refused."""
@@ -245,7 +245,7 @@ def test_real_recordings_that_determine_their_fits_are_not_refused():
     from optcal.data import PositionsData
     from optcal.recording import given_intervals, positions_from_recording, read_recording
 
-    data = _data_folder()
+    data = corpus  # the real corpus, beside the project (tests/corpus.py)
     for name in ("CalibrationOfLowCostTriaxialInertialSensors.mat",
                  "CalibrationOfLowCostTriaxialInertialSensors50.mat"):
         (a,) = [v for k, v in loadmat(data / "hassan_bao" / name).items() if not k.startswith("__")]
@@ -262,20 +262,13 @@ def test_real_recordings_that_determine_their_fits_are_not_refused():
     assert "only 1 residual degree(s) of freedom" in _refused(poses, "linear9")
 
 
-def _data_folder():
-    """The folder of the recordings kept in the repository (docs/design.md §9.4)."""
-    from pathlib import Path
-
-    return Path(__file__).resolve().parent / "data"
-
-
-def test_a_raw_recording_with_too_few_poses_for_the_default_falls_back(tmp_path, capsys):
+def test_a_raw_recording_with_too_few_poses_for_the_default_falls_back(tmp_path, capsys, corpus):
     """The MPU-6050's ten poses found by the variance detector (its threshold searched over 2…9): no threshold
     finds intervals nonlinear12 or linear9 can be fitted to, so the default's intervals are found for diag6,
     which is fitted and said (CLI and API alike)."""
     import optcal
 
-    path = _data_folder() / "mpu6050" / "example_data_calibration.csv"
+    path = corpus / "mpu6050" / "example_data_calibration.csv"
     cal = optcal.calibrate(path, raw=True, units="counts", threshold_k="2:9")
     assert cal.model.name == "diag6" and len(cal.problem.data) == 10 and cal.requested_model == "nonlinear12"
     assert cal.notes[0].startswith("nonlinear12 (the default model) is not determined by these positions: 10 "

@@ -3,10 +3,10 @@ it, and the residual shrinks to what the true model leaves; on data without one 
 
 import dataclasses
 import json
-from pathlib import Path
 
 import numpy as np
 import pytest
+from corpus import corpus_root
 from scipy import stats
 
 from optcal import get_model, simulate
@@ -287,11 +287,10 @@ def test_cli_bad_input_is_one_line(tmp_path, capsys, argv, match):
     assert err.count("\n") == 1 and match in err and "Traceback" not in err
 
 
-REAL = str(Path(__file__).resolve().parent / "data" / "mpu6050" / "example_data_calibration.csv")
+REAL = str(corpus_root() / "mpu6050" / "example_data_calibration.csv")  # the real corpus (tests/corpus.py)
 
 
-@pytest.mark.skipif(not __import__("os").path.exists(REAL), reason="real recordings not present")
-def test_cli_runs_end_to_end_on_a_real_recording(capsys):
+def test_cli_runs_end_to_end_on_a_real_recording(capsys, corpus):
     # ImuCalibration's MPU-6050 recording (MIT licence): about ten poses in int16 counts at 100 Hz
     assert main(["discover", REAL, "--raw", "--units", "counts", "--columns", "ax,ay,az", "--base", "diag6",
                  "--json"]) == 0
@@ -304,7 +303,7 @@ def test_cli_runs_end_to_end_on_a_real_recording(capsys):
     assert out["steps"] == [] and out["chi2"]["p_value"] > 0.05
 
 
-def test_verdict_on_a_recording_uses_its_noise_floor(tmp_path):
+def test_verdict_on_a_recording_uses_its_noise_floor(tmp_path, corpus):
     """On a raw recording's positions (imu_tk's Xsens log) the final χ² is judged as ``optcal calibrate`` judges
     it: the F test against the recording's correlated-noise floor (analysis.goodness_of_fit), not χ²_dof with the
     floor taken as exact (issue #20, docs/noise.md), which would call the model wrong."""
@@ -314,7 +313,7 @@ def test_verdict_on_a_recording_uses_its_noise_floor(tmp_path):
     from optcal.distributions import chi2_sf
     from optcal.recording.workflow import positions_from_raw
 
-    raw = Path(__file__).parent / "data" / "imu_tk" / "xsens_acc.mat.gz"
+    raw = corpus / "imu_tk" / "xsens_acc.mat.gz"
     path = tmp_path / "xsens_acc.mat"
     path.write_bytes(gzip.decompress(raw.read_bytes()))
     data = positions_from_raw(path, units="counts")

@@ -10,6 +10,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from corpus import corpus_root
 
 from optcal.calfile import read_calibration
 from optcal.cli import main
@@ -18,7 +19,7 @@ from optcal.exchange import FORMATS, common, export_text, import_calibration, im
 from optcal.gravity import G0
 from optcal.model import get_model
 
-DATA = Path(__file__).resolve().parent / "data" / "imucal"
+DATA = corpus_root() / "imucal"  # the real corpus, beside the project (tests/corpus.py)
 LINEAR = ("diag6", "linear9", "scale+bias+misalignment6")
 SCALE = {"counts": 16384.0, "g": 1.0, "m/s2": G0, "mg": 1000.0, "volts": 0.3}
 
@@ -270,8 +271,8 @@ def test_imucal_applies_an_exported_fit_as_optcal_apply_does(tmp_path, capsys):
     assert np.median(np.linalg.norm(theirs, axis=1)) == pytest.approx(G0, rel=1e-3)
 
 
-def test_imucals_own_file_imported_gives_imucals_specific_force(tmp_path):
-    """imucal's Ferraris calibration of its example session (tests/data/imucal), imported: optcal apply on the
+def test_imucals_own_file_imported_gives_imucals_specific_force(tmp_path, corpus):
+    """imucal's Ferraris calibration of its example session (the real corpus's imucal/), imported: optcal apply on the
     session's raw counts gives what imucal's calibrate gives with the original file, to 1e-9 relative. (The
     gyroscope terms come in as a gyro21 block: tests/test_gyro_export_import.py.)"""
     cal = tmp_path / "imported.json"

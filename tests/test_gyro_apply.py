@@ -8,7 +8,6 @@ from __future__ import annotations
 
 import gzip
 import json
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -19,17 +18,16 @@ from optcal.cli import main
 from optcal.gyro import draw_truth, get_gyro_model, simulate_imu
 from optcal.gyro.calfile import read_gyro_block
 
-ROOT = Path(__file__).resolve().parents[1]
 G_SITE = 9.81744  # m/s², imu_tk's test_imu_calib.cpp (tests/test_gyro_imu_command.py)
 
 
 @pytest.fixture(scope="module")
-def xsens(tmp_path_factory):
+def xsens(tmp_path_factory, corpus):
     """The Xsens pair calibrated by optcal imu (linear9, gyroscope bias from the rests) and applied to itself."""
     d = tmp_path_factory.mktemp("xsens")
     acc, gyr = d / "xsens_acc.mat", d / "xsens_gyro.mat"
     for f in (acc, gyr):
-        f.write_bytes(gzip.decompress((ROOT / "tests" / "data" / "imu_tk" / f"{f.name}.gz").read_bytes()))
+        f.write_bytes(gzip.decompress((corpus / "imu_tk" / f"{f.name}.gz").read_bytes()))
     cal = d / "xsens.json"
     assert main(["imu", str(acc), "--gyro", str(gyr), "--gyro-units", "counts", "--units", "counts",
                  "--gravity-ms2", str(G_SITE), "--model", "linear9", "-o", str(cal)]) == 0

@@ -85,15 +85,14 @@ def test_kalibr_gyroscope_intrinsics_reproduce_the_rates():
                                                                          "calibrated": "rad/s"}}}, "z"))
 
 
-def test_imucal_gyroscope_round_trip_and_same_rates():
-    """imucal's own Ferraris calibration (tests/data/imucal/example_cal.json, whose K_ga is not zero): read
+def test_imucal_gyroscope_round_trip_and_same_rates(corpus):
+    """imucal's own Ferraris calibration (the real corpus's imucal/example_cal.json, whose K_ga is not zero): read
     as gyro21, written back to the same matrices, and the same rates as imucal's equation."""
     import json
-    from pathlib import Path
 
     from optcal.exchange.gyro_imucal import gyro_from_imucal, gyro_to_imucal
 
-    path = Path(__file__).parent / "data" / "imucal" / "example_cal.json"
+    path = corpus / "imucal" / "example_cal.json"
     d = json.loads(path.read_text())
     block = gyro_from_imucal(d, "counts", path)
     assert block["model"] == "gyro21"

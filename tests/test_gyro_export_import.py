@@ -21,7 +21,6 @@ from optcal.gravity import G0
 from optcal.gyro.calfile import read_gyro_block
 from optcal.gyro.model import get_gyro_model
 
-ROOT = Path(__file__).resolve().parents[1]
 DEG = 180.0 / math.pi
 
 
@@ -147,12 +146,12 @@ def test_kalibr_round_trip_and_noise_fields(tmp_path, capsys):
     assert_same_gyroscope(gyro_of(cal), gyro_of(back))
 
 
-def test_xsens_calibration_round_trips_through_imu_tk_and_imucal(tmp_path, capsys):
+def test_xsens_calibration_round_trips_through_imu_tk_and_imucal(tmp_path, capsys, corpus):
     """optcal imu's own file of imu_tk's Xsens pair (gyro9, counts): through imu_tk's two files and through
     imucal, the same gyroscope to 1e-12."""
     acc, gyr = tmp_path / "xsens_acc.mat", tmp_path / "xsens_gyro.mat"
     for f in (acc, gyr):
-        f.write_bytes(gzip.decompress((ROOT / "tests" / "data" / "imu_tk" / f"{f.name}.gz").read_bytes()))
+        f.write_bytes(gzip.decompress((corpus / "imu_tk" / f"{f.name}.gz").read_bytes()))
     cal = tmp_path / "xsens.json"
     assert main(["imu", str(acc), "--gyro", str(gyr), "--gyro-units", "counts", "--units", "counts",
                  "--gravity-ms2", "9.81744", "--model", "linear9", "-o", str(cal)]) == 0
@@ -209,11 +208,11 @@ def test_imucal_applies_the_exported_gyroscope_as_optcal_apply_does(tmp_path, ca
     np.testing.assert_allclose(ours[:, 1:4], acc_theirs, rtol=1e-9)
 
 
-def test_imucals_own_calibration_imported_gives_imucals_rates(tmp_path, capsys):
-    """imucal's calibration of its example session (tests/data/imucal/example_cal.json: raw counts, K_ga not
-    zero), imported with its gyroscope, applied by optcal apply to the session's raw samples: imucal's own
+def test_imucals_own_calibration_imported_gives_imucals_rates(tmp_path, capsys, corpus):
+    """imucal's calibration of its example session (the real corpus's imucal/example_cal.json: raw counts, K_ga
+    not zero), imported with its gyroscope, applied by optcal apply to the session's raw samples: imucal's own
     calibrated rates to 1e-9 relative."""
-    data = ROOT / "tests" / "data" / "imucal"
+    data = corpus / "imucal"
     cal = tmp_path / "imported.json"
     code, out, err = run_cli(["import", data / "example_cal.json", "--format", "imucal", "-o", cal], capsys)
     assert code == 0, err

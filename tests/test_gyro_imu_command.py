@@ -5,19 +5,18 @@ from __future__ import annotations
 
 import gzip
 import json
-from pathlib import Path
 
 import numpy as np
 import pytest
 from conftest import run_cli
+from corpus import corpus_root
 from scipy.spatial.transform import Rotation
 
 from optcal.errors import InputError
 from optcal.gyro import draw_truth, get_gyro_model, simulate_imu
 from optcal.gyro.calfile import read_gyro_block
 
-ROOT = Path(__file__).resolve().parents[1]
-IMUCAL = ROOT / "tests" / "data" / "imucal" / "example_ferraris_session.csv"
+IMUCAL = corpus_root() / "imucal" / "example_ferraris_session.csv"  # the real corpus (tests/corpus.py)
 IMUCAL_ARGS = ["--columns", "ax=acc_x,ay=acc_y,az=acc_z", "--rate", "102.4", "--units", "m/s2",
                "--gyro-columns", "gyr_x,gyr_y,gyr_z", "--gyro-units", "deg/s", "--model", "diag6"]
 
@@ -72,13 +71,13 @@ def test_one_file_gives_one_calibration_file_with_both_sensors(tmp_path, capsys)
         read_calibration(broken)
 
 
-def test_two_files_sharing_times_as_imu_tk(tmp_path, capsys):
+def test_two_files_sharing_times_as_imu_tk(tmp_path, capsys, corpus):
     """imu_tk's Xsens pair through the command: the scale factors agree with imu_tk's within 3 standard
     errors (1/K against imu_tk's scale; the frames' difference moves them only to second order), and the
     motions' residual is that of docs/scripts/gyro_imu_tk.py."""
     acc, gyr = tmp_path / "xsens_acc.mat", tmp_path / "xsens_gyro.mat"
     for f in (acc, gyr):
-        f.write_bytes(gzip.decompress((ROOT / "tests" / "data" / "imu_tk" / f"{f.name}.gz").read_bytes()))
+        f.write_bytes(gzip.decompress((corpus / "imu_tk" / f"{f.name}.gz").read_bytes()))
     out = tmp_path / "xsens.json"
     code, text, err = run_cli(["imu", str(acc), "--gyro", str(gyr), "--gyro-units", "counts", "--units", "counts",
                                 "--gravity-ms2", "9.81744", "--model", "linear9", "-o", str(out)], capsys)
@@ -97,7 +96,7 @@ def test_two_files_sharing_times_as_imu_tk(tmp_path, capsys):
     assert "4 rest(s) the accelerometer's detection left inside motions were found by the gyroscope" in text
 
 
-def test_imucal_ferraris_session_end_to_end(tmp_path, capsys):
+def test_imucal_ferraris_session_end_to_end(tmp_path, capsys, corpus):
     """imucal's session (another source: deg/s, 102.4 Hz, one file): calibrated by the command, the file's
     gyroscope applied to the three 360° turns about the vertical (which tell the fit nothing about their
     own axis's scale) gives angles nearer 360° than the nominal scale, within 1.5 % on every axis; the

@@ -245,14 +245,10 @@ def test_non_static_data_warns(capsys, tmp_path):
     assert code == 0 and err == ""
 
 
-def test_real_mpu6050_rest_has_the_datasheet_noise_density(capsys):
-    """The 36-s initial rest of the MPU-6050 recording in tests/data/mpu6050 (ImuCalibration, MIT;
-    tests/data/README.md). InvenSense's datasheet gives 400 µg/√Hz; the three axes read 340–520."""
-    from conftest import REAL_DATA
-
-    path = REAL_DATA / "mpu6050" / "example_data_calibration.csv"
-    if not path.exists():
-        pytest.skip("tests/data/mpu6050 is not present")
+def test_real_mpu6050_rest_has_the_datasheet_noise_density(capsys, corpus):
+    """The 36-s initial rest of the MPU-6050 recording in the real corpus's mpu6050/ (ImuCalibration, MIT;
+    the folder's README). InvenSense's datasheet gives 400 µg/√Hz; the three axes read 340–520."""
+    path = corpus / "mpu6050" / "example_data_calibration.csv"
     code, out, err = _run(capsys, "noise", path, "--units", "counts", "--interval", "0:36", "--json")
     assert code == 0, err
     res = json.loads(out)

@@ -1,17 +1,18 @@
 """The noise floor of a position (issue #20, item 5; optcal/noise/floor.py, docs/noise.md "The noise floor of a
 position"): the pooled Allan variance, the covariance of interval means under flicker noise, the floor against
 σ/√n, what positions_from_recording and the positions CSV carry, the false-alarm rate of the χ² (F) test on
-simulated white + flicker recordings, and the Xsens MTi recording of imu_tk (tests/data/imu_tk, BSD licence)."""
+simulated white + flicker recordings, and the Xsens MTi recording of imu_tk (BSD licence; the real corpus's imu_tk/,
+beside the project: tests/corpus.py)."""
 
 from __future__ import annotations
 
 import gzip
 import math
 from dataclasses import replace
-from pathlib import Path
 
 import numpy as np
 import pytest
+from corpus import corpus_root
 
 from optcal.analysis import goodness_of_fit
 from optcal.data import read_positions
@@ -197,11 +198,10 @@ def test_chi2_test_keeps_its_false_alarm_rate_with_the_new_floor_and_not_with_si
 
 
 # -- the Xsens MTi recording of imu_tk -------------------------------------------------------------------------------
-XSENS = Path(__file__).resolve().parent / "data" / "imu_tk" / "xsens_acc.mat.gz"
+XSENS = corpus_root() / "imu_tk" / "xsens_acc.mat.gz"  # the real corpus (tests/corpus.py)
 
 
-@pytest.mark.skipif(not XSENS.is_file(), reason="corpus recording not available")
-def test_xsens_residual_is_at_its_new_noise_floor(tmp_path):
+def test_xsens_residual_is_at_its_new_noise_floor(tmp_path, corpus):
     """imu_tk's Xsens MTi (linear9, |g| = 9.81744 m/s²): against σ/√n (33 µg) the residual (99 µg) is 3 times the
     floor and χ² rejects at p ~ 1e-100; the new floor (116 µg: the z axis's σ_A flattens at 0.55 counts from
     τ = 0.6 s) makes residual / floor 0.85 and p = 0.21 (docs/noise.md). Asserted: residual / old floor 2-4,

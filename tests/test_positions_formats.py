@@ -315,15 +315,14 @@ def test_a_long_table_the_positions_reader_cannot_read_may_be_a_recording(tmp_pa
     assert len(rec) == 1500  # read as the message says
 
 
-def test_the_files_kept_in_the_repository_are_told_apart():
+def test_the_corpus_files_are_told_apart(corpus):
     """Position means (Hassan & Bao's 24 and 49, MAT files) against recordings (imu_tk's Xsens, the phone, the
-    MPU-6050, imucal's session, CK-Explorer): the margins to the two thresholds are a factor of about 2 or more."""
-    from conftest import REAL_DATA
-
+    MPU-6050, imucal's session, CK-Explorer; the real corpus, tests/corpus.py): the margins to the two
+    thresholds are a factor of about 2 or more."""
     from optcal.recording.reading import raw_file_reason
     from optcal.recording.sniff import table_kind
 
-    hb = REAL_DATA / "hassan_bao"
+    hb = corpus / "hassan_bao"
     for name, ratio in (("CalibrationOfLowCostTriaxialInertialSensors.mat", 0.78),
                         ("CalibrationOfLowCostTriaxialInertialSensors50.mat", 0.40)):
         header, table = mat_table(hb / name)
@@ -332,5 +331,5 @@ def test_the_files_kept_in_the_repository_are_told_apart():
     for name, ratio in (("imu_tk/xsens_acc.mat.gz", 0.0001), ("hassan_bao/MobileAccData30orientationRawSample01.mat",
                         0.0153), ("mpu6050/example_data_calibration.csv", 0.0087),
                         ("imucal/annotated_session.csv", 0.0073), ("ck_explorer/acc_log.csv", 0.0037)):
-        reason, _ = raw_file_reason(REAL_DATA / name)
+        reason, _ = raw_file_reason(corpus / name)
         assert f"a median {ratio:.2%} of the outputs' magnitude" in reason and ratio <= SAMPLE_JUMP / 2, reason

@@ -1,4 +1,5 @@
-"""Real recordings made by others (``tests/data/``, each folder with its licence and a README):
+"""Real recordings made by others (the real corpus, beside the project: tests/corpus.py; each folder with its
+licence and a README):
 
 - ``imucal/``: from the imucal project (MIT licence; github.com/mad-lab-fau/imucal): a labelled
   six-position session in raw counts (``annotated_session.csv``) with imucal's own Ferraris calibration of
@@ -9,10 +10,10 @@
 """
 
 import json
-from pathlib import Path
 
 import numpy as np
 import pytest
+from corpus import corpus_root
 
 from optcal.analysis import observability
 from optcal.cli import main
@@ -28,13 +29,13 @@ from optcal.recording import (
     read_recording,
 )
 
-REAL = Path(__file__).resolve().parent / "data"
+REAL = corpus_root()  # the real corpus, beside the project (tests/corpus.py)
 IMUCAL, MPU = REAL / "imucal", REAL / "mpu6050"
 POSES = ["x_p", "x_a", "y_p", "y_a", "z_p", "z_a"]
 G_IMUCAL = 9.81  # imucal's Ferraris calibration assumes |g| = 9.81 m/s² (reproduced exactly below)
 G0 = 9.80665
 
-pytestmark = pytest.mark.skipif(not REAL.is_dir(), reason="real recordings not available")
+pytestmark = pytest.mark.usefixtures("corpus")  # skipped, with the one reason, where the corpus is absent
 
 
 def _mask(iv, n):

@@ -1,11 +1,10 @@
 """optcal.recording.pelt against ruptures' compiled PELT (KernelCPD, linear kernel, min_size 1, jump 1): the same
 change points on random piecewise-constant series with noise, at many penalties, and on the block series that
-segmentation builds from every raw recording in tests/data (docs/segmentation.md)."""
+segmentation builds from raw recordings of the real corpus (tests/corpus.py; docs/segmentation.md)."""
 
 import numpy as np
 import pytest
 import ruptures
-from conftest import REAL_DATA
 
 import optcal.recording.segment as segment
 from optcal.recording.pelt import RUPTURES_FROM_BLOCKS, VECTOR_FROM, pelt_l2, pelt_l2_many
@@ -51,8 +50,8 @@ def test_long_rest_takes_the_vector_pass_and_agrees():
 @pytest.mark.parametrize("path, units, rate", [
     ("imu_tk/xsens_acc.mat.gz", "counts", None), ("mpu6050/example_data_calibration.csv", "counts", None),
     ("imucal/annotated_session.csv", "counts", 204.8), ("imucal/example_ferraris_session.csv", "m/s2", 102.4)])
-def test_segmentation_of_real_recordings_is_the_same_with_either(path, units, rate, monkeypatch):
-    rec = read_recording(REAL_DATA / path, units=units, rate=rate)
+def test_segmentation_of_real_recordings_is_the_same_with_either(path, units, rate, monkeypatch, corpus):
+    rec = read_recording(corpus / path, units=units, rate=rate)
     ours = segment.segment_static(rec).intervals
     assert len(ours) >= 6
     monkeypatch.setattr(segment, "RUPTURES_FROM_BLOCKS", 0)  # every series through ruptures

@@ -14,11 +14,11 @@ import subprocess
 import sys
 import textwrap
 import types
-from pathlib import Path
 
 import pytest
+from corpus import corpus_root
 
-IMU_TK = Path(__file__).parent / "data" / "imu_tk"  # imu_tk's Xsens pair (BSD), gzip-compressed
+IMU_TK = corpus_root() / "imu_tk"  # imu_tk's Xsens pair (BSD), gzip-compressed: the real corpus (tests/corpus.py)
 
 # The libraries that must stay out of the start-up path (top-level package names).
 HEAVY = ("scipy", "matplotlib", "casadi", "cvxpy", "nlopt", "dask", "distributed", "numba", "pandas", "pyarrow",
@@ -180,7 +180,7 @@ def _command_alone(argv: list[str], command: str, checks: str = "") -> list[str]
     return imported(textwrap.dedent(code) + textwrap.dedent(checks), HEAVY + ("pydantic", "ruptures"))
 
 
-def test_calibrating_a_raw_recording_imports_no_heavy_module(tmp_path):
+def test_calibrating_a_raw_recording_imports_no_heavy_module(tmp_path, corpus):
     """The whole ``optcal calibrate RAW --raw --units counts -o cal.json`` on imu_tk's Xsens recording (issue
     #20: the process's time is mostly imports): none of HEAVY, no importlib.metadata (entry points are read
     only for a name that is not built in), no pydantic (the file's schema is for reading), and of the command
@@ -199,7 +199,7 @@ def test_calibrating_a_raw_recording_imports_no_heavy_module(tmp_path):
     assert out.is_file()
 
 
-def test_calibrating_an_imu_imports_no_heavy_module(tmp_path):
+def test_calibrating_an_imu_imports_no_heavy_module(tmp_path, corpus):
     """The whole ``optcal imu`` on imu_tk's Xsens pair (issue #23: the process's time against imu_tk's): the
     gyroscope's least squares integrate in NumPy (optcal.gyro.integrate), so neither numba nor scipy is
     loaded, and of the command modules only imu's."""

@@ -1,5 +1,6 @@
 """The discovery reports and figures shown in docs/discovery.md: a simulated two-effect example and the
-real recordings in tests/data/ (read and cut into static positions by optcal.recording).
+real recordings of the real corpus (tests/corpus.py: ``OPTCAL_CORPUS``, else the shared folder beside the clone;
+read and cut into static positions by optcal.recording).
 
     .venv/bin/python docs/scripts/discovery_examples.py [--real DIR] [--figures docs/figures]
 
@@ -11,6 +12,7 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -21,7 +23,11 @@ from optcal.discovery import discover
 from optcal.errors import InputError
 from optcal.presets import draw_truth
 
-REAL = Path(__file__).resolve().parents[2] / "tests" / "data"
+ROOT = Path(__file__).resolve().parents[2]
+sys.path.insert(0, str(ROOT / "tests"))
+from corpus import corpus_root  # noqa: E402  tests/corpus.py: the real corpus's folder (OPTCAL_CORPUS or beside the clone)
+
+REAL = corpus_root()
 
 
 def halves(detection: rc.DetectionResult) -> np.ndarray:

@@ -1,6 +1,9 @@
 """The gyroscope of imu_tk's Xsens MTi recording, calibrated by optcal, beside imu_tk's own result.
 
-Reproduce (docs/gyroscope.md gives imu_tk's build and run in prose):
+The recordings are read from the real corpus (tests/corpus.py: ``OPTCAL_CORPUS``, else the shared folder beside
+the clone); imu_tk's own figures below are constants, printed by its test_imu_calib on the same two files.
+
+Reproduce:
 
     .venv/bin/python docs/scripts/gyro_imu_tk.py     # tables on stdout, JSON to out/gyro_imu_tk_{rests,fit}.json
 
@@ -22,11 +25,14 @@ from pathlib import Path
 import numpy as np
 
 ROOT = Path(__file__).resolve().parents[2]
-DATA = ROOT / "tests" / "data" / "imu_tk"
+sys.path.insert(0, str(ROOT / "tests"))
+from corpus import corpus_root  # noqa: E402  tests/corpus.py: the real corpus's folder (OPTCAL_CORPUS or beside the clone)
+
+DATA = corpus_root() / "imu_tk"
 G_SITE = 9.81744  # m/s², imu_tk's test_imu_calib.cpp
 
-# imu_tk's output on this pair (test_imu_calib built as docs/gyroscope.md says, run on xsens_acc.mat and
-# xsens_gyro.mat): the gyroscope's misalignment matrix, scale matrix (rad/s per count) and bias (counts).
+# imu_tk's output on this pair (its own test_imu_calib run on xsens_acc.mat and xsens_gyro.mat; docs/gyroscope.md
+# §5): the gyroscope's misalignment matrix, scale matrix (rad/s per count) and bias (counts).
 IMU_TK_MIS = np.array([[1.0, 0.00593634, 0.00111101], [0.00808812, 1.0, -0.0535569],
                        [0.0253067, -0.0025513, 1.0]])
 IMU_TK_SCALE = np.array([0.000209295, 0.000209899, 0.000209483])

@@ -1,8 +1,8 @@
-"""imucal's Ferraris session (tests/data/imucal, MIT) calibrated end to end by optcal: accelerometer (diag6:
-the six axis-aligned poses do not determine linear9's angles), then gyroscope from the motions between the
-rests, then the three 360° turns about the vertical that the Ferraris procedure is built on, integrated with
-the calibrated rate: an independent check, since a turn about the vertical leaves the gravity direction
-where it was and so tells the fit nothing about its own axis's scale.
+"""imucal's Ferraris session (MIT; the real corpus's imucal/, tests/corpus.py) calibrated end to end by optcal:
+accelerometer (diag6: the six axis-aligned poses do not determine linear9's angles), then gyroscope from the
+motions between the rests, then the three 360° turns about the vertical that the Ferraris procedure is built
+on, integrated with the calibrated rate: an independent check, since a turn about the vertical leaves the
+gravity direction where it was and so tells the fit nothing about its own axis's scale.
 
 Reproduce:
 
@@ -18,7 +18,10 @@ from pathlib import Path
 import numpy as np
 
 ROOT = Path(__file__).resolve().parents[2]
-DATA = ROOT / "tests" / "data" / "imucal"
+sys.path.insert(0, str(ROOT / "tests"))
+from corpus import corpus_root  # noqa: E402  tests/corpus.py: the real corpus's folder (OPTCAL_CORPUS or beside the clone)
+
+DATA = corpus_root() / "imucal"
 RATE = 102.4  # Hz (README of the data)
 
 

@@ -1,5 +1,6 @@
 """The table of docs/noise.md, "The noise floor of a position": each raw recording of the real corpus
-(tests/data/, each folder with its licence and README) calibrated by the default path of ``optcal calibrate
+(tests/corpus.py: ``OPTCAL_CORPUS``, else the shared folder beside the clone; each folder with its licence and
+README) calibrated by the default path of ``optcal calibrate
 --raw`` (optcal.recording.positions_from_raw: the default segmentation, positions; optcal.fit.calibrate), its
 verdicts against the white-noise floor σ/√n (the old one) and against the noise floor of optcal.recording.floor
 (the new one).
@@ -21,6 +22,7 @@ interval's length (the model's, RMS) for comparison.
 from __future__ import annotations
 
 import gzip
+import sys
 import tempfile
 from dataclasses import replace
 from pathlib import Path
@@ -34,7 +36,11 @@ from optcal.fit import calibrate
 from optcal.problem import CalibrationProblem
 from optcal.recording import choose_threshold, positions_from_raw, positions_from_recording, read_recording
 
-DATA = Path(__file__).resolve().parents[2] / "tests" / "data"
+ROOT = Path(__file__).resolve().parents[2]
+sys.path.insert(0, str(ROOT / "tests"))
+from corpus import corpus_root  # noqa: E402  tests/corpus.py: the real corpus's folder (OPTCAL_CORPUS or beside the clone)
+
+DATA = corpus_root()
 G0 = 9.80665
 
 

@@ -1,10 +1,11 @@
 """The figures and numbers of docs/real_data.md for the recordings of the corpus that the ``--plot``
 commands there do not draw: imucal's labelled session, imu_tk's Xsens MTi, Hassan & Bao's smartphone and
 their 24- and 49-position sets, Mikov et al.'s five MPU-9150s, CK-Explorer's 160 one-second poses,
-TWLogger's LSM303 tag and sensor-fusion's two MPU-6050 tumbles (tests/data/, each folder with its licence
-and README).
+TWLogger's LSM303 tag and sensor-fusion's two MPU-6050 tumbles (the real corpus, each folder with its licence
+and README; ``--real`` defaults to tests/corpus.py's folder: ``OPTCAL_CORPUS``, else the shared folder beside
+the clone).
 
-    .venv/bin/python docs/scripts/real_data_figures.py [--real tests/data] [--figures docs/figures]
+    .venv/bin/python docs/scripts/real_data_figures.py [--real DIR] [--figures docs/figures]
 
 Prints, per recording, the positions found, the fitted parameters with standard errors (K in output units
 per g, b in g, S in rad; docs/design.md §2, §3.1), the residual RMS and the noise floor (the RMS over
@@ -18,6 +19,7 @@ new recordings (the model it fits, or its one-line refusal) is printed as ``optc
 from __future__ import annotations
 
 import argparse
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -37,6 +39,9 @@ from optcal.recording import (
 from optcal.recording.positions import mat_positions
 
 ROOT = Path(__file__).resolve().parents[2]
+sys.path.insert(0, str(ROOT / "tests"))
+from corpus import corpus_root  # noqa: E402  tests/corpus.py: the real corpus's folder (OPTCAL_CORPUS or beside the clone)
+
 G0 = 9.80665
 DPI = 100
 
@@ -89,7 +94,7 @@ def positions_figure(sets: dict, out: Path) -> None:
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--real", type=Path, default=ROOT / "tests" / "data")
+    ap.add_argument("--real", type=Path, default=corpus_root())
     ap.add_argument("--figures", type=Path, default=ROOT / "docs" / "figures")
     a = ap.parse_args()
     real, figs = a.real, a.figures
@@ -145,7 +150,7 @@ def _sensitivity(p: dict):
     return n, K * np.array([p["b_x"], p["b_y"], p["b_z"]]), np.array([C[0, 1], C[0, 2], C[1, 2]])
 
 
-# Mikov et al.'s table (tests/data/mikov/README.md): s (%), m_yz, m_xy, m_xz (°), b (m/s²) per IMU
+# Mikov et al.'s table (the corpus's mikov/README.md): s (%), m_yz, m_xy, m_xz (°), b (m/s²) per IMU
 MIKOV = [([0.363, 0.315, 0.647], [0.123, 0.02, 0.317], [0.103, 0.097, 0.344]),
          ([0.471, 0.482, 0.932], [-0.284, -0.01, 0.145], [0.09, 0.07, 0.338]),
          ([0.382, 0.355, 0.78], [0.26, -0.012, 0.282], [0.096, 0.008, -0.045]),

@@ -1,6 +1,7 @@
 """Precision and recall of static-interval detection, old (variance detector with the threshold search,
 Tedaldi et al. 2014) against new (change-point segmentation, optcal.recording.segment), on simulated
-recordings with known poses and on the real corpus of tests/data. Prints the tables of docs/segmentation.md.
+recordings with known poses and on the real corpus (tests/corpus.py: ``OPTCAL_CORPUS``, else the shared folder
+beside the clone). Prints the tables of docs/segmentation.md.
 
     .venv/bin/python docs/scripts/segmentation_scores.py
 
@@ -35,7 +36,10 @@ from optcal.recording import (
 from optcal.synthetic_recording import poses_recording, tumble_recording
 
 ROOT = Path(__file__).resolve().parents[2]
-DATA = ROOT / "tests" / "data"
+sys.path.insert(0, str(ROOT / "tests"))
+from corpus import corpus_root  # noqa: E402  tests/corpus.py: the real corpus's folder (OPTCAL_CORPUS or beside the clone)
+
+DATA = corpus_root()
 TOL = 30
 SEEDS = range(5)
 
@@ -150,7 +154,6 @@ def real():
     ref[:, 1] += 1
     sets.append(("MPU-6050 hand-turned (10 reference intervals)", rec, ref, "diag6"))
     # Hassan & Bao phone: their 30 hand-picked sections (CombinedAlgorithm.m; 1-based inclusive)
-    sys.path.insert(0, str(ROOT / "tests"))
     from test_corpus import HB_PHONE_IV  # the sections as the corpus tests state them
 
     a = _loadmat(DATA / "hassan_bao" / "MobileAccData30orientationRawSample01.mat")

@@ -50,8 +50,8 @@ bump, quantisation or a sinusoid inside the fitted range).
 Units: the recording's outputs are turned into g (of 9.80665 m/s²) before anything else: g as they are,
 mg/1000, m/s²/g0; counts and volts by a scale in output units per g, given, or else the magnitude of the
 stretch's mean output (a static sensor reads 1 g). That default assumes equal scales on the three axes and
-small biases: it is off by the bias along gravity over 1 g (about 10 % on the MPU-6050 recording in
-tests/data, whose z offset is 0.11 g); give the nominal or calibrated scale when it matters.
+small biases: it is off by the bias along gravity over 1 g (about 10 % on the MPU-6050 recording of the
+real corpus, docs/real_data.md, whose z offset is 0.11 g); give the nominal or calibrated scale when it matters.
 
 A gyroscope is analysed the same way, its samples turned into rad/s instead of g (by its output units per
 rad/s: exact for deg/s and rad/s, given for counts and volts); :class:`NoiseReport` with ``sensor``

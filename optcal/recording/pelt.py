@@ -1,7 +1,7 @@
 """Exact PELT (Killick, Fearnhead & Eckley, JASA 2012) for the L2 cost of three-column series: the change
 points of the linear-kernel cost that ruptures' ``KernelCPD(kernel="linear", min_size=1, jump=1)`` finds,
-the same to the point (tests/test_segmentation_pelt.py checks both on random series and on every recording
-of tests/data).
+the same to the point (tests/test_segmentation_pelt.py checks both on random series and on raw recordings of
+the real corpus, docs/real_data.md).
 
 Why a second implementation: ruptures' compiled PELT takes milliseconds, but importing ruptures imports
 scipy.stats, scipy.spatial and scipy.signal with it, 0.8 to 1.2 s on the project's machine, more than the

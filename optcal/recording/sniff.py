@@ -63,7 +63,7 @@ MANY_ROWS = MANY_POSITIONS  # a table this long is samples when its data say so,
 # Positions or samples (table_kind), from the median jump between consecutive rows as a fraction of the rows'
 # magnitude: turns between positions of 12° or more make 0.2 or more; a recording's samples at 100 Hz differ by
 # noise (1 mg of noise on each axis: 0.0022, the median of a 3-D difference being 2.2 σ) except while the
-# sensor turns, a minority of the samples. Measured on the recordings kept in tests/data: 0.0001 (imu_tk's
+# sensor turns, a minority of the samples. Measured on the real corpus's recordings (real_data.md): 0.0001 (imu_tk's
 # Xsens) to 0.022 (TWLogger's LSM303); on the position means kept there: 0.40 and 0.78 (Hassan & Bao's 49, 24).
 POSITION_JUMP = 0.2
 SAMPLE_JUMP = 0.05

@@ -5,13 +5,14 @@
   parameters) and fitted (12), scipy-lm on the compiled integrator and lm on the NumPy one (``optcal imu``'s);
   the issue's target is 1 s of solver time.
 * ``test_bench_imu_xsens_process``: the whole ``optcal imu`` process on imu_tk's Xsens pair (accelerometer
-  and gyroscope, threshold k = 3 as imu_tk's own search settles near, and the gyroscope's nominal scale of
-  6258 counts per rad/s and local gravity 9.81744 m/s² that imu_tk's own test program is given), one fresh
-  process per round, with Python's bytecode cache (as an installed program runs); the issue quotes imu_tk at
-  0.52 s of whole-process time for the same pair, and ``imu_tk_ratio`` is the best round over that figure.
-  With ``OPTCAL_IMU_TK`` naming imu_tk's ``test_imu_calib`` (built outside the repository, docs/gyroscope.md
-  §5), both programs also run in turn, five rounds each, and ``imu_tk_measured_ratio`` is optcal's best over
-  imu_tk's best measured beside it.
+  and gyroscope, from the real corpus beside the project: tests/corpus.py; threshold k = 3 as imu_tk's own
+  search settles near, and the gyroscope's nominal scale of 6258 counts per rad/s and local gravity
+  9.81744 m/s² that imu_tk's own test program is given), one fresh process per round, with Python's bytecode
+  cache (as an installed program runs); the issue quotes imu_tk at 0.52 s of whole-process time for the same
+  pair, and ``imu_tk_ratio`` is the best round over that figure. With ``OPTCAL_IMU_TK`` naming an executable
+  of imu_tk's own ``test_imu_calib`` (not part of this repository; docs/gyroscope.md §5), both programs also
+  run in turn, five rounds each, and ``imu_tk_measured_ratio`` is optcal's best over imu_tk's best measured
+  beside it.
 """
 
 from __future__ import annotations
@@ -30,7 +31,6 @@ import pytest
 import solvers
 from optcal.gyro import GyroProblem, draw_truth, get_gyro_model, simulate_imu
 
-ROOT = Path(__file__).resolve().parents[2]
 IMU_TK_WHOLE_PROCESS_S = 0.52  # the issue's figure for imu_tk on the Xsens pair
 
 
@@ -62,10 +62,10 @@ def _command() -> list[str]:
     return [str(script)] if script.is_file() else [sys.executable, "-m", "optcal.cli"]
 
 
-def test_bench_imu_xsens_process(benchmark, tmp_path):
+def test_bench_imu_xsens_process(benchmark, tmp_path, corpus):
     acc, gyr = tmp_path / "xsens_acc.mat", tmp_path / "xsens_gyro.mat"
     for f in (acc, gyr):
-        f.write_bytes(gzip.decompress((ROOT / "tests" / "data" / "imu_tk" / f"{f.name}.gz").read_bytes()))
+        f.write_bytes(gzip.decompress((corpus / "imu_tk" / f"{f.name}.gz").read_bytes()))
     argv = ["imu", str(acc), "--gyro", str(gyr), "--gyro-units", "counts", "--gyro-scale", "6258", "--units", "counts",
             "--gravity-ms2", "9.81744", "--model", "linear9", "--threshold-k", "3"]
     env = {k: v for k, v in os.environ.items() if k != "PYTHONDONTWRITEBYTECODE"}
@@ -82,7 +82,7 @@ def test_bench_imu_xsens_process(benchmark, tmp_path):
         seconds = benchmark.stats.stats.min
     benchmark.extra_info.update({"command": "optcal " + " ".join(argv[:1]), "seconds": seconds,
                                  "imu_tk_s": IMU_TK_WHOLE_PROCESS_S, "imu_tk_ratio": seconds / IMU_TK_WHOLE_PROCESS_S})
-    peer = os.environ.get("OPTCAL_IMU_TK")  # imu_tk's test_imu_calib, built as docs/gyroscope.md §5 says
+    peer = os.environ.get("OPTCAL_IMU_TK")  # imu_tk's own test_imu_calib (docs/gyroscope.md §5)
     if peer and os.access(peer, os.X_OK):
         def run_peer() -> float:
             t = time.perf_counter()

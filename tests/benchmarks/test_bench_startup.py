@@ -70,16 +70,17 @@ def test_bench_cli_help(benchmark, argv, tmp_path):
 
 
 # imu_tk (C++/Ceres) calibrates the accelerometer and the gyroscope of its own Xsens recording in 0.52 s of
-# whole-process time (issue #20's measurement, built and run side by side; docs/gyroscope.md says how to build it)
+# whole-process time (issue #20's measurement, its own test_imu_calib timed beside optcal on the same files)
 IMU_TK_SECONDS = 0.52
 
 
-def test_bench_raw_calibration_process(benchmark, tmp_path):
-    """The whole ``optcal calibrate --raw`` process on imu_tk's Xsens recording (51,175 samples, the default
-    command: units only), a fresh process per round; extra_info: the best time and its ratio to imu_tk's."""
+def test_bench_raw_calibration_process(benchmark, tmp_path, corpus):
+    """The whole ``optcal calibrate --raw`` process on imu_tk's Xsens recording (51,175 samples, from the real
+    corpus: tests/corpus.py; the default command: units only), a fresh process per round; extra_info: the best
+    time and its ratio to imu_tk's."""
     import gzip
 
-    data = Path(__file__).resolve().parents[1] / "data" / "imu_tk" / "xsens_acc.mat.gz"
+    data = corpus / "imu_tk" / "xsens_acc.mat.gz"
     path = tmp_path / "xsens_acc.mat"
     path.write_bytes(gzip.decompress(data.read_bytes()))
     argv = [*_command(), "calibrate", str(path), "--raw", "--units", "counts"]
