@@ -99,6 +99,13 @@ def calibrate_imu(positions, gyro, *, model=None, solver: str = "lm", options: d
                      + ", ".join(f"{a:.1f}-{b:.1f} s" for a, b in data.dropped_motions[:6])
                      + (" …" if len(data.dropped_motions) > 6 else "") + "; turn more slowly to keep them")
     scale = gyro_scale if gyro_scale is not None else NOMINAL_SCALE.get(gyro_units)
-    fit = calibrate_gyro(data, bias=gyro_bias, g_sensitivity=g_sensitivity, scale=scale, solver=solver,
-                         options=options, seed=seed, budget=budget)
+    try:
+        fit = calibrate_gyro(data, bias=gyro_bias, g_sensitivity=g_sensitivity, scale=scale, solver=solver,
+                             options=options, seed=seed, budget=budget)
+    except InputError as exc:
+        if not len(data.dropped_motions):
+            raise
+        raise InputError(f"{len(data.dropped_motions)} of {len(data.dropped_motions) + data.n_motions} motions "
+                         f"reach the gyroscope's rail and are left out, and the rest do not suffice: {exc}; turn "
+                         "more slowly, or record with a wider gyroscope range") from None
     return ImuCalibration(cal, fit, data, positions.units, solver, notes + fit.notes)
