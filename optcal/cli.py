@@ -20,7 +20,7 @@ import re
 import sys
 
 from . import commands
-from .errors import InputError
+from .errors import MAX_LINE, InputError, one_line
 
 
 class ArgumentParser(argparse.ArgumentParser):
@@ -238,7 +238,9 @@ def _run(args) -> int:
         sys.stdout.flush()  # inside the try: a reader that left early is met here, not at interpreter exit
         return rc
     except InputError as exc:
-        print(f"optcal {args.command}: error: {with_flags(str(exc), getattr(args, '_flags', {}))}", file=sys.stderr)
+        prefix = f"optcal {args.command}: error: "
+        message = one_line(with_flags(str(exc), getattr(args, "_flags", {})), MAX_LINE - len(prefix))
+        print(prefix + message, file=sys.stderr)
         return 2
     except KeyboardInterrupt:
         print(f"optcal {args.command}: interrupted", file=sys.stderr)

@@ -17,12 +17,13 @@ import gzip
 import io
 import itertools
 import lzma
+import re
 from collections import Counter
 from collections.abc import Collection
 from dataclasses import dataclass
 from pathlib import Path
 
-from .errors import InputError
+from .errors import InputError, listing
 
 COMPRESSED = {".gz": gzip.open, ".bz2": bz2.open, ".xz": lzma.open}
 COMMENT = ("#", "%")  # a line starting with one of these is a comment (or a commented header)
@@ -129,23 +130,41 @@ def csv_fields(line: str, delim: str | None) -> list[str]:
 
 def header_fields(line: str, delim: str | None, width: int) -> list[str] | None:
     """The names of a header line that has ``width`` fields split by the data's delimiter or, failing that, by
-    whitespace, a comma, a semicolon or a tab (``# t ax ay az`` over comma-separated data); else None."""
+    whitespace, a comma, a semicolon or a tab (``# t ax ay az`` over comma-separated data; ``% t, ax, ay, az``
+    over whitespace-separated data: a comma or semicolon at a name's end goes with the whitespace); else None."""
     for d in dict.fromkeys((delim, None, ",", ";", "\t")):
-        fields = [f for f in split_fields(line, d) if f] if d is None else split_fields(line, d)
+        fields = [g for f in split_fields(line, d) if (g := f.strip(",;"))] if d is None else split_fields(line, d)
         if len(fields) == width:
             return fields
     return None
 
 
+_UNIT_SUFFIX = re.compile(r"\s*[(\[]([^()\[\]]*)[)\]]\s*$")  # ``Timestamp(Ms)``, ``acc_x [m/s^2]``
+_SEPARATORS = re.compile(r"[\s_.\-]+")
+
+
+def column_key(name: str) -> str:
+    """A column's name as names are compared with a role's aliases: lower case, without a trailing unit in
+    parentheses or brackets and without spaces, underscores, dots or hyphens (``Acc_X``, ``acc x``,
+    ``ACCX (g)`` → ``accx``; ``Timestamp(Ms)`` → ``timestamp``)."""
+    return _SEPARATORS.sub("", _UNIT_SUFFIX.sub("", str(name))).lower()
+
+
+def unit_of(name: str) -> str | None:
+    """The unit a column's name gives in parentheses or brackets at its end (``Temp(Raw)`` → ``raw``), or None."""
+    m = _UNIT_SUFFIX.search(str(name))
+    return m.group(1).strip().lower() if m else None
+
+
 def commented_header(line: str, delim: str | None, width: int, known: Collection[str]) -> list[str] | None:
     """The header a comment line holds, or None: its text has ``width`` fields, none of them a number, and
-    names at least one column of ``known`` (case-insensitive), so that a remark of that many words is not
-    taken for names."""
+    names at least one column of ``known`` (compared as :func:`column_key`s: case, units and separators
+    aside), so that a remark of that many words is not taken for names."""
     fields = header_fields(uncomment(line), delim, width)
     if not fields or any(is_number(f) for f in fields):
         return None
-    low = {k.lower() for k in known}
-    return fields if any(f.lower() in low for f in fields) else None
+    keys = {column_key(k) for k in known}
+    return fields if any(column_key(f) in keys for f in fields) else None
 
 
 def _most_common(items: list):
@@ -197,10 +216,10 @@ def sniff_layout(path: Path, known: Collection[str] = (), what: str = "a raw rec
             d and is_number(x, dec) for x, d in zip(before[-1][1], ref[1])):
         header = before[-1][1]
         before = before[:-1]
-    elif known:
+    elif known:  # the last comment line above the data that is a header (a units line may follow it)
         after = before[-1][0] if before else -1
-        last = [ln for i, ln in comments if after < i < rows[start][0]]
-        header = commented_header(last[-1], delim, ref[0], known) if last else None
+        above = [ln for i, ln in comments if after < i < rows[start][0]]
+        header = next((h for ln in reversed(above) if (h := commented_header(ln, delim, ref[0], known))), None)
         commented = header is not None
     if header is not None:
         refuse_duplicates(header, path)
@@ -209,11 +228,11 @@ def sniff_layout(path: Path, known: Collection[str] = (), what: str = "a raw rec
         i, f = before[runs[-1] + 1] if runs[-1] + 1 < len(before) else rows[start - 1]
         why = (f"{len(f)} field(s) where they have {ref[0]}" if len(f) != ref[0]
                else "a cell that is not a number where they have one (an empty or text cell?)")
-        raise InputError(f"{path}: line {i + 1} ({','.join(f)}) breaks the data rows: {why}; fix or remove it")
+        raise InputError(f"{path}: line {i + 1} ({listing(f, 12, ',')}) breaks the data rows: {why}; fix or remove it")
     for i, f in reversed(before):  # the last such line is the one that breaks the run of data rows
         if len(f) == ref[0] and any(is_number(x, dec) for x in f):
             raise InputError(
-                f"{path}: line {i + 1} ({','.join(f)}) has the width of a data row but not its numbers "
+                f"{path}: line {i + 1} ({listing(f, 12, ',')}) has the width of a data row but not its numbers "
                 "(an empty or text cell?); fix or remove it"
             )
     meta = {f[0].strip().lower(): f[1].strip() for _, f in before if len(f) >= 2}

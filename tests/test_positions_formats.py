@@ -275,8 +275,7 @@ def test_unreadable_mat_files_are_one_line(tmp_path, P, capsys):
     raw = buf.getvalue()
     v73 = (b"MATLAB 7.3 MAT-file, Platform: GLNXA64, Created on: Tue Nov 24 2026 HDF5 schema 1.00 .".ljust(116)
            + bytes(8) + b"\x00\x02IM" + b"\x89HDF\r\n\x1a\n" + bytes(64))
-    bad = {"v73.mat": (v73, "is a MATLAB v7.3 (HDF5) file, which optcal does not read; save it with "
-                            "save(FILE, ..., '-v7')"),
+    bad = {"v73.mat": (v73, "is a MATLAB v7.3 (HDF5) file that cannot be read"),  # an HDF5 signature, no HDF5
            "truncated.mat": (raw[:180], "cannot read MAT file"),
            "junk.mat": (raw[:128] + b"\x01" * 64, "cannot read MAT file"),
            "header_only.mat": (raw[:60], "cannot read MAT file")}
@@ -300,7 +299,7 @@ def test_a_long_table_the_positions_reader_cannot_read_may_be_a_recording(tmp_pa
     six = tmp_path / "six.txt"
     np.savetxt(six, table, fmt="%.6f")
     named = tmp_path / "named.csv"
-    np.savetxt(named, table[:, :4], fmt="%.6f", delimiter=",", header="T,ACCELX,ACCELY,ACCELZ", comments="")
+    np.savetxt(named, table[:, :4], fmt="%.6f", delimiter=",", header="T,U,V,W", comments="")
     for path, fragment in ((six, "6 columns and no header"), (named, "missing column(s) ax, ay, az")):
         assert main(["calibrate", str(path)]) == 2
         err = capsys.readouterr().err
@@ -311,7 +310,7 @@ def test_a_long_table_the_positions_reader_cannot_read_may_be_a_recording(tmp_pa
         short.write_text("\n".join(path.read_text().splitlines()[:30]) + "\n")
         assert main(["calibrate", str(short)]) == 2
         assert "raw recording" not in capsys.readouterr().err  # 30 rows: a positions file with a wrong header
-    rec = read_recording(named, columns="t=T,ax=ACCELX,ay=ACCELY,az=ACCELZ", refuse_positions=True)
+    rec = read_recording(named, columns="t=T,ax=U,ay=V,az=W", refuse_positions=True)
     assert len(rec) == 1500  # read as the message says
 
 

@@ -422,7 +422,8 @@ def test_bad_input_no_static_intervals(tmp_path, capsys):
     code, err = _cli(["calibrate", path, "--raw", "--units", "counts", "--model", "linear9"], capsys)
     assert code == 2 and "found 1 static interval(s)" in err and "needs at least 9" in err
     # the one interval is the rest at the start; the turning after it is named as such (issue #20)
-    assert "outside the intervals found, no part is at rest" in err and "--intervals" in err
+    # (the whole message is longer than a refusal's 300 characters: the command line cuts its clauses' middles)
+    assert "outside the intervals found, no part" in err and "--intervals" in err
 
 
 def test_bad_input_too_few_poses_says_how_many(tmp_path, capsys):

@@ -1,5 +1,6 @@
 """Static intervals given by hand (docs/design.md §9.2): from a file of [start, end) sample indices (JSON,
-imucal's section list, CSV, ImuCalibration's two-row file) or from a label column of the recording."""
+imucal's section list, CSV, ImuCalibration's two-row file) or of times (a JSON object ``{"intervals": [[start,
+end], ...]}``, seconds from the recording's first sample), or from a label column of the recording."""
 
 from __future__ import annotations
 
@@ -8,17 +9,48 @@ from pathlib import Path
 
 import numpy as np
 
-from ..errors import InputError
+from ..errors import InputError, listing
 from .detection import DetectionResult, drop_saturated
 from .reading import Recording
 from .sniff import is_number, split_fields
+
+TIME_UNIT_KEYS = {"s": "s", "seconds": "s", "samples": "samples"}  # the object form's "unit"
+
+
+class IntervalTimes(np.ndarray):
+    """(r, 2) [start, end) intervals in seconds from the recording's first sample, as the JSON object form
+    ``{"intervals": ...}`` gives them (:func:`read_intervals`); :func:`given_intervals` turns them into
+    sample indices on the recording's own time axis."""
+
+
+def _pairs(items) -> np.ndarray:
+    return np.array([[o["start"], o["end"]] if isinstance(o, dict) else list(o) for o in items], float)
+
+
+def _object_form(obj: dict, path: Path) -> np.ndarray:
+    """The intervals of ``{"intervals": [[start, end], ...], "unit": "s"}`` (pairs or {start, end} items):
+    seconds from the recording's first sample by default (as ``optcal noise --interval`` takes them), or
+    sample indices with ``"unit": "samples"``."""
+    unit = TIME_UNIT_KEYS.get(str(obj.get("unit", "s")).strip().lower())
+    if unit is None:
+        raise InputError(f"intervals file {path}: \"unit\" {obj['unit']!r} is not one of s, samples (the intervals' "
+                         "unit: seconds from the first sample, or sample indices)")
+    other = [k for k in obj if k not in ("intervals", "unit")]
+    if other:
+        raise InputError(f"intervals file {path}: unknown key(s) {listing(other)} beside \"intervals\"; the object "
+                         "form holds \"intervals\" and, optionally, \"unit\" (s or samples)")
+    iv = _pairs(obj["intervals"])
+    return iv if unit == "samples" else iv.view(IntervalTimes)
 
 
 def read_intervals(path) -> tuple[np.ndarray, list[str] | None]:
     """[start, end) sample indices from a file: JSON (a list of [start, end] or {start, end}, or imucal's
     section list {name: {start, end}}, whose ``*_rot`` rotation sections are skipped), or CSV/text with a
     ``start,end`` header, rows of start,end, or two rows (starts, ends) as in ImuCalibration's
-    static_intervals.csv. Returns the intervals and the section names (None when the file has none)."""
+    static_intervals.csv. A JSON object ``{"intervals": [[start, end], ...]}`` gives seconds from the
+    recording's first sample (``"unit": "samples"`` beside it: sample indices), returned as
+    :class:`IntervalTimes` for :func:`given_intervals` to place on the recording. Returns the intervals and
+    the section names (None when the file has none)."""
     path = Path(path)
     try:
         text = path.read_text()
@@ -28,11 +60,14 @@ def read_intervals(path) -> tuple[np.ndarray, list[str] | None]:
     try:
         if path.suffix.lower() == ".json":
             obj = json.loads(text)
-            if isinstance(obj, dict):
+            if isinstance(obj, dict) and isinstance(obj.get("intervals"), list):
+                iv = _object_form(obj, path)
+            elif isinstance(obj, dict):
                 obj = {k: v for k, v in obj.items() if not str(k).endswith("_rot")}
                 names = list(obj)
-                obj = list(obj.values())
-            iv = np.array([[o["start"], o["end"]] if isinstance(o, dict) else list(o) for o in obj], float)
+                iv = _pairs(obj.values())
+            else:
+                iv = _pairs(obj)
         else:
             lines = [ln for ln in text.splitlines() if ln.strip() and not ln.lstrip().startswith("#")]
             delim = "," if "," in lines[0] else None
@@ -55,14 +90,41 @@ def read_intervals(path) -> tuple[np.ndarray, list[str] | None]:
         ) from None
     if iv.ndim != 2 or iv.shape[1] != 2 or not len(iv):
         raise InputError(f"intervals file {path} holds no start,end pairs")
+    if not np.all(np.isfinite(iv)):
+        raise InputError(f"intervals file {path}: start and end must be finite numbers")
+    if isinstance(iv, IntervalTimes):
+        return iv, names
     if np.any(iv != np.round(iv)):
-        raise InputError(f"intervals file {path}: start and end must be whole sample indices")
+        raise InputError(f"intervals file {path}: start and end must be whole sample indices (for seconds, write "
+                         "{\"intervals\": [[start, end], ...]})")
     return iv.astype(np.int64), names
+
+
+def _samples_of(recording: Recording, iv: np.ndarray) -> np.ndarray:
+    """[start, end) sample indices of [start, end) times ``iv`` (s from the first sample): the samples whose
+    time lies in each; an interval outside the recording, or holding no sample, is refused in seconds."""
+    if not np.isfinite(recording.rate):
+        raise InputError("intervals in seconds need the recording's times: give its time column or `rate`")
+    t = recording.t - recording.t[0]
+    step = 1.0 / recording.rate
+    tol = 1e-6 * step  # a time written to fewer digits than the clock's is still that sample's
+    start = np.searchsorted(t, iv[:, 0] - tol)
+    end = np.searchsorted(t, iv[:, 1] - tol)
+    bad = (iv[:, 0] < 0) | (iv[:, 1] > t[-1] + step + tol) | (end <= start)
+    if bad.any():
+        k = int(np.flatnonzero(bad)[0])
+        raise InputError(f"interval {k} ({iv[k, 0]:g} s to {iv[k, 1]:g} s) is empty or outside the recording's "
+                         f"{t[-1] + step:.6g} s; intervals given as {{\"intervals\": ...}} are [start, end) in seconds "
+                         "from the first sample (add \"unit\": \"samples\" for sample indices)")
+    return np.column_stack([start, end])
 
 
 def given_intervals(recording: Recording, iv, names=None, method: str = "given") -> DetectionResult:
     """A detection result from intervals given by hand ([start, end) sample indices); an interval holding
-    a saturated sample is dropped with a note."""
+    a saturated sample is dropped with a note. :class:`IntervalTimes` (seconds from the first sample) are
+    placed on the recording's time axis first."""
+    if isinstance(iv, IntervalTimes):
+        iv = _samples_of(recording, np.asarray(iv, float).reshape(-1, 2))
     iv = np.asarray(iv, np.int64).reshape(-1, 2)
     n = len(recording)
     bad = (iv[:, 0] < 0) | (iv[:, 1] > n) | (iv[:, 1] <= iv[:, 0])
@@ -90,6 +152,6 @@ def label_intervals(recording: Recording, values=None) -> DetectionResult:
     if values is not None:
         unknown = sorted(set(values) - set(names.tolist()))
         if unknown:
-            raise InputError(f"label(s) {', '.join(unknown)} do not occur; labels are {', '.join(sorted(set(names)))}")
+            raise InputError(f"label(s) {listing(unknown)} do not occur; labels are {listing(sorted(set(names)))}")
     iv = np.column_stack([starts, ends])[keep]
     return given_intervals(recording, iv, [str(x) for x in names[keep]], method="labels")

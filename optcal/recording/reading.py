@@ -2,10 +2,10 @@
 µs or ns, told apart by the sample interval), the three accelerometer outputs ``ax, ay, az`` in the sensor's
 units, optionally ``temp`` (°C). Files may be CSV (comma, semicolon or tab; decimal point or comma) or
 whitespace-separated, gzip/bz2/xz-compressed, with or without a header, and may start with ``key,value``
-lines; their layout is read by :mod:`optcal.recording.sniff`. MATLAB ``.mat`` files hold the same table as
-a matrix or named variables. Integer counts may be signed or unsigned (offset-binary); saturation is found
-from the ADC's rails (declared, or inferred from the data) and from runs at the recording's own extremes
-(:func:`saturation_of`).
+lines; their layout is read by :mod:`optcal.recording.sniff`. MATLAB ``.mat`` files (level 5, and v7.3 through
+h5py) hold the same table as a matrix or named variables. Integer counts may be signed or unsigned
+(offset-binary); saturation is found from the ADC's rails (declared, or inferred from the data) and from runs
+at the recording's own extremes (:func:`saturation_of`).
 """
 
 from __future__ import annotations
@@ -296,7 +296,11 @@ def _load_numeric(path: Path, lay: Layout, usecols: list[int], max_rows: int | N
     """The chosen columns as floats, (n, len(usecols)). Delimited files go through Arrow's multithreaded
     CSV reader when pyarrow is installed (several times faster than NumPy's); anything it does not read
     cleanly (comment lines, ragged rows, text in a number column, whitespace-separated files) goes through
-    numpy.loadtxt, a C reader too, whose messages name the offending row."""
+    numpy.loadtxt, a C reader too, whose messages name the offending row. A column asked for twice is read
+    once (Arrow refuses a repeated column)."""
+    cols, back = np.unique(np.asarray(usecols, int), return_inverse=True)
+    if len(cols) < len(usecols):
+        return _load_numeric(path, lay, cols.tolist(), max_rows)[:, back.ravel()]
     if lay.delimiter is not None and max_rows is None and _arrow_reader() is not None:
         out = _load_arrow(path, lay, usecols)
         if out is not None:

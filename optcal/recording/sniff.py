@@ -1,9 +1,11 @@
 """The layout of a raw recording's file (docs/design.md §9.2): the text table's delimiter, decimal mark,
 header (a commented one too), ``key,value`` lines (an ``Fs,100`` line gives the rate), byte-order mark and
 compression are read by :mod:`optcal.tablefile`, which the positions reader shares; here, which column
-holds which role (time, the accelerometer's ax, ay, az, the gyroscope's gx, gy, gz, temperature), a MATLAB
-``.mat`` file's table (:func:`mat_table`: level 5 through scipy.io.loadmat, a bad zlib checksum read with a
-warning, anything unreadable one line), and whether a table holds positions or a recording's samples
+holds which role (time, the accelerometer's ax, ay, az, the gyroscope's gx, gy, gz, temperature: by
+:data:`ALIASES`, names compared as :func:`~optcal.tablefile.column_key`s, so ``ACCELX``, ``Acc_X``, ``accX`` and
+``acc x (g)`` are all ax), a MATLAB ``.mat`` file's table (:func:`mat_table`: level 5 through scipy.io.loadmat, a
+bad zlib checksum read with a warning; v7.3, which is HDF5, through h5py; anything unreadable one line), and
+whether a table holds positions or a recording's samples
 (:func:`table_kind`, by its data, one decision for both readers).
 
 Errors name the parameters of :func:`optcal.recording.read_recording` in backquotes (`` `columns` ``); the
@@ -17,23 +19,26 @@ import io
 import logging
 import struct
 import zlib
+from collections.abc import Mapping
 from pathlib import Path
 
 import numpy as np
 
 from ..data import MANY_POSITIONS
-from ..errors import InputError
+from ..errors import InputError, listing
 from ..tablefile import (  # noqa: F401 - the layout's names, re-exported for the recording path
     COMPRESSED,
     DECODE_ERRORS,
     SNIFF_LINES,
     Layout,
+    column_key,
     compression,
     inner_suffix,
     is_number,
     open_binary,
     refuse_duplicates,
     split_fields,
+    unit_of,
 )
 from ..tablefile import sniff_layout as sniff_table
 
@@ -41,21 +46,26 @@ log = logging.getLogger(__name__)
 
 ROLES = ("t", "ax", "ay", "az", "gx", "gy", "gz", "temp")
 GYRO = ("gx", "gy", "gz")  # angular rate, in the file's units (rad/s, °/s or counts): optional, all three or none
-# header names of the gyroscope's axes: gx, gyr_x, gyro_x, wx, omega_x, ... (and gy, gz alike)
-GYRO_STEMS = ("g", "gyr_", "gyro_", "gyr", "gyro", "gyroscope_", "w", "w_", "omega_", "angvel_", "ang_vel_", "rate_")
+# Header names of the axes, a stem and the axis: ax, acc_x, AccX, ACCELX, accelerometer_x, ...; gx, gyr_x, GYROX,
+# wx, omega_x, ... Names are compared as column_keys (case, a trailing unit in parentheses or brackets, and
+# spaces, underscores, dots and hyphens aside), so acc_x stands for accx, Acc_X, ACC X and acc_x [m/s^2] too.
+ACC_STEMS = ("a", "acc", "accel", "acceleration", "accelerometer", "accl")
+GYRO_STEMS = ("g", "gyr", "gyro", "gyroscope", "w", "omega", "angvel", "ang_vel", "angular_velocity", "rate")
 ALIASES = {
-    "t": ("t", "time", "timestamp", "time_s", "t_s", "seconds"),
-    "ax": ("ax", "acc_x", "accx", "a_x", "accel_x", "acc_x_raw"),
-    "ay": ("ay", "acc_y", "accy", "a_y", "accel_y", "acc_y_raw"),
-    "az": ("az", "acc_z", "accz", "a_z", "accel_z", "acc_z_raw"),
-    **{g: tuple(stem + g[1] for stem in GYRO_STEMS) + (f"gyr_{g[1]}_raw", f"gyro_{g[1]}_raw") for g in GYRO},
+    "t": ("t", "time", "timestamp", "time_s", "t_s", "seconds", "tx", "time_ms", "t_ms", "timestamp_ms"),
+    **{a: tuple(f"{stem}_{a[1]}" for stem in ACC_STEMS) + tuple(f"{stem}_{a[1]}_raw" for stem in ACC_STEMS[1:3])
+       for a in ("ax", "ay", "az")},
+    **{g: tuple(f"{stem}_{g[1]}" for stem in GYRO_STEMS) + (f"gyr_{g[1]}_raw", f"gyro_{g[1]}_raw") for g in GYRO},
     "temp": ("temp", "temperature", "temp_c", "t_degc"),
 }
+ALIAS_KEYS = {r: frozenset(column_key(a) for a in names) for r, names in ALIASES.items()}
+CELSIUS = ("c", "°c", "degc", "deg c", "celsius", "degrees c")  # a temperature column's unit, if its name gives one
 # columns by position when a file has no header (or `columns` lists bare columns): 3, 4 and 5 as always; 7 is
 # an IMU's row, time, the accelerometer's three axes and the gyroscope's three
 POSITIONAL = {3: ("ax", "ay", "az"), 4: ("t", "ax", "ay", "az"), 5: ("t", "ax", "ay", "az", "temp"),
               7: ("t", "ax", "ay", "az", "gx", "gy", "gz")}
 KNOWN = {a for names in ALIASES.values() for a in names}  # the names a commented header line may hold
+NUMERIC_MAT_CLASSES = {"double", "single", "logical", *(f"{u}int{b}" for u in ("", "u") for b in (8, 16, 32, 64))}
 RATE_KEYS = ("fs", "rate", "sample rate", "sampling rate", "sample_rate", "sampling_rate", "fs_hz", "rate_hz")
 # columns only a positions file has (docs/design.md §9.1): a raw recording has one row per sample
 POSITIONS_ONLY = ("position", "n", "sx", "sy", "sz", "ref_x", "ref_y", "ref_z")
@@ -98,7 +108,7 @@ def mat_table(path: Path) -> tuple[list[str] | None, np.ndarray]:
     arrays = {k: (v.T if v.ndim == 2 and v.shape[0] < v.shape[1] and v.shape[0] <= wide else v).astype(float)
               for k, v in found.items() if v.dtype.kind in "iufb" and v.ndim <= 2 and v.size > 1}
     if not arrays:
-        raise InputError(f"{path} holds no numeric matrix (variables: {', '.join(found) or 'none'}); "
+        raise InputError(f"{path} holds no numeric matrix (variables: {listing(found) or 'none'}); "
                          "save the samples as an n × 3 or n × 4 matrix")
     if len(arrays) == 1:
         (a,) = arrays.values()
@@ -106,7 +116,7 @@ def mat_table(path: Path) -> tuple[list[str] | None, np.ndarray]:
     lengths = {k: max(v.shape) if v.ndim == 1 or 1 in v.shape else v.shape[0] for k, v in arrays.items()}
     if len(set(lengths.values())) > 1:
         raise InputError(f"{path}: its variables have different lengths "
-                         f"({', '.join(f'{k} {n}' for k, n in lengths.items())}); keep one table of samples")
+                         f"({listing(f'{k} {n}' for k, n in lengths.items())}); keep one table of samples")
     names, cols = [], []
     for k, v in arrays.items():
         v = v.reshape(lengths[k], -1)
@@ -119,14 +129,13 @@ def load_mat(raw: bytes, path) -> dict:
     """The variables of a MAT file's bytes (scipy.io.loadmat), every failure one line. A level 5 file whose
     compressed variables fail their zlib checksum, which MATLAB reads, is read when their data inflate in
     full (:func:`inflate_ignoring_checksums`), with a warning; a v7.3 file (HDF5), which scipy does not
-    read, is refused naming the way to save it."""
+    read, is read by :func:`load_mat73`."""
     from scipy.io import loadmat
 
     try:
         return loadmat(io.BytesIO(raw))
-    except NotImplementedError:
-        raise InputError(f"{path} is a MATLAB v7.3 (HDF5) file, which optcal does not read; save it with "
-                         "save(FILE, ..., '-v7') to read it") from None
+    except NotImplementedError:  # scipy's answer to a v7.3 file
+        return load_mat73(raw, path)
     except zlib.error as exc:
         repaired = inflate_ignoring_checksums(raw)
         if repaired is None:
@@ -143,6 +152,35 @@ def load_mat(raw: bytes, path) -> dict:
     except Exception as exc:  # noqa: BLE001 - scipy's parser raises many kinds on bytes it does not expect
         raise InputError(f"cannot read MAT file {path}: {exc or type(exc).__name__}; save it again from MATLAB "
                          "(save(FILE, ..., '-v7')) or as a text table") from None
+
+
+def load_mat73(raw: bytes, path) -> dict:
+    """The variables of a MATLAB v7.3 file's bytes, read with h5py: v7.3 is HDF5 behind a 512-byte MATLAB
+    header. Each top-level numeric variable (its ``MATLAB_class`` double, single, an integer or logical) is
+    returned as MATLAB shows it: HDF5 stores MATLAB's column-major arrays with their dimensions reversed, so
+    the array read is transposed. Anything else (text, structs, cells, sparse or empty arrays) is returned as
+    an empty object array, so that it is named but not read as data; HDF5's own groups (``#refs#``) are left
+    out. A file h5py cannot open is one line."""
+    try:
+        import h5py
+    except ImportError:  # pragma: no cover - h5py is a dependency
+        raise InputError(f"{path} is a MATLAB v7.3 (HDF5) file, which needs h5py: install it (pip install h5py), "
+                         "or save the file with save(FILE, ..., '-v7')") from None
+    out: dict = {}
+    try:
+        with h5py.File(io.BytesIO(raw), "r") as f:
+            for name, obj in f.items():
+                if name.startswith("#"):
+                    continue
+                cls = obj.attrs.get("MATLAB_class", b"")
+                cls = cls.decode(errors="replace") if isinstance(cls, bytes) else str(cls)
+                numeric = (isinstance(obj, h5py.Dataset) and cls in NUMERIC_MAT_CLASSES and obj.dtype.kind in "iufb"
+                           and not obj.attrs.get("MATLAB_empty", 0))
+                out[name] = np.asarray(obj[()]).T if numeric else np.empty(0, object)
+    except (OSError, ValueError, KeyError, TypeError) as exc:
+        raise InputError(f"{path} is a MATLAB v7.3 (HDF5) file that cannot be read ({exc}); save it again from "
+                         "MATLAB, with save(FILE, ..., '-v7') or '-v7.3'") from None
+    return out
 
 
 def inflate_ignoring_checksums(raw: bytes) -> tuple[bytes, int] | None:
@@ -235,9 +273,8 @@ def table_kind(names, N: np.ndarray, nrows: int, ncol: int | None = None) -> tup
         return "positions", named
     if r is not None and r <= SAMPLE_JUMP:
         shape = f" of {ncol} numbers and no header" if ncol is not None else ""
-        return "samples", (f"{nrows} rows{shape}, one per sample: consecutive rows differ by a median "
-                           f"{r:.2%} of the outputs' magnitude, as samples do, where positions differ by a "
-                           "large fraction of g")
+        return "samples", (f"{nrows} rows{shape}, one per sample: consecutive rows differ by a median {r:.2%} of "
+                           "the outputs' magnitude, where positions differ by a large fraction of g")
     return None, ""
 
 
@@ -264,26 +301,51 @@ def resolve_column(ref: str, lay: Layout, path: Path) -> int:
     names = lay.header or []
     close = difflib.get_close_matches(ref, names, n=1, cutoff=0.5)
     hint = f" (did you mean {close[0]!r}?)" if close else ""
-    where = f"its columns are {', '.join(names)}" if names else "it has no header, so give column indices"
+    where = f"its columns are {listing(names)}" if names else "it has no header, so give column indices"
     raise InputError(f"{path}: no column {ref!r}{hint}; {where}")
 
 
+def header_roles(lay: Layout, path: Path) -> dict[str, int]:
+    """Role → column index from the header's names (:data:`ALIASES`, compared as
+    :func:`~optcal.tablefile.column_key`s), among the numeric columns (a ``Time(hh:mm:ss)`` text column is not
+    a time). A role two columns could hold is refused for t, ax, ay, az, and left out for the gyroscope and
+    the temperature, as is a gyroscope without all three axes and a temperature whose name gives a unit other
+    than °C (``Temp(Raw)``). Columns that do not give ax, ay, az are refused, named (the first few)."""
+    keys = [column_key(h) for h in lay.header]
+    out: dict[str, int] = {}
+    for r in ROLES:
+        found = [j for j, k in enumerate(keys) if k in ALIAS_KEYS[r] and lay.numeric[j]
+                 and (r != "temp" or unit_of(lay.header[j]) in (None, *CELSIUS))]
+        if len(found) == 1:
+            out[r] = found[0]
+        elif len(found) > 1 and r in ("t", "ax", "ay", "az"):
+            raise InputError(f"{path}: columns {listing(lay.header[j] for j in found)} could each be {r}; name "
+                             "the columns with `columns`, e.g. t,ax,ay,az with names or 0-based indices")
+    if not all(r in out for r in GYRO):  # a gyroscope is three named axes, or none
+        out = {r: j for r, j in out.items() if r not in GYRO}
+    if all(r in out for r in ("ax", "ay", "az")):
+        return out
+    raise InputError(
+        f"{path}: cannot tell which columns are ax, ay, az (columns: {listing(lay.header)}); "
+        "name them with `columns`, e.g. t,ax,ay,az with names or 0-based indices"
+    )
+
+
+def _spec_items(spec) -> list[str]:
+    """``columns`` as a list of items: a string split at commas, a mapping {role: column} as role=column."""
+    if isinstance(spec, Mapping):
+        return [f"{r}={c}" for r, c in spec.items()]
+    return [str(s) for s in (spec.split(",") if isinstance(spec, str) else list(spec)) if str(s).strip()]
+
+
 def role_columns(spec, lay: Layout, path: Path) -> dict[str, int]:
-    """Role → column index from ``spec`` (positional ``t,ax,ay,az`` or ``role=column`` items, a string or a
-    sequence), or, when ``spec`` is None, from the header's names or the number of numeric columns."""
+    """Role → column index from ``spec`` (positional ``t,ax,ay,az`` or ``role=column`` items, a string, a
+    sequence or a mapping {role: column}), or, when ``spec`` is None, from the header's names
+    (:func:`header_roles`) or the number of numeric columns. A role given twice, or one column given for two
+    roles, is refused."""
     if spec is None:
         if lay.header is not None:
-            low = [h.lower() for h in lay.header]
-            found = {r: low.index(a) for r in ROLES for a in ALIASES[r] if a in low}
-            out = {r: found[r] for r in ROLES if r in found}
-            if not all(r in out for r in GYRO):  # a gyroscope is three named axes, or none
-                out = {r: j for r, j in out.items() if r not in GYRO}
-            if all(r in out for r in ("ax", "ay", "az")):
-                return out
-            raise InputError(
-                f"{path}: cannot tell which columns are ax, ay, az (columns: {', '.join(lay.header)}); "
-                "name them with `columns`, e.g. t,ax,ay,az with names or 0-based indices"
-            )
+            return header_roles(lay, path)
         numeric = [j for j, isnum in enumerate(lay.numeric) if isnum]
         if len(numeric) in POSITIONAL:
             return dict(zip(POSITIONAL[len(numeric)], numeric))
@@ -291,20 +353,32 @@ def role_columns(spec, lay: Layout, path: Path) -> dict[str, int]:
             f"{path}: {lay.ncol} columns and no header; name them with `columns` "
             "(0-based indices for t,ax,ay,az or ax,ay,az)"
         )
-    items = [s for s in (spec.split(",") if isinstance(spec, str) else list(spec)) if str(s).strip()]
-    if all("=" in str(s) for s in items):
-        pairs = [str(s).split("=", 1) for s in items]
-        bad = [r for r, _ in pairs if r.strip() not in ROLES]
+    items = _spec_items(spec)
+    if items and all("=" in s for s in items):
+        pairs = [[p.strip() for p in s.split("=", 1)] for s in items]
+        bad = [r for r, _ in pairs if r not in ROLES]
         if bad:
-            raise InputError(f"`columns`: unknown role(s) {', '.join(bad)}; roles are {', '.join(ROLES)}")
-        out = {r.strip(): resolve_column(c, lay, path) for r, c in pairs}
+            raise InputError(f"`columns`: unknown role(s) {listing(bad)}; roles are {', '.join(ROLES)}")
+        roles = [r for r, _ in pairs]
+        twice = next((r for j, r in enumerate(roles) if r in roles[:j]), None)
+        if twice is not None:
+            given = listing(c for r, c in pairs if r == twice)
+            raise InputError(f"`columns` gives {twice} more than once ({given}); give each role one column")
+        out = {r: resolve_column(c, lay, path) for r, c in pairs}
     elif len(items) in POSITIONAL:
-        out = {r: resolve_column(str(c), lay, path) for r, c in zip(POSITIONAL[len(items)], items)}
+        out = {r: resolve_column(c, lay, path) for r, c in zip(POSITIONAL[len(items)], items)}
     else:
         raise InputError(
-            f"`columns` {spec!r}: give 3 (ax,ay,az), 4 (t,ax,ay,az), 5 (t,ax,ay,az,temp) or 7 "
+            f"`columns` {listing(items)!r}: give 3 (ax,ay,az), 4 (t,ax,ay,az), 5 (t,ax,ay,az,temp) or 7 "
             "(t,ax,ay,az,gx,gy,gz) columns, or role=column items"
         )
+    by_column: dict[int, str] = {}
+    for r, j in out.items():
+        if j in by_column:
+            name = lay.header[j] if lay.header else j
+            raise InputError(f"`columns` gives column {name!r} for both {by_column[j]} and {r}; each role needs a "
+                             "column of its own")
+        by_column[j] = r
     missing = [r for r in ("ax", "ay", "az") if r not in out]
     if missing:
         raise InputError(f"`columns` lacks {', '.join(missing)}")

@@ -1,0 +1,453 @@
+"""Readers and messages for the files other labs write (issue #29, item 6): every refusal one line of at most
+300 characters (long lists cut where they are made, a backstop in the command line); the intervals file
+``{"intervals": [[s, e], ...]}`` (seconds from the first sample); a commented header line ``# id t dt ax ...``;
+MATLAB v7.3 (HDF5) through h5py; column names such as ``ACCELX``, ``acc_x``, ``AccX``, ``GYROX``, ``tx``
+mapped, or named in the refusal; ``--columns`` naming a column or a role twice refused in one line.
+
+The real files come from the corpus beside the project (``OPTCAL_CORPUS``, else ``../shared/data/real``);
+those tests are skipped where it is absent."""
+
+import gzip
+import json
+import os
+from pathlib import Path
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+
+from optcal.cli import _run, main
+from optcal.errors import MAX_LINE, InputError, listing, one_line
+from optcal.recording import given_intervals, read_intervals, read_recording
+from optcal.recording.intervals import IntervalTimes
+from optcal.recording.reading import _load_numeric
+from optcal.recording.sniff import ALIAS_KEYS, mat_table, sniff_layout
+from optcal.synthetic_recording import poses_recording
+
+
+def _corpus(*parts) -> Path:
+    env = os.environ.get("OPTCAL_CORPUS")
+    root = Path(env) if env else Path(__file__).resolve().parents[1].parent / "shared" / "data" / "real"
+    if not root.is_dir():
+        pytest.skip("the real corpus is absent: set OPTCAL_CORPUS to its folder")
+    return root.joinpath(*parts)
+
+
+def _cli(argv, capsys):
+    try:
+        code = main([str(a) for a in argv])
+    except SystemExit as exc:
+        code = exc.code
+    out = capsys.readouterr()
+    return code, out.out, out.err
+
+
+def _refused(argv, capsys, fragment):
+    """Exit 2, one line of at most MAX_LINE characters holding ``fragment``; the line is returned."""
+    code, _, err = _cli(argv, capsys)
+    lines = err.strip().splitlines()
+    assert code == 2 and len(lines) == 1, err
+    assert len(lines[0]) <= MAX_LINE, (len(lines[0]), lines[0])
+    assert fragment in lines[0], lines[0]
+    return lines[0]
+
+
+def _write(path, header, table, delimiter=","):
+    with open(path, "w") as fh:
+        if header is not None:
+            fh.write(header + "\n")
+        np.savetxt(fh, table, delimiter=delimiter, fmt="%.10g")
+    return path
+
+
+@pytest.fixture(scope="module")
+def poses():
+    """A recording of 12 poses held 3 s each at 100 Hz (in g) and its true rests ([start, end) samples)."""
+    syn = poses_recording(np.random.default_rng(29), n_poses=12, hold_s=3.0, noise_g=1e-3)
+    return syn.recording, syn.rests
+
+
+# == 1. one line of at most 300 characters =============================================================
+def test_listing_names_the_first_few_and_counts_the_rest():
+    assert listing(range(62)) == "0, 1, 2, 3, 4, 5, 6, 7, … (54 more)"
+    assert listing(range(62), 3) == "0, 1, 2, … (59 more)"
+    assert listing(["a", "b"], 3) == "a, b"
+    assert listing(range(4), 3) == "0, 1, 2, 3"  # "… (1 more)" would hide one name in more characters
+    assert listing("abcdef", 2, ",") == "a,b,… (4 more)"
+    assert listing([]) == ""
+
+
+def test_one_line_collapses_newlines_and_keeps_the_start_and_the_way_out():
+    assert one_line("a\n  b\r\nc") == "a b c"
+    assert one_line("short (aside)") == "short (aside)"
+    problem = "file.csv: the table is broken: " + ", ".join(f"column {i} is odd" for i in range(60))
+    out = one_line(problem + "; fix it with --columns", 200)
+    assert len(out) <= 200 and out.startswith("file.csv: the table is broken: column 0 is odd, column 1 is odd")
+    assert " … " in out and out.endswith("column 59 is odd; fix it with --columns")  # each clause keeps its ends
+    # the folders of a long path go first, then the middle of the longest clause
+    long = ("/very/long/folder/of/someone/who/keeps/data/deep/down/rec.csv looks odd (" + "x " * 60
+            + "); pass --raw (or name the columns)")
+    out = one_line(long, 150)
+    assert len(out) <= 150 and out.startswith("…/rec.csv looks odd (x x") and out.endswith(
+        "x x ); pass --raw (or name the columns)")
+    assert len(one_line("y" * 1000)) <= MAX_LINE
+
+
+def test_the_command_line_prints_any_refusal_in_one_line_of_at_most_300(capsys):
+    def refuse(_args):
+        raise InputError("line one\nline two: " + "word " * 200 + "; do this instead")
+
+    assert _run(SimpleNamespace(command="calibrate", _run=refuse, _flags={})) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and len(err.rstrip("\n")) <= MAX_LINE, err
+    assert err.startswith("optcal calibrate: error: line one line two:") and err.rstrip().endswith("do this instead")
+
+
+def _many_columns(path, rows=400):
+    """A 62-column log of six IMUs on one bar (time, a counter, then 6 × 10 channels named per IMU): names
+    no alias matches, as a lab's logger writes them."""
+    names = ["time_utc", "counter"] + [f"imu{k}_{q}" for k in range(1, 7) for q in
+                                        ("accel_1", "accel_2", "accel_3", "rate_1", "rate_2", "rate_3", "mag_1",
+                                         "mag_2", "mag_3", "temp_raw")]
+    assert len(names) == 62
+    rng = np.random.default_rng(3)
+    table = np.column_stack([np.arange(rows) / 100.0, np.arange(rows), rng.standard_normal((rows, 60))])
+    return _write(path, ",".join(names), table)
+
+
+def test_a_62_column_file_is_refused_in_one_short_line_that_names_the_way_out(tmp_path, capsys):
+    path = _many_columns(tmp_path / "bar_of_six_imus.csv")
+    with pytest.raises(InputError) as exc:
+        read_recording(path)
+    assert "(columns: time_utc, counter, imu1_accel_1, imu1_accel_2, imu1_accel_3, imu1_rate_1, imu1_rate_2, " \
+           "imu1_rate_3, … (54 more))" in str(exc.value)
+    line = _refused(["calibrate", path, "--raw"], capsys, "cannot tell which columns are ax, ay, az")
+    assert "… (54 more)" in line and line.endswith("name them with --columns, e.g. t,ax,ay,az with names or "
+                                                  "0-based indices")
+    # a name that is not there: the columns listed are cut the same way
+    line = _refused(["calibrate", path, "--raw", "--columns", "t=time_utc,ax=imu1_acc_1,ay=imu1_accel_2,"
+                     "az=imu1_accel_3"], capsys, "no column 'imu1_acc_1' (did you mean 'imu1_accel_1'?)")
+    assert "… (54 more)" in line
+
+
+def test_a_broken_row_of_a_wide_file_is_named_in_a_short_line(tmp_path, capsys):
+    path = _many_columns(tmp_path / "wide.csv")
+    lines = path.read_text().splitlines()
+    lines[5] = ",".join(["x"] * 40)  # 40 text cells where the data have 62 numbers
+    path.write_text("\n".join(lines) + "\n")
+    _refused(["calibrate", path, "--raw"], capsys, "line 6 (x,x,x,x,x,x,x,x,x,x,x,x,… (28 more)) breaks")
+
+
+# == 2. intervals in seconds: {"intervals": [[s, e], ...]} ==============================================
+def test_intervals_object_form_is_seconds_from_the_first_sample(tmp_path, poses):
+    rec, rests = poses
+    assert rec.t[0] == 0.0 and rec.rate == 100.0
+    seconds = rests / 100.0  # the true rests' [start, end) as times from the first sample
+    (tmp_path / "s.json").write_text(json.dumps({"intervals": seconds.tolist()}))
+    iv, names = read_intervals(tmp_path / "s.json")
+    assert isinstance(iv, IntervalTimes) and names is None
+    np.testing.assert_array_equal(np.asarray(iv), seconds)
+    np.testing.assert_array_equal(given_intervals(rec, iv, names).intervals, rests)
+    # times written to fewer digits (ms), and {start, end} items, give the same samples
+    (tmp_path / "ms.json").write_text(json.dumps({"intervals": [{"start": round(s, 3), "end": round(e, 3)}
+                                                                 for s, e in seconds], "unit": "s"}))
+    np.testing.assert_array_equal(given_intervals(rec, *read_intervals(tmp_path / "ms.json")).intervals, rests)
+    # "unit": "samples" keeps them sample indices, as every other form is
+    (tmp_path / "n.json").write_text(json.dumps({"intervals": rests.tolist(), "unit": "samples"}))
+    iv, _ = read_intervals(tmp_path / "n.json")
+    assert not isinstance(iv, IntervalTimes) and iv.dtype == np.int64
+    np.testing.assert_array_equal(iv, rests)
+    # a half-second interval from 1.0 s: the 50 samples at 100 Hz from sample 100
+    (tmp_path / "half.json").write_text(json.dumps({"intervals": [[1.0, 1.5]]}))
+    np.testing.assert_array_equal(given_intervals(rec, *read_intervals(tmp_path / "half.json")).intervals,
+                                  [[100, 150]])
+
+
+def test_intervals_object_form_refusals(tmp_path, poses):
+    rec, _ = poses
+    duration = rec.t[-1] - rec.t[0] + 0.01
+    cases = {
+        "outside.json": ({"intervals": [[0, 1], [duration - 1, duration + 5]]},
+                         f"interval 1 ({duration - 1:g} s to {duration + 5:g} s) is empty or outside the recording's"),
+        "negative.json": ({"intervals": [[-1, 1]]}, "interval 0 (-1 s to 1 s)"),
+        "empty.json": ({"intervals": [[1.001, 1.005]]}, "is empty or outside"),
+    }
+    for name, (obj, fragment) in cases.items():
+        (tmp_path / name).write_text(json.dumps(obj))
+        with pytest.raises(InputError, match=r"\[start, end\) in seconds from the first sample") as exc:
+            given_intervals(rec, *read_intervals(tmp_path / name))
+        assert fragment in str(exc.value), str(exc.value)
+    bad = {"unit.json": ({"intervals": [[0, 1]], "unit": "ms"}, "\"unit\" 'ms' is not one of s, samples"),
+           "key.json": ({"intervals": [[0, 1]], "rate": 100}, "unknown key(s) rate beside \"intervals\""),
+           "none.json": ({"intervals": []}, "holds no start,end pairs"),
+           "nan.json": ({"intervals": [[0, None]]}, "finite numbers")}
+    for name, (obj, fragment) in bad.items():
+        (tmp_path / name).write_text(json.dumps(obj))
+        with pytest.raises(InputError) as exc:
+            read_intervals(tmp_path / name)
+        assert fragment in str(exc.value), str(exc.value)
+    # seconds written into a plain list (sample indices) are told how to write them
+    (tmp_path / "list.json").write_text(json.dumps([[0.5, 1.5]]))
+    with pytest.raises(InputError, match=r"whole sample indices \(for seconds, write \{\"intervals\""):
+        read_intervals(tmp_path / "list.json")
+
+
+def test_intervals_in_seconds_calibrate_as_the_same_samples_do(tmp_path, poses, capsys):
+    rec, rests = poses
+    path = _write(tmp_path / "rec.csv", "t,ax,ay,az", np.column_stack([rec.t, rec.N]))
+    seconds = rests / rec.rate
+    (tmp_path / "s.json").write_text(json.dumps({"intervals": seconds.tolist()}))
+    (tmp_path / "n.json").write_text(json.dumps(rests.tolist()))
+    fits = []
+    for iv in ("s.json", "n.json"):
+        code, out, err = _cli(["calibrate", path, "--raw", "--intervals", tmp_path / iv, "--model", "linear9",
+                               "-o", tmp_path / f"{iv}.cal.json"], capsys)
+        assert code == 0, err
+        fits.append(json.loads((tmp_path / f"{iv}.cal.json").read_text())["parameters"])
+    assert fits[0] == fits[1]
+
+
+# == 3. a commented header line =======================================================================
+def _imu_rows(n=300, seed=0):
+    rng = np.random.default_rng(seed)
+    t = np.arange(n) / 100.0
+    return np.column_stack([np.arange(n), t, np.full(n, 0.01), rng.normal(0, 0.01, (n, 3)) + [0, 0, 1],
+                            rng.normal(0, 0.5, (n, 3))])
+
+
+@pytest.mark.parametrize("preamble", [
+    "# id t dt ax ay az gx gy gz\n",
+    "# logger v2, 100 Hz\n# id t dt ax ay az gx gy gz\n",
+    "# id t dt ax ay az gx gy gz\n# -  s  s  g  g  g  dps dps dps\n",  # a units line after the names
+    "# id t dt ax ay az gx gy gz\n#\n",
+    "% id, t, dt, ax, ay, az, gx, gy, gz\n",
+    "#ID T DT AX AY AZ GX GY GZ\n",
+])
+def test_a_commented_header_line_is_the_header(tmp_path, preamble):
+    rows = _imu_rows()
+    path = tmp_path / "log.txt"
+    with open(path, "w") as fh:
+        fh.write(preamble)
+        np.savetxt(fh, rows, fmt="%.8g")
+    lay = sniff_layout(path)
+    assert lay.commented_header and [h.lower() for h in lay.header] == ["id", "t", "dt", "ax", "ay", "az", "gx",
+                                                                        "gy", "gz"]
+    rec = read_recording(path)
+    assert rec.reading["header"] == "comment line"
+    assert [rec.columns[r].lower() for r in ("t", "ax", "ay", "az", "gx", "gy", "gz")] == \
+        ["t", "ax", "ay", "az", "gx", "gy", "gz"]
+    np.testing.assert_allclose(rec.t, rows[:, 1], atol=1e-12)
+    np.testing.assert_allclose(rec.N, rows[:, 3:6], rtol=1e-7)
+    np.testing.assert_allclose(rec.W, rows[:, 6:9], rtol=1e-7)
+    assert rec.rate == pytest.approx(100.0)
+
+
+# == 4. MATLAB v7.3 (HDF5) ============================================================================
+def write_mat73(path, variables: dict, compress: bool = False):
+    """A MATLAB v7.3 file as MATLAB writes one: HDF5 behind a 512-byte userblock holding MATLAB's 128-byte
+    header (text, subsystem offset, version 0x0200, endian mark ``IM``); each array stored with its
+    dimensions reversed (HDF5 is row-major, MATLAB column-major) and its MATLAB_class."""
+    import h5py
+
+    with h5py.File(path, "w", userblock_size=512) as f:
+        for name, value in variables.items():
+            if isinstance(value, str):
+                ds = f.create_dataset(name, data=np.frombuffer(value.encode("utf-16-le"), np.uint16)[:, None])
+                ds.attrs["MATLAB_class"] = np.bytes_("char")
+                ds.attrs["MATLAB_int_decode"] = np.int32(2)
+                continue
+            a = np.atleast_2d(np.asarray(value))
+            ds = f.create_dataset(name, data=a.T, compression="gzip" if compress else None)
+            ds.attrs["MATLAB_class"] = np.bytes_({"f": "double", "i": "int32", "u": "uint16", "b": "logical"}[
+                a.dtype.kind])
+        f.create_group("#refs#")
+    text = b"MATLAB 7.3 MAT-file, Platform: GLNXA64, Created on: Fri Nov 27 12:00:00 2026 HDF5 schema 1.00 ."
+    header = text.ljust(116) + bytes(8) + b"\x00\x02" + b"IM"
+    with open(path, "r+b") as fh:
+        fh.write(header.ljust(512, b"\x00"))
+    return path
+
+
+def test_a_mat_v73_matrix_is_read_as_matlab_shows_it(tmp_path, poses):
+    rec, _ = poses
+    table = np.column_stack([rec.t, rec.N])  # n × 4 in MATLAB: stored 4 × n in the HDF5 file
+    path = write_mat73(tmp_path / "rec.mat", {"data": table, "note": "hand-held, 100 Hz"}, compress=True)
+    assert path.read_bytes()[:19] == b"MATLAB 7.3 MAT-file"
+    header, got = mat_table(path)
+    assert header is None
+    np.testing.assert_array_equal(got, table)
+    r = read_recording(path)
+    assert r.reading["format"] == "MAT file" and r.columns == {"t": 0, "ax": 1, "ay": 2, "az": 3}
+    np.testing.assert_array_equal(r.N, rec.N)
+    np.testing.assert_allclose(r.t, rec.t)
+    # gzip-compressed as a whole, and stored as MATLAB's 4 × n (rows as columns), the same table
+    (tmp_path / "rec.mat.gz").write_bytes(gzip.compress(path.read_bytes()))
+    np.testing.assert_array_equal(read_recording(tmp_path / "rec.mat.gz").N, rec.N)
+    wide = write_mat73(tmp_path / "wide.mat", {"accelBuffer": table.T})
+    np.testing.assert_array_equal(read_recording(wide).N, rec.N)
+
+
+def test_mat_v73_named_variables_are_columns(tmp_path, poses):
+    rec, _ = poses
+    n = len(rec)
+    path = write_mat73(tmp_path / "vars.mat", {"time": rec.t[:, None], "AccX": rec.N[:, :1], "AccY": rec.N[:, 1:2],
+                                               "AccZ": rec.N[:, 2:], "counts": np.arange(n, dtype=np.int32)[:, None],
+                                               "valid": np.ones((n, 1), bool)})
+    header, table = mat_table(path)
+    assert header == ["AccX", "AccY", "AccZ", "counts", "time", "valid"]  # HDF5 lists them by name
+    r = read_recording(path)
+    assert r.columns == {"t": "time", "ax": "AccX", "ay": "AccY", "az": "AccZ"}
+    np.testing.assert_array_equal(r.N, rec.N)
+
+
+def test_mat_v73_without_numbers_and_broken_are_one_line(tmp_path, capsys):
+    text = write_mat73(tmp_path / "text.mat", {"note": "nothing here"})
+    _refused(["calibrate", text, "--raw"], capsys, "holds no numeric matrix (variables: note)")
+    broken = tmp_path / "broken.mat"
+    broken.write_bytes(text.read_bytes()[:700])
+    _refused(["calibrate", broken, "--raw"], capsys, "is a MATLAB v7.3 (HDF5) file that cannot be read")
+
+
+def test_a_mat_v73_positions_file_calibrates(tmp_path, capsys):
+    from optcal.model import get_model
+    from optcal.presets import PAPER_TRUTH
+    from optcal.simulate import simulate
+
+    m = get_model("linear9")
+    sim = simulate(m, {k: v for k, v in PAPER_TRUTH.items() if k in m.names}, np.random.default_rng(4),
+                   scheme="24", noise_g=10e-6)
+    path = write_mat73(tmp_path / "positions.mat", {"N": sim.data.N.T})  # 3 × 24, as Hassan & Bao store them
+    code, out, err = _cli(["calibrate", path, "--model", "linear9", "-o", tmp_path / "cal.json"], capsys)
+    assert code == 0, err
+    got = json.loads((tmp_path / "cal.json").read_text())["parameters"]
+    assert got["K_x"] == pytest.approx(PAPER_TRUTH["K_x"], rel=1e-4)
+
+
+def test_the_corpus_v73_recording_is_read():
+    import h5py
+
+    path = _corpus("sunsided", "full_sphere_accelerometer.mat")
+    with h5py.File(path, "r") as f:
+        stored = f["accelBuffer"][()]  # MATLAB's 10528 × 4, transposed by HDF5
+    rec = read_recording(path)
+    assert len(rec) == 10528 and rec.reading["format"] == "MAT file"
+    np.testing.assert_array_equal(rec.N, stored[1:].T)
+    np.testing.assert_allclose(rec.t, stored[0])
+    assert rec.N[0].tolist() == pytest.approx([0.0520019531, -0.1826171875, -1.0107421875])
+    norms = np.linalg.norm(rec.N, axis=1)
+    assert 0.95 < np.median(norms) < 1.05  # in g
+
+
+# == 5. column names ==================================================================================
+@pytest.mark.parametrize("names", [
+    "Timestamp(Ms),ACCELX,ACCELY,ACCELZ",
+    "time,acc_x,acc_y,acc_z",
+    "timestamp,AccX,AccY,AccZ",
+    "tx,accX,accY,accZ",
+    "t,Acc_X,Acc_Y,Acc_Z",
+    "time [s],Acc X [m/s^2],Acc Y [m/s^2],Acc Z [m/s^2]",
+    "t,ax,ay,az",
+    "Time,Accelerometer_X,Accelerometer_Y,Accelerometer_Z",
+])
+def test_accelerometer_and_time_names_are_recognised(tmp_path, names):
+    rows = _imu_rows()
+    path = _write(tmp_path / "rec.csv", names, rows[:, [1, 3, 4, 5]])
+    rec = read_recording(path)
+    assert rec.columns == dict(zip(("t", "ax", "ay", "az"), names.split(",")))
+    np.testing.assert_allclose(rec.N, rows[:, 3:6], rtol=1e-9)
+
+
+@pytest.mark.parametrize("gyro", ["GYROX,GYROY,GYROZ", "gyr_x,gyr_y,gyr_z", "GyrX,GyrY,GyrZ", "gx,gy,gz",
+                                  "Gyro X (dps),Gyro Y (dps),Gyro Z (dps)", "omega_x,omega_y,omega_z"])
+def test_gyroscope_names_are_recognised(tmp_path, gyro):
+    rows = _imu_rows()
+    path = _write(tmp_path / "imu.csv", "time,ACCELX,ACCELY,ACCELZ," + gyro, rows[:, [1, 3, 4, 5, 6, 7, 8]])
+    rec = read_recording(path)
+    assert [rec.columns[g] for g in ("gx", "gy", "gz")] == gyro.split(",")
+    np.testing.assert_allclose(rec.W, rows[:, 6:9], rtol=1e-9)
+
+
+def test_the_alias_table_gives_each_name_one_role():
+    roles = list(ALIAS_KEYS)
+    for i, a in enumerate(roles):
+        for b in roles[i + 1:]:
+            assert not ALIAS_KEYS[a] & ALIAS_KEYS[b], (a, b, ALIAS_KEYS[a] & ALIAS_KEYS[b])
+    assert {"accelx", "accx", "ax", "accelerometerx"} <= ALIAS_KEYS["ax"]
+    assert {"gyrox", "gyrx", "gx"} <= ALIAS_KEYS["gx"] and {"t", "tx", "time", "timestamp"} <= ALIAS_KEYS["t"]
+
+
+def test_text_and_raw_columns_are_not_taken_for_a_role(tmp_path):
+    """TWLogger's layout: ``Time(hh:mm:ss)`` is text (the numeric ``Timestamp(Ms)`` is the time) and
+    ``Temp(Raw)`` is no temperature in °C; ``Temp(C)`` is."""
+    rows = _imu_rows(50)
+    lines = ["Date,Time(hh:mm:ss),Timestamp(Ms),Temp(Raw),ACCELX,ACCELY,ACCELZ"] + [
+        f"07/11/2018,05:34:{i % 60:02d},{1000 * r[1]:.0f},0,{r[3]:.6f},{r[4]:.6f},{r[5]:.6f}"
+        for i, r in enumerate(rows)]
+    (tmp_path / "tw.csv").write_text("\n".join(lines) + "\n")
+    rec = read_recording(tmp_path / "tw.csv")
+    assert rec.columns == {"t": "Timestamp(Ms)", "ax": "ACCELX", "ay": "ACCELY", "az": "ACCELZ"}
+    assert rec.temp is None and rec.reading["time_unit"] == "ms"
+    np.testing.assert_allclose(rec.t, rows[:, 1], atol=1e-9)
+    (tmp_path / "c.csv").write_text("\n".join(ln.replace("Temp(Raw)", "Temp(C)") for ln in lines) + "\n")
+    assert read_recording(tmp_path / "c.csv").columns["temp"] == "Temp(C)"
+
+
+def test_two_columns_for_one_role_are_refused_naming_both(tmp_path, capsys):
+    rows = _imu_rows()
+    path = _write(tmp_path / "two.csv", "t,ax,acc_x,ay,az", rows[:, [1, 3, 3, 4, 5]])
+    line = _refused(["calibrate", path, "--raw"], capsys, "columns ax, acc_x could each be ax; name the columns "
+                                                          "with --columns")
+    assert line.startswith("optcal calibrate: error: ")
+    # a gyroscope that two columns could be is left out (the accelerometer is still read)
+    path = _write(tmp_path / "g.csv", "t,ax,ay,az,gx,gyr_x,gy,gz", rows[:, [1, 3, 4, 5, 6, 6, 7, 8]])
+    assert read_recording(path).W is None
+
+
+def test_the_twlogger_recording_is_read_without_columns():
+    path = _corpus("twlogger", "T1D0711-00.CSV.gz")
+    rec = read_recording(path, units="counts")
+    assert rec.columns == {"t": "Timestamp(Ms)", "ax": "ACCELX", "ay": "ACCELY", "az": "ACCELZ"}
+    assert len(rec) == 44000 and rec.reading["time_unit"] == "ms"
+    assert rec.N[0].tolist() == [1488.0, 976.0, -4832.0] and rec.t[0] == pytest.approx(15.225)
+    assert rec.rate == pytest.approx(62.5)  # a 16 ms step
+
+
+def test_a_raw_recording_with_recognised_names_given_as_positions_is_told_to_use_raw(tmp_path, capsys):
+    rows = _imu_rows(1500)
+    path = _write(tmp_path / "named.csv", "T,ACCELX,ACCELY,ACCELZ", rows[:, [1, 3, 4, 5]])
+    _refused(["calibrate", path], capsys, "looks like a raw recording, not a positions file")
+
+
+# == 6. --columns naming a column or a role twice =====================================================
+@pytest.mark.parametrize("spec, fragment", [
+    ("ax=a,ay=a,az=c", "gives column 'a' for both ax and ay; each role needs a column of its own"),
+    ("t=t,ax=a,ay=b,az=a", "gives column 'a' for both ax and az"),
+    ("a,a,c", "gives column 'a' for both ax and ay"),
+    ("t,a,b,t", "gives column 't' for both t and az"),
+    ("ax=a,ax=b,ay=b,az=c", "gives ax more than once (a, b); give each role one column"),
+    ("ax=a,ay=b,az=c,ax=0", "gives ax more than once (a, 0)"),
+])
+def test_a_column_or_role_given_twice_is_one_line(tmp_path, capsys, spec, fragment):
+    rows = _imu_rows()
+    path = _write(tmp_path / "abc.csv", "t,a,b,c", rows[:, [1, 3, 4, 5]])
+    with pytest.raises(InputError, match=fragment.replace("(", r"\(").replace(")", r"\)")):
+        read_recording(path, columns=spec)
+    _refused(["calibrate", path, "--raw", "--columns", spec], capsys, fragment)
+
+
+def test_columns_as_a_mapping(tmp_path):
+    rows = _imu_rows()
+    path = _write(tmp_path / "abc.csv", "t,a,b,c", rows[:, [1, 3, 4, 5]])
+    rec = read_recording(path, columns={"t": "t", "ax": "c", "ay": "b", "az": 1})
+    np.testing.assert_allclose(rec.N, rows[:, [5, 4, 3]], rtol=1e-9)
+    with pytest.raises(InputError, match="gives column 'a' for both ax and ay"):
+        read_recording(path, columns={"ax": "a", "ay": "a", "az": "c"})
+
+
+def test_a_column_asked_for_twice_is_read_once(tmp_path):
+    """The loader itself takes a repeated column (Arrow's reader refuses one with a KeyError)."""
+    rows = _imu_rows()
+    path = _write(tmp_path / "abc.csv", "t,a,b,c", rows[:, [1, 3, 4, 5]])
+    lay = sniff_layout(path)
+    got = _load_numeric(path, lay, [1, 1, 3])
+    np.testing.assert_allclose(got, rows[:, [3, 3, 5]], rtol=1e-9)
