@@ -136,6 +136,10 @@ def _hb_ref():
     return scale, HB_B_LM, cos
 
 
+# shen_gesture: the source's Tedaldi fit re-run (the folder's README): counts per g and output offsets −Ba (counts)
+SHEN_K = np.array([2048.732, 2052.263, 2073.638])
+SHEN_OFFSET = np.array([18.984, 856.327, 1022.699])
+
 CK = DATA / "ck_explorer" / "acc_log.csv"
 CK_RATE = 100.0  # assumed: the source does not give it; 100 Hz makes each 100-sample pose 1 s long
 
@@ -198,8 +202,18 @@ CORPUS = {
                                   "either", "datasheet", (0.03, np.array([0.05, 0.05, 0.08]), None)),
     "sensor_fusion_tilt_sphere": ("sunsided/tilt_sphere_accelerometer.mat", ["--raw", "--units", "g"],
                                   "refuse", None, None),
+    # issue #29: a hand-held MPU-9250 whose settling rests share segments with motions, and a rocket board
+    # at 20 Hz whose data are in m/s² already (no published calibration: the nominal, BMI270-like ±1 %, 20 mg)
+    "shen_gesture": ("shen_gesture/caldata.mat", ["--raw", "--units", "counts", "--columns", "0,1,2,3"],
+                     "fit", lambda: (SHEN_K, SHEN_OFFSET, None), (2e-4, 2.0, None)),
+    **{f"sdr_rev2_{n.lower()}": (f"sdr_rev2/IMU_Rev2_Data_{n}.txt.gz",
+                                 ["--raw", "--units", "m/s2", "--columns", "0,1,2,3"], "either",
+                                 lambda: (np.full(3, G0), np.zeros(3), None), (0.01, 0.2, None))
+       for n in ("Long", "Short")},
 }
-SOURCES = {"imucal", "mpu6050", "imu_tk", "hassan_bao", "mikov", "ck_explorer", "twlogger", "sunsided"}
+SOURCES = {"imucal", "mpu6050", "imu_tk", "hassan_bao", "mikov", "ck_explorer", "twlogger", "sunsided",
+           "shen_gesture", "sdr_rev2"}
+NO_LICENCE = {"shen_gesture", "sdr_rev2"}  # none stated by the source: used here for testing only
 
 
 def _xsens_check(scale, offset, cos, tol):
@@ -223,7 +237,8 @@ def test_the_corpus_is_twice_as_wide():
     assert len(CORPUS) >= 12
     assert {f.split("/")[0] for f, *_ in CORPUS.values()} == SOURCES
     for folder in SOURCES:
-        assert (DATA / folder / "README.md").is_file() and any((DATA / folder).glob("LICENSE*"))
+        assert (DATA / folder / "README.md").is_file()
+        assert any((DATA / folder).glob("LICENSE*")) or folder in NO_LICENCE
 
 
 @pytest.mark.parametrize("name", list(CORPUS))
@@ -267,6 +282,88 @@ def _check(name, extra, tmp_path, capsys):
     np.testing.assert_allclose(offset, ref_offset, atol=atol, err_msg=f"{name}: offsets")
     if ref_cos is not None and ctol is not None:
         np.testing.assert_allclose(cos, ref_cos, atol=ctol, err_msg=f"{name}: axis angles (cosines)")
+
+
+# == optcal imu on every recording with a gyroscope (issue #29): the same rule ==============================
+# name: (accelerometer file, gyroscope file or None, options, expected outcome, reference gyroscope scale factors
+# (output units per rad/s) or None, their relative tolerance)
+IMU_TK_GYRO_SCALE = 1 / np.array([0.000209295, 0.000209899, 0.000209483])  # imu_tk's own result, counts/(rad/s)
+SHEN_GYRO_SCALE = np.array([932.34, 945.60, 939.71])  # the source's gyroscope fit re-run, counts/(rad/s)
+IMU_CORPUS = {
+    "xsens": ("imu_tk/xsens_acc.mat.gz", "imu_tk/xsens_gyro.mat.gz",
+              ["--units", "counts", "--gyro-units", "counts", "--gravity-ms2", "9.81744"], "fit",
+              IMU_TK_GYRO_SCALE, 3e-3),
+    "imucal_continuous": ("imucal/example_ferraris_session.csv", None,
+                          ["--units", "m/s2", "--rate", "102.4", "--gravity-ms2", "9.81", "--columns",
+                           "ax=acc_x,ay=acc_y,az=acc_z", "--gyro-columns", "gyr_x,gyr_y,gyr_z", "--gyro-units",
+                           "deg/s"], "fit", "imucal", 0.01),
+    "shen_gesture": ("shen_gesture/caldata.mat", None,
+                     ["--units", "counts", "--columns", "0,1,2,3", "--gyro-columns", "4,5,6", "--gyro-units",
+                      "counts"], "fit", SHEN_GYRO_SCALE, 2e-3),
+    **{f"mikov_imu{i}": (f"mikov/imu{i}.log.gz", None,
+                         ["--units", "m/s2", "--gravity-ms2", "9.81", "--rate", "100", "--columns", "ax=0,ay=1,az=2",
+                          "--gyro-columns", "3,4,5", "--gyro-units", "rad/s"], "fit", np.ones(3), 0.02)
+       for i in range(5)},
+    **{f"sdr_rev2_{n.lower()}": (f"sdr_rev2/IMU_Rev2_Data_{n}.txt.gz", None,
+                                 ["--units", "m/s2", "--columns", "0,1,2,3", "--gyro-columns", "4,5,6",
+                                  "--gyro-units", "deg/s"], "either", None, None)
+       for n in ("Long", "Short")},
+}
+
+
+@pytest.mark.parametrize("name", list(IMU_CORPUS))
+def test_imu_default_command(name, tmp_path, capsys):
+    """``optcal imu`` with no model and no detector option: exit 0 with scale factors within the tolerance of
+    the reference (the source's own gyroscope calibration, or a datasheet's nominal within 2 %), otherwise one
+    line and exit 2 with nothing written. sdr_rev2's gyroscope reads about half the true rate (its README):
+    its long log is written with a note naming the 0.5× scale, its short log's fit is refused by the gates."""
+    acc, gyro, args, expect, ref, rtol = IMU_CORPUS[name]
+    out = tmp_path / "imu.json"
+    extra = ["--gyro", str(DATA / gyro)] if gyro else []
+    if gyro:  # imu_tk's pair: two gzip-compressed MAT files, decompressed for the reader of the second file
+        import gzip
+
+        for f in (acc, gyro):
+            (tmp_path / f.split("/")[-1][:-3]).write_bytes(gzip.decompress((DATA / f).read_bytes()))
+        acc_path, extra = tmp_path / acc.split("/")[-1][:-3], ["--gyro", str(tmp_path / gyro.split("/")[-1][:-3])]
+    else:
+        acc_path = DATA / acc
+    code, text, err = _run(["imu", str(acc_path), *extra, *args, "-o", str(out)], capsys)
+    if expect == "either" and code != 0:
+        lines = err.strip().splitlines()
+        assert code == 2 and len(lines) == 1 and lines[0].startswith("optcal imu: error: "), err
+        assert not out.exists()
+        return
+    assert code == 0, err.strip()
+    g = json.loads(out.read_text())["gyroscope"]
+    K = np.array([g["parameters"][f"K_{a}"] for a in "xyz"])
+    assert np.all(K > 0)
+    if isinstance(ref, str):  # imucal's own Ferraris calibration of this sensor (another session, counts to
+        # deg/s): its K_g over the nominal 16.4 counts per °/s (a BMI160 at ±2000 °/s) is what the session's
+        # deg/s, converted with the nominal, are off by per axis
+        K_g = np.diag(json.loads((DATA / "imucal" / "example_cal.json").read_text())["K_g"])
+        ref = np.degrees(1.0) * K_g / 16.4
+    if ref is not None:
+        np.testing.assert_allclose(K, ref, rtol=rtol, err_msg=f"{name}: gyroscope scale factors")
+    elif name == "sdr_rev2_long":
+        assert "0.51" in text and "57.3 of deg/s" in text  # the note names the half scale and its likely cause
+
+
+def test_imu_and_calibrate_make_the_same_choices(tmp_path, capsys):
+    """On one file, ``optcal imu`` and ``optcal calibrate`` (given the gyroscope's columns) find the same rests
+    and fit the same model with the same fallback (issue #29: imu refused what calibrate fell back on)."""
+    path = DATA / "shen_gesture" / "caldata.mat"
+    cal, imu = tmp_path / "cal.json", tmp_path / "imu.json"
+    code, _, err = _run(["calibrate", str(path), "--raw", "--units", "counts", "--columns",
+                         "t=0,ax=1,ay=2,az=3,gx=4,gy=5,gz=6", "-o", str(cal)], capsys)
+    assert code == 0, err
+    code, _, err = _run(["imu", str(path), "--units", "counts", "--columns", "0,1,2,3", "--gyro-columns", "4,5,6",
+                         "--gyro-units", "counts", "-o", str(imu)], capsys)
+    assert code == 0, err
+    a, b = json.loads(cal.read_text()), json.loads(imu.read_text())
+    assert a["model"] == b["model"] and a["data"]["n_positions"] == b["data"]["n_positions"]
+    np.testing.assert_allclose([a["parameters"][k] for k in ("K_x", "K_y", "K_z")],
+                               [b["parameters"][k] for k in ("K_x", "K_y", "K_z")], rtol=1e-12)
 
 
 def test_mikov_without_columns_asks_for_them(tmp_path, capsys):
