@@ -8,7 +8,9 @@ The block: ``model`` (``gyro9``: scale and misalignment, bias from the rests; ``
 :meth:`GyroCalibration.apply` subtracts before the model: the bias parameters, when fitted, are the rate
 bias beyond it; with the bias from the rests ``offset_spread_raw`` is its SD across the rests, the drift
 the file cannot follow), ``data`` {``n_rests``, ``n_motions``, ``rms_motion_angle_rad``,
-``chi2_per_dof``}, ``solver``, ``observability`` and, when it was run, ``g_sensitivity_test``.
+``chi2_per_dof``}, ``solver``, ``observability`` and, when it was run, ``g_sensitivity_test``. A fit kept with
+``force_weak`` although the gates refused it (:func:`optcal.gyro.analysis.plausibility`) has ``forced`` (true) and
+``forced_reasons``, as the accelerometer's record.
 
 A block imported from another tool's file (``optcal import``, :func:`imported_block`) holds ``model``
 (gyro12, or gyro21 with g-sensitivity), ``terms``, ``bias_mode`` ``fit``, ``parameters``, ``stderr`` (all
@@ -28,7 +30,8 @@ from .model import AXES, BIAS, GSENS, MISALIGNMENT, SCALE, GyroModel, get_gyro_m
 
 GYRO_UNITS = ("counts", "deg/s", "rad/s", "volts")
 CALIBRATED = "rad/s"
-# deg/s or rad/s outputs have a known nominal scale (output units per rad/s); counts and volts do not
+# deg/s or rad/s outputs have a known nominal scale (output units per rad/s); counts and volts do not. A fit more
+# than 10 % from it is said in a note, beyond 10 times refused (optcal.gyro.analysis, docs/gyroscope.md §11).
 NOMINAL_SCALE = {"deg/s": 180.0 / math.pi, "rad/s": 1.0}
 
 
@@ -37,8 +40,10 @@ def _num(v) -> float | None:
     return v if math.isfinite(v) else None
 
 
-def gyro_block(problem, x, stderr, *, solver: str, observability: dict, g_test: dict | None = None) -> dict:
-    """The ``gyroscope`` block of a fitted :class:`optcal.gyro.GyroProblem` at ``x`` with ``stderr``."""
+def gyro_block(problem, x, stderr, *, solver: str, observability: dict, g_test: dict | None = None,
+               forced: list | None = None) -> dict:
+    """The ``gyroscope`` block of a fitted :class:`optcal.gyro.GyroProblem` at ``x`` with ``stderr``; ``forced``:
+    the reasons a fit kept with ``force_weak`` would have been refused for (:attr:`GyroFit.forced`)."""
     model: GyroModel = problem.model
     d = problem.data
     angles = problem.motion_angles(x)
@@ -63,6 +68,9 @@ def gyro_block(problem, x, stderr, *, solver: str, observability: dict, g_test: 
         out["offset_spread_raw"] = [float(v) for v in np.std(problem.data.rest_W + _offsets(problem), axis=0)]
     if g_test is not None:
         out["g_sensitivity_test"] = g_test
+    if forced:  # written only then, so that the blocks of plausible fits read as before
+        out["forced"] = True
+        out["forced_reasons"] = [str(r) for r in forced]
     return out
 
 

@@ -4,6 +4,12 @@ motions do not determine it, standard errors, and the g-sensitivity test.
 Standard errors are the Cramér-Rao bound of the whitened residuals (:func:`optcal.analysis.crlb` with
 unit noise), scaled by √(χ²/dof) when the fit's χ²/dof exceeds 1 (Birge): the whitening assumes white
 noise, and real rests hold more (bias instability, a hand that is not quite still).
+
+A fit is returned only when it is plausible (:func:`optcal.gyro.analysis.plausibility`, docs/gyroscope.md §11):
+scale factors positive, near the declared units' factor and one another, misalignments small and determined,
+χ²/dof and the motions' residual not far above the noise; otherwise an :class:`InputError` of one line with
+the likely cause and the way out, or with ``force_weak`` the fit marked as forced. A scale more than 10 %
+from the declared units' factor (or the nominal scale given) is said in a note.
 """
 
 from __future__ import annotations
@@ -14,7 +20,7 @@ import numpy as np
 
 from .. import analysis
 from ..errors import InputError
-from .analysis import check_observable, g_sensitivity_test
+from .analysis import check_observable, g_sensitivity_test, plausibility, refusal_line, scale_note
 from .data import GyroData
 from .problem import GyroProblem
 
@@ -29,6 +35,7 @@ class GyroFit:
     chi2_dof: float
     g_test: dict | None = None
     notes: list = field(default_factory=list)
+    forced: list = field(default_factory=list)  # the reasons a `force_weak` fit would have been refused for
 
 
 # A fitted scale further than this (relative) from the nominal one is fitted again with the whitening at the
@@ -72,10 +79,47 @@ def _fit(data, *, g_sensitivity, bias, scale, solver, options, seed, budget) -> 
 
 def calibrate_gyro(data: GyroData, *, bias: str = "rests", g_sensitivity: bool = False, scale=None,
                    solver: str = "lm", options: dict | None = None, seed: int = 0,
-                   budget: int | None = None) -> GyroFit:
+                   budget: int | None = None, force_weak: bool = False) -> GyroFit:
     """Fit the gyroscope of ``data`` (:class:`GyroData`). ``g_sensitivity``: fit G as well and keep it only
     when the likelihood-ratio test finds it (:func:`optcal.gyro.analysis.g_sensitivity_test`; needs the
-    bias fitted, ``bias="fit"``); the test's outcome is in ``g_test`` and a note either way."""
+    bias fitted, ``bias="fit"``); the test's outcome is in ``g_test`` and a note either way. An implausible
+    fit is refused (:func:`gate`); ``force_weak`` returns it, its ``forced`` listing the reasons."""
+    return gate(_calibrate(data, bias=bias, g_sensitivity=g_sensitivity, scale=scale, solver=solver,
+                           options=options, seed=seed, budget=budget), scale=scale, force_weak=force_weak)
+
+
+def gate(fit: GyroFit, *, scale=None, force_weak: bool = False) -> GyroFit:
+    """Refuse an implausible ``fit`` in one line (:func:`optcal.gyro.analysis.plausibility`), or with
+    ``force_weak`` mark it as forced (a first note and ``forced``); add a note when its scale is more than
+    10 % from the declared units' factor (:data:`optcal.gyro.calfile.NOMINAL_SCALE`) or, for units without
+    one, from the nominal ``scale`` given."""
+    from .calfile import NOMINAL_SCALE
+
+    p = fit.problem
+    units = p.data.units
+    declared = NOMINAL_SCALE.get(units)
+    given = None if scale is None else np.broadcast_to(np.asarray(scale, float), (3,))
+    residual = float(np.degrees(np.sqrt(np.mean(p.motion_angles(fit.x) ** 2))))
+    refused = plausibility(p.model.names, fit.x, fit.stderr, chi2_dof=fit.chi2_dof, residual_deg=residual,
+                           units=units, nominal=declared)
+    if refused and not force_weak:
+        raise InputError(refusal_line(refused))
+    if refused:
+        fit.forced = [r.reason for r in refused]
+        fit.notes.insert(0, "gyroscope forced although implausible: " + "; ".join(fit.forced))
+    if declared is not None:
+        note = scale_note(fit.x[:3], units, declared, declared=True)
+    elif given is not None and np.ptp(given) == 0:
+        note = scale_note(fit.x[:3], units, float(given[0]), declared=False)
+    else:  # searched for from the motions (or given per axis): nothing to compare with
+        note = None
+    if note:
+        fit.notes.append(note)
+    return fit
+
+
+def _calibrate(data: GyroData, *, bias: str, g_sensitivity: bool, scale, solver: str, options, seed: int,
+               budget) -> GyroFit:
     kw = dict(scale=scale, solver=solver, options=options, seed=seed, budget=budget)
     if not g_sensitivity:
         return _fit(data, g_sensitivity=False, bias=bias, **kw)
