@@ -138,7 +138,7 @@ GYRO_UNITS = ("counts", "deg/s", "rad/s", "volts")
 def calibrate_imu(data, gyro=None, *, gyro_units: str, gyro_columns=None, gyro_scale: float | None = None,
                   gyro_bias: str = "rests", g_sensitivity: bool = False, model=None, solver: str = "lm",
                   units: str | None = None, g_local: float = 1.0, options: dict | None = None, seed: int = 0,
-                  budget=None, **reading):
+                  budget=None, force_weak: bool = False, **reading):
     """Calibrate an IMU's accelerometer and gyroscope from one raw recording of rests with rotations between
     them, as ``optcal imu`` does (docs/gyroscope.md): an :class:`optcal.imu.ImuCalibration` (``accelerometer``,
     ``gyroscope``, ``notes``; ``write(path)`` writes the IMU file that ``optcal apply`` and ``optcal export``
@@ -152,7 +152,7 @@ def calibrate_imu(data, gyro=None, *, gyro_units: str, gyro_columns=None, gyro_s
     per rad/s (exact for deg/s and rad/s; otherwise searched for from the motions when None);
     ``gyro_bias``: ``rests`` (interpolated between them) or ``fit``; ``g_sensitivity`` (with ``gyro_bias``
     fit): fit G and keep it when the likelihood-ratio test finds it. ``model``, ``solver``, ``options``,
-    ``g_local``, ``seed`` and ``budget`` as :func:`calibrate`'s, for both fits."""
+    ``g_local``, ``seed``, ``budget`` and ``force_weak`` as :func:`calibrate`'s, for both fits."""
     from .gyro.recording import read_gyro
     from .imu import calibrate_imu as fit_imu
     from .imu import check_imu_options
@@ -176,7 +176,7 @@ def calibrate_imu(data, gyro=None, *, gyro_units: str, gyro_columns=None, gyro_s
     positions = _positions_for(data, model, units, True, g_local, {**reading, "gyro": rates})
     return fit_imu(positions, rates, model=model, solver=solver, options=options, g_local=g_local, seed=seed,
                    budget=budget, gyro_units=gyro_units, gyro_scale=gyro_scale, gyro_bias=gyro_bias,
-                   g_sensitivity=g_sensitivity)
+                   g_sensitivity=g_sensitivity, force_weak=force_weak)
 
 
 def apply_gyro(calibration, rates, force=None) -> np.ndarray:

@@ -60,7 +60,7 @@ class ImuCalibration:
 def calibrate_imu(positions, gyro, *, model=None, solver: str = "lm", options: dict | None = None,
                   g_local: float = 1.0, seed: int = 0, budget: int | None = None, gyro_units: str,
                   gyro_scale: float | None = None, gyro_bias: str = "rests",
-                  g_sensitivity: bool = False) -> ImuCalibration:
+                  g_sensitivity: bool = False, force_weak: bool = False) -> ImuCalibration:
     """Calibrate the accelerometer from ``positions`` (found in a raw recording: their ``extra["detection"]``
     holds its rests and samples), then the gyroscope from ``gyro`` (a :class:`~optcal.recording.Recording`
     whose ``N`` holds the rates, at the same times) over the same rests and the rotations between them, the
@@ -69,7 +69,8 @@ def calibrate_imu(positions, gyro, *, model=None, solver: str = "lm", options: d
     it, with a note. ``model`` None: the accelerometer's default with its fallback (as ``optcal calibrate``);
     ``gyro_scale``: nominal output units per rad/s (exact for deg/s and rad/s, searched for otherwise when
     None). A motion during which the gyroscope sits at a rail is left out, with a note; too few motions left
-    is refused by the gyroscope's fit."""
+    is refused by the gyroscope's fit. ``force_weak`` keeps fits the data do not determine (either sensor),
+    marked as forced, as ``optcal calibrate --force-weak`` does."""
     from .fit import calibrate
     from .gyro.calfile import NOMINAL_SCALE
     from .gyro.data import MISSED_REST_MIN_S, missed_rests
@@ -81,7 +82,8 @@ def calibrate_imu(positions, gyro, *, model=None, solver: str = "lm", options: d
         raise InputError("the IMU calibration needs the positions of a raw recording (its rests and samples); "
                          "read the recording as a raw one")
     acc = det.recording
-    cal = calibrate(positions, model, solver=solver, options=options, g_local=g_local, seed=seed, budget=budget)
+    cal = calibrate(positions, model, solver=solver, options=options, g_local=g_local, seed=seed, budget=budget,
+                    force_weak=force_weak)
     join_times(acc.t, gyro.t)
     F = cal.model.inverse(np.asarray(cal.x, float)[None], acc.N)[0]
     data = GyroData(acc.t, gyro.N, F, det.intervals, units=gyro_units, saturated=gyro.saturated)
@@ -101,7 +103,7 @@ def calibrate_imu(positions, gyro, *, model=None, solver: str = "lm", options: d
     scale = gyro_scale if gyro_scale is not None else NOMINAL_SCALE.get(gyro_units)
     try:
         fit = calibrate_gyro(data, bias=gyro_bias, g_sensitivity=g_sensitivity, scale=scale, solver=solver,
-                             options=options, seed=seed, budget=budget)
+                             options=options, seed=seed, budget=budget, force_weak=force_weak)
     except InputError as exc:
         if not len(data.dropped_motions):
             raise

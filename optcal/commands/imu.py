@@ -41,6 +41,9 @@ def add_arguments(p):
     p.add_argument("--json", action="store_true", help="print the result as one JSON object")
     p.add_argument("-o", "--output", metavar="IMU.json", help="write the calibration file with both sensors")
     p.add_argument("--force", action="store_true", help="overwrite an existing calibration file")
+    p.add_argument("--force-weak", action="store_true", help="write fits the data do not determine (too few rests, an "
+                   "unobservable parameter, a gyroscope fit the gates refuse) instead of refusing them; the file "
+                   "records that they were forced and why")
     add_data_options(p)
 
 
@@ -81,7 +84,7 @@ def run(args) -> int:
     imu = calibrate_imu(positions, gyr, model=args.model if named else None, solver=args.solver,
                         options=parse_options(args.option), g_local=g_local, seed=args.seed, budget=args.budget,
                         gyro_units=args.gyro_units, gyro_scale=args.gyro_scale, gyro_bias=args.gyro_bias,
-                        g_sensitivity=args.g_sensitivity)
+                        g_sensitivity=args.g_sensitivity, force_weak=args.force_weak)
     cal, fit, data = imu.accelerometer, imu.gyroscope, imu.data
     block = imu.gyro_block()
     if args.output:
