@@ -1,7 +1,8 @@
 """Benchmarks of static-interval detection on a 1-hour recording at 100 Hz (360,000 samples; issue #20 asks
 for segmentation within 2 s): change-point segmentation (the default) on poses held 8 s, on poses held
 10 minutes (PELT's worst case: long stretches without a change, cut into pieces of PIECE_BLOCKS blocks),
-and the variance detector with one threshold for comparison.
+with a gyroscope whose stillness it judges too (issue #29), and the variance detector with one threshold for
+comparison.
 
 Run with `make bench`; under `make test` each runs once with timing disabled. Samples per second and the
 intervals found go to extra_info.
@@ -37,6 +38,31 @@ def test_bench_segmentation_hour(benchmark, hour):
     assert len(rec) == N_HOUR and sc["precision"] == 1.0 and sc["recall"] >= 0.99
     seconds = benchmark.stats.stats.min if benchmark.stats is not None else None
     benchmark.extra_info.update({"recording": name, "samples": len(rec), "seconds": seconds,
+                                 "samples_per_s": None if seconds is None else len(rec) / seconds,
+                                 "intervals": det.n_intervals, "precision": sc["precision"],
+                                 "recall": sc["recall"]})
+
+
+def _gyro(syn, rng):
+    """A gyroscope's rates (rad/s) for the simulated recording: the turn of the gravity direction between
+    consecutive samples (a rate orthogonal to it, which is all the accelerometer can tell) plus 0.01 rad/s of
+    white noise."""
+    A = syn.recording.N
+    return np.vstack([np.zeros((1, 3)), np.cross(A[:-1], A[1:]) * syn.recording.rate]) + 0.01 * rng.standard_normal(
+        A.shape)
+
+
+def test_bench_segmentation_hour_with_gyroscope(benchmark, hour):
+    import ruptures  # noqa: F401
+
+    name, syn, rests = hour
+    rec = syn.recording
+    W = _gyro(syn, np.random.default_rng(1))
+    det = benchmark(segment_static, rec, gyro=W)
+    sc = interval_scores(det.intervals, rests, len(rec), 30)
+    assert sc["precision"] == 1.0 and sc["recall"] >= 0.99
+    seconds = benchmark.stats.stats.min if benchmark.stats is not None else None
+    benchmark.extra_info.update({"recording": name + ", with gyroscope", "samples": len(rec), "seconds": seconds,
                                  "samples_per_s": None if seconds is None else len(rec) / seconds,
                                  "intervals": det.n_intervals, "precision": sc["precision"],
                                  "recall": sc["recall"]})
