@@ -4,17 +4,16 @@
 MATLAB v7.3 (HDF5) through h5py; column names such as ``ACCELX``, ``acc_x``, ``AccX``, ``GYROX``, ``tx``
 mapped, or named in the refusal; ``--columns`` naming a column or a role twice refused in one line.
 
-The real files come from the corpus beside the project (``OPTCAL_CORPUS``, else ``../shared/data/real``);
-those tests are skipped where it is absent."""
+The real files come from the corpus beside the project (tests/corpus.py); those tests are skipped where it is
+absent."""
 
 import gzip
 import json
-import os
-from pathlib import Path
 from types import SimpleNamespace
 
 import numpy as np
 import pytest
+from corpus import corpus
 
 from optcal.cli import _run, main
 from optcal.errors import MAX_LINE, InputError, listing, one_line
@@ -23,14 +22,6 @@ from optcal.recording.intervals import IntervalTimes
 from optcal.recording.reading import _load_numeric
 from optcal.recording.sniff import ALIAS_KEYS, mat_table, sniff_layout
 from optcal.synthetic_recording import poses_recording
-
-
-def _corpus(*parts) -> Path:
-    env = os.environ.get("OPTCAL_CORPUS")
-    root = Path(env) if env else Path(__file__).resolve().parents[1].parent / "shared" / "data" / "real"
-    if not root.is_dir():
-        pytest.skip("the real corpus is absent: set OPTCAL_CORPUS to its folder")
-    return root.joinpath(*parts)
 
 
 def _cli(argv, capsys):
@@ -326,7 +317,7 @@ def test_a_mat_v73_positions_file_calibrates(tmp_path, capsys):
 def test_the_corpus_v73_recording_is_read():
     import h5py
 
-    path = _corpus("sunsided", "full_sphere_accelerometer.mat")
+    path = corpus("sunsided", "full_sphere_accelerometer.mat")
     with h5py.File(path, "r") as f:
         stored = f["accelBuffer"][()]  # MATLAB's 10528 × 4, transposed by HDF5
     rec = read_recording(path)
@@ -404,7 +395,7 @@ def test_two_columns_for_one_role_are_refused_naming_both(tmp_path, capsys):
 
 
 def test_the_twlogger_recording_is_read_without_columns():
-    path = _corpus("twlogger", "T1D0711-00.CSV.gz")
+    path = corpus("twlogger", "T1D0711-00.CSV.gz")
     rec = read_recording(path, units="counts")
     assert rec.columns == {"t": "Timestamp(Ms)", "ax": "ACCELX", "ay": "ACCELY", "az": "ACCELZ"}
     assert len(rec) == 44000 and rec.reading["time_unit"] == "ms"
