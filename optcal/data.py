@@ -123,8 +123,10 @@ class PositionsData:
         for r in range(len(self)):
             w.writerow([_fmt(v[r]) for _, v in cols])
         text = buf.getvalue()
-        if path is not None:
-            Path(path).write_text(text)
+        if path is not None:  # whole or not at all: a temporary file beside it, renamed (optcal.atomicfile)
+            from .atomicfile import write_atomic
+
+            write_atomic(path, text, overwrite=True)
         return text
 
 

@@ -1,6 +1,7 @@
 """Reading a JSON object from a file a user gave, with one-line errors (docs/design.md §9): the one reader
 behind presets, truths, calibration files, noise analyses, intervals and imported calibrations; and the one
-writer of the calibration files (accelerometer and IMU), which keeps an existing file unless told."""
+writer of the calibration files (accelerometer and IMU), which keeps an existing file unless told and replaces
+one whole or not at all (:mod:`optcal.atomicfile`)."""
 
 from __future__ import annotations
 
@@ -34,13 +35,12 @@ def parse_json_object(text: str, path, what: str) -> dict:
 
 
 def write_json_object(obj: dict, path, *, overwrite: bool = False) -> None:
-    """Write ``obj`` as indented JSON; an existing file is kept unless ``overwrite`` (the CLI's ``--force``).
-    One-line :class:`InputError` for both."""
+    """Write ``obj`` as indented JSON through a temporary file renamed into place (:mod:`optcal.atomicfile`);
+    an existing file is kept unless ``overwrite`` (the CLI's ``--force``). One-line :class:`InputError` for
+    both."""
+    from .atomicfile import EXISTS, write_atomic
+
     path = Path(path)
-    if path.exists() and not overwrite:
-        raise InputError(f"{path} exists; pass --force to overwrite it or choose another -o path")
-    text = json.dumps(obj, indent=2)
-    try:
-        path.write_text(text + "\n")
-    except OSError as exc:
-        raise InputError(f"cannot write {path}: {exc.strerror or exc}") from None
+    if path.exists() and not overwrite:  # before rendering, as ever
+        raise InputError(EXISTS.format(path=path))
+    write_atomic(path, json.dumps(obj, indent=2) + "\n", overwrite=overwrite)

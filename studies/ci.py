@@ -15,6 +15,7 @@ import sys
 import tempfile
 from pathlib import Path
 
+from optcal.atomicfile import write_atomic
 from optcal.errors import InputError
 
 from .baseline import METRICS as METRICS
@@ -65,7 +66,7 @@ def main(argv=None) -> int:
         print(("REGRESSION: " if r.status in ("regression", "missing") else "  ") + r.message)
     print(f"wall time {wall:.1f} s")
     if a.junit:
-        Path(a.junit).write_text(junit_xml(results, load(a.spec).name))
+        write_atomic(a.junit, junit_xml(results, load(a.spec).name), overwrite=True)
     return 1 if regressions(results) else 0
 
 

@@ -43,6 +43,7 @@ import shutil
 import tempfile
 from pathlib import Path
 
+from optcal.atomicfile import write_atomic
 from optcal.errors import InputError
 
 from .store import Store
@@ -119,7 +120,7 @@ def write_ioh(rows: list[dict], spec: dict, spec_hash: str, folder: Path) -> dic
                                   "best": {"evals": curve[-1][0], "y": float(r["fun"]),
                                            "x": [float(v) for v in r["x_est"]]}})
                 n_runs += 1
-            (adir / dat_rel).write_text("\n".join(lines) + "\n")
+            write_atomic(adir / dat_rel, "\n".join(lines) + "\n", overwrite=True)
             meta = {
                 "version": "0.3.18", "suite": SUITE, "function_id": fid, "function_name": fname,
                 "maximization": False, "algorithm": {"name": label, "info": info},
@@ -128,7 +129,7 @@ def write_ioh(rows: list[dict], spec: dict, spec_hash: str, folder: Path) -> dic
                 "attributes": ["evaluations", "raw_y"],
                 "scenarios": [{"dimension": dim, "path": dat_rel, "runs": meta_runs}],
             }
-            (adir / f"IOHprofiler_f{fid}_{safe}.json").write_text(json.dumps(meta, indent=1))
+            write_atomic(adir / f"IOHprofiler_f{fid}_{safe}.json", json.dumps(meta, indent=1), overwrite=True)
             n_files += 1
     return {"runs": n_runs, "algorithms": sum(1 for d in folder.iterdir() if d.is_dir()),
             "problems": len({k for k in problems}), "files": n_files}
@@ -162,8 +163,8 @@ def write_benchmark_action(rows: list[dict], spec: dict, folder: Path, commit: s
             if math.isfinite(v):
                 big.append(entry(rec["solver"], f"anytime ECDF area ({kind} targets)", "area", v,
                                  *rec[f"{kind}_area_ci"]))
-    (folder / "smaller_is_better.json").write_text(json.dumps(small, indent=1, allow_nan=False))
-    (folder / "bigger_is_better.json").write_text(json.dumps(big, indent=1, allow_nan=False))
+    write_atomic(folder / "smaller_is_better.json", json.dumps(small, indent=1, allow_nan=False), overwrite=True)
+    write_atomic(folder / "bigger_is_better.json", json.dumps(big, indent=1, allow_nan=False), overwrite=True)
     return {"runs": sum(r["status"] == "ok" for r in rows), "algorithms": len(measured),
             "problems": len({(r["model"], r["scheme"]) for r in rows}), "files": 2}
 
@@ -178,7 +179,7 @@ def write_junit(rows: list[dict], spec: dict, folder: Path, baseline: str | Path
                              "`python -m studies.ci --spec SPEC --propose`)")
         baseline = TOLERANCES
     results = check(measure(rows, spec["seed"]), load_baseline(baseline))
-    (folder / "tolerances.xml").write_text(junit_xml(results, spec["name"]))
+    write_atomic(folder / "tolerances.xml", junit_xml(results, spec["name"]), overwrite=True)
     return {"runs": sum(r["status"] == "ok" for r in rows), "algorithms": len({r.solver for r in results}),
             "problems": len({(r["model"], r["scheme"]) for r in rows}), "files": 1,
             "regressions": regressions(results)}

@@ -3,6 +3,7 @@ per-parameter statistic, and ``summary.json`` (one record per solver Ã— scheme Ã
 
 from __future__ import annotations
 
+import contextlib
 import copy
 import dataclasses
 import functools
@@ -12,6 +13,7 @@ from pathlib import Path
 
 import numpy as np
 
+from optcal.atomicfile import atomic_write
 from optcal.errors import InputError
 
 from . import anytime, figures, paired
@@ -458,7 +460,7 @@ def write_report(folder: str | Path, workers: int | None = None) -> Path:
               f"({prov['machine']['cpus']} CPUs), Python {prov['python']}; "
               + ", ".join(f"{k} {v}" for k, v in prov["libraries"].items()) + ".", ""]
         render.finish()
-    (folder / "parameters.md").write_text(_parameters_md(cs, spec))
+    parameters_md = _parameters_md(cs, spec)
     t_rep = time.perf_counter() - t_report
     L[L.index("@@WALL@@")] = (
         f"- Wall time {wall + t_rep:.1f} s: the study {wall:.1f} s over {len(sessions)} session(s) ("
@@ -473,10 +475,13 @@ def write_report(folder: str | Path, workers: int | None = None) -> Path:
                      "final_gap": _final_gap()},
            "provenance": prov, "records": summary, "paired": paired_recs, "settings": st}
     # strict JSON: a value that could not be computed (no presets, no navigation) is null, not NaN
-    (folder / "summary.json").write_text(json.dumps(_json_safe(doc), indent=1, allow_nan=False))
-    out = folder / "report.md"
-    out.write_text("\n".join(L))
-    return out
+    files = {"report.md": "\n".join(L), "summary.json": json.dumps(_json_safe(doc), indent=1, allow_nan=False),
+             "parameters.md": parameters_md}
+    # each through a temporary file beside it, all three complete before any is renamed (report.md last)
+    with contextlib.ExitStack() as stack:
+        for name, text in files.items():
+            stack.enter_context(atomic_write(folder / name, overwrite=True)).write(text)
+    return folder / "report.md"
 
 
 def _overview_section(cs, presets: bool) -> list[str]:

@@ -35,19 +35,20 @@ def add_arguments(p):
     add_data_options(p, units_default=None)
 
 
-def write_csv(path: Path, columns: dict[str, np.ndarray], fmt: dict[str, str]) -> None:
-    """A header and one row per sample, written in blocks (no Python loop over values)."""
+def write_csv(path: Path, columns: dict[str, np.ndarray], fmt: dict[str, str], *, overwrite: bool = True) -> None:
+    """A header and one row per sample, streamed (no Python loop over values, no whole-file string) into a
+    temporary file beside ``path`` that replaces it only when complete (:mod:`optcal.atomicfile`): an
+    interrupted apply leaves no partial CSV under the output's name, and an old one as it was."""
     import numpy as np
+
+    from ..atomicfile import EXISTS_OUTPUT, atomic_write
 
     names = list(columns)
     M = np.column_stack([np.asarray(columns[c], float) for c in names])
     row = ",".join(fmt[c] for c in names)
-    try:
-        with open(path, "w") as fh:
-            fh.write(",".join(names) + "\n")
-            np.savetxt(fh, M, fmt=row.split(","), delimiter=",")
-    except OSError as exc:
-        raise InputError(f"cannot write {path}: {exc.strerror or exc}") from None
+    with atomic_write(path, overwrite=overwrite, exists=EXISTS_OUTPUT) as fh:
+        fh.write(",".join(names) + "\n")
+        np.savetxt(fh, M, fmt=row.split(","), delimiter=",")
 
 
 # Options of add_data_options that only the static-interval detector reads: apply converts every sample.
@@ -169,7 +170,7 @@ def run(args) -> int:
         cols["saturated"] = saturated.astype(float)
     fmt = {c: "%.10g" for c in cols}
     fmt["saturated"] = "%d"
-    write_csv(Path(args.output), cols, fmt)
+    write_csv(Path(args.output), cols, fmt, overwrite=args.force)
     norm = np.linalg.norm(A, axis=1)
     rates = "" if omega is None else (f"; wx, wy, wz in rad/s by gyroscope model "
                                       f"{cal.meta['gyroscope']['model']}, outputs in "

@@ -38,10 +38,11 @@ def add_arguments(p):
 def run(args) -> int:
     from pathlib import Path
 
+    from ..atomicfile import EXISTS_OUTPUT, atomic_write
     from ..calfile import read_calibration
     from ..errors import InputError
     from ..exchange import export_files
-    from ..exchange.common import read_text, write_new
+    from ..exchange.common import read_text
     from ._common import check_output_folder, refuse_overwrite, refuse_same_file
 
     outputs = [p for p in (args.output, args.gyro_output) if p]
@@ -79,15 +80,21 @@ def run(args) -> int:
     text, gyro_text, notes = export_files(cal, args.format, calibrated=args.calibrated_units,
                                           bias_online=args.bias_online, source=args.calibration, noise=noise,
                                           accelerometer_only=args.accelerometer_only)
-    existed = Path(args.output).exists()
-    write_new(args.output, text, force=args.force)
-    if gyro_text is not None:
-        try:
-            write_new(args.gyro_output, gyro_text, force=args.force)
-        except InputError:
-            if not existed:  # the pair is written whole or not at all
-                Path(args.output).unlink(missing_ok=True)
-            raise
+    # each file through a temporary one renamed into place, and both complete before either is renamed: the
+    # pair is written whole or not at all
+    gyro_existed = bool(args.gyro_output) and Path(args.gyro_output).exists()
+    gyro_done = False
+    try:
+        with atomic_write(args.output, overwrite=args.force, exists=EXISTS_OUTPUT) as fh:
+            fh.write(text)
+            if gyro_text is not None:
+                with atomic_write(args.gyro_output, overwrite=args.force, exists=EXISTS_OUTPUT) as gh:
+                    gh.write(gyro_text)
+                gyro_done = True
+    except InputError:
+        if gyro_done and not gyro_existed:
+            Path(args.gyro_output).unlink(missing_ok=True)
+        raise
     print(f"wrote {args.output}: {args.calibration} (model {cal.model.name}, raw outputs in {cal.units_out}) in the "
           f"{args.format} format" + (", with its gyroscope" if has_gyro and not args.accelerometer_only
                                      and gyro_text is None else ""))

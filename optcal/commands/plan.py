@@ -166,9 +166,9 @@ def run(args) -> int:
                 "dx, dy, dz: unit specific-force direction in the sensor frame; face_down, alpha_deg, beta_deg: "
                 "docs/planning.md §4"]
     if args.output:
-        from pathlib import Path
+        from ..atomicfile import EXISTS_OUTPUT, write_atomic
 
-        Path(args.output).write_text(scheme_csv(d, comments), encoding="utf-8")
+        write_atomic(args.output, scheme_csv(d, comments), overwrite=args.force, encoding="utf-8", exists=EXISTS_OUTPUT)
     if args.plot:
         from ..plan.figure import plan_figure
         from ..plots import save_figure
@@ -310,13 +310,13 @@ def _plan_gyro(args) -> int:
                 f"{noise.rest_s:g} s, seed {args.seed}")
     out = summary(plan, hab, rank)
     if args.output:
-        from pathlib import Path
+        from ..atomicfile import EXISTS_OUTPUT, write_atomic
 
-        Path(args.output).write_text(plan_csv(plan, [f"optcal plan --sensor gyroscope: {settings}",
-                                                     f"criterion {args.criterion} = {plan.value:.6g} (variance in "
-                                                     "natural units), motions "
-                                                     f"{plan.motion_s:.2f} s, session {plan.session_s:.2f} s"]),
-                                     encoding="utf-8")
+        write_atomic(args.output, plan_csv(plan, [f"optcal plan --sensor gyroscope: {settings}",
+                                                  f"criterion {args.criterion} = {plan.value:.6g} (variance in "
+                                                  "natural units), motions "
+                                                  f"{plan.motion_s:.2f} s, session {plan.session_s:.2f} s"]),
+                     overwrite=args.force, encoding="utf-8", exists=EXISTS_OUTPUT)
     if args.json:
         out["settings"] = settings
         print(json.dumps(out, indent=2))

@@ -142,16 +142,17 @@ def run(args) -> int:
         times=args.dwell_s is not None, dwell_s=args.dwell_s or 10.0, effects=parse_effects(args.effect),
         reference=args.reference, reference_error_arcsec=args.reference_error_arcsec, g_local=args.gravity_g,
     )
-    # both files are rendered before either is written
+    # both files are rendered, then written to temporary files beside them, before either is renamed into place
+    from contextlib import ExitStack
+
+    from ..atomicfile import EXISTS_OUTPUT, atomic_write
+
     files = {args.output: sim.data.to_csv()}
     if args.truth_out:
         files[args.truth_out] = json.dumps(sim.truth, indent=2)
-    for path, text in files.items():
-        try:
-            with open(path, "w") as fh:
-                fh.write(text)
-        except OSError as exc:
-            raise InputError(f"cannot write {path}: {exc.strerror or exc}") from None
+    with ExitStack() as stack:
+        for path, text in files.items():
+            stack.enter_context(atomic_write(path, overwrite=args.force, exists=EXISTS_OUTPUT)).write(text)
     print(f"wrote {len(sim.data)} positions ({sim.model.name}, noise {args.noise_ug:g} µg per position mean) "
           f"to {args.output}")
     return 0

@@ -12,8 +12,6 @@ what no format can hold (nonlinear, temperature and drift terms).
 
 from __future__ import annotations
 
-import os
-import tempfile
 from dataclasses import dataclass
 from datetime import datetime, timezone
 from pathlib import Path
@@ -160,33 +158,26 @@ def calibration_dict(lin: LinearPart, *, fmt: str, source, g_local: float = 1.0,
 
 
 def write_new(path, text: str, *, force: bool, check=None) -> None:
-    """Write ``text`` to ``path`` through a temporary file in the same folder, renamed into place only after
-    ``check(temporary_path)`` (if given) accepts it: a failure leaves nothing behind. An existing ``path`` is
-    kept unless ``force``."""
+    """Write ``text`` to ``path`` through a temporary file in the same folder (:func:`optcal.atomicfile.
+    atomic_write`), renamed into place only after ``check(temporary_path)`` (if given) accepts it: a failure
+    leaves nothing behind. An existing ``path`` is kept unless ``force``."""
+    from ..atomicfile import EXISTS_OUTPUT as EXISTS
+    from ..atomicfile import write_atomic
+
     path = Path(path)
     if path.exists() and not force:
-        raise InputError(f"{path} exists; choose another output path or pass --force to overwrite it")
+        raise InputError(EXISTS.format(path=path))
     folder = path.resolve().parent
     if not folder.is_dir():
         raise InputError(f"cannot write {path}: the folder {folder} does not exist")
-    try:
-        fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=folder)
-    except OSError as exc:
-        raise InputError(f"cannot write {path}: {exc.strerror or exc}") from None
-    try:
-        with os.fdopen(fd, "w") as fh:
-            fh.write(text)
-        if check is not None:
-            try:
-                check(tmp)
-            except InputError as exc:  # name the file the user asked for, not the temporary one
-                raise InputError(str(exc).replace(tmp, str(path))) from None
-        os.replace(tmp, path)
-    except OSError as exc:
-        raise InputError(f"cannot write {path}: {exc.strerror or exc}") from None
-    finally:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
+
+    def checked(tmp: str) -> None:
+        try:
+            check(tmp)
+        except InputError as exc:  # name the file the user asked for, not the temporary one
+            raise InputError(str(exc).replace(tmp, str(path))) from None
+
+    write_atomic(path, text, overwrite=force, check=None if check is None else checked, exists=EXISTS)
 
 
 def read_text(path, what: str) -> str:
