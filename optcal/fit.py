@@ -131,8 +131,8 @@ def calibrate(data: PositionsData, model: str | Model | None = None, *, solver: 
     the reasons it would have been refused for (the calibration file records them). ``backend`` is the
     problem's evaluation (:data:`optcal.problem.BACKENDS`); by default NumPy for a solver that needs few
     evaluations (``few_evaluations``: least squares), the compiled kernel otherwise. ``recheck``: positions of a
-    raw recording found off the fit of the others are re-examined sample by sample
-    (:func:`optcal.recording.recheck.recheck_poses`: a motion at a pose's ends cut off, a moving pose dropped)
+    raw recording found off the fit of the others are re-examined sample by sample (``data.extra["recheck"]``,
+    :func:`optcal.recording.positions.recheck_poses`: a motion at a pose's ends cut off, a moving pose dropped)
     and the fit is made again on what survives, said in the notes."""
     requested = get_model(determination.DEFAULT_MODEL if model is None else model)
     slv = get_solver(solver, **(options or {}))
@@ -194,9 +194,10 @@ def calibrate(data: PositionsData, model: str | Model | None = None, *, solver: 
 def _rechecked(data: PositionsData, cal: Calibration, model, **kw) -> Calibration | None:
     """The calibration refitted after its outlying positions were re-examined sample by sample, or None when
     there are none (or too many to be single poses: then the model or the noise is at fault, not a pose)."""
-    from .recording.recheck import recheck_poses
-
+    recheck_poses = data.extra.get("recheck") if isinstance(data.extra, dict) else None
     idx = np.flatnonzero(cal.diagnostics.outlier)
+    if recheck_poses is None:  # positions not from a raw recording (optcal.recording.positions sets it)
+        return None
     if not idx.size or idx.size > max(2, MANY_OUTLIERS * len(idx if cal.diagnostics.index is None
                                                                else cal.diagnostics.index)):
         return None

@@ -1,10 +1,21 @@
 """Averaging static intervals into positions: each interval of a recording becomes one row of the positions
 data set of docs/design.md §9.1 (mean output, n, per-axis SD, the standard error of the mean with the
-sensor's correlated noise, middle time, mean temperature); and a positions file stored as a MATLAB matrix
-(:func:`mat_positions`)."""
+sensor's correlated noise, middle time, mean temperature); poses that check themselves (:func:`recheck_poses`);
+and a positions file stored as a MATLAB matrix (:func:`mat_positions`).
+
+Poses that check themselves (issue #29; docs/segmentation.md, step 9): a position of a raw recording that lies
+far off the fit of the others is looked at again sample by sample, through the fitted calibration. Its
+samples' specific force, averaged over :data:`SMOOTH_S`, is compared with the pose's own direction (the median
+of its central half): a run of samples at either end that departs from it by more than :data:`DEPART_SIGMAS`
+noise SDs is the end of a motion and is cut off; a pose whose first and last quarters differ by more than
+:data:`DRIFT_SIGMAS` standard errors of their means turned while it was held, and is dropped. What survives is
+averaged again (:func:`positions_from_recording`). No model is fitted here: the calibration is the caller's
+(:func:`optcal.fit.calibrate` refits on what survives).
+"""
 
 from __future__ import annotations
 
+from dataclasses import replace
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -24,7 +35,9 @@ def positions_from_recording(recording: Recording, detection: DetectionResult) -
     """One position per interval: mean output, n, per-axis SD, the standard error of the mean ``sem``
     (:func:`optcal.recording.floor.noise_floor`: the Allan model of the recording's static intervals, never below
     SD/√n), middle time and mean temperature. The detection, the recording's path and the noise floor
-    (:class:`optcal.recording.floor.NoiseFloor`) are kept in ``extra`` (``detection``, ``source``, ``noise_floor``)."""
+    (:class:`optcal.recording.floor.NoiseFloor`) are kept in ``extra`` (``detection``, ``source``, ``noise_floor``),
+    with :func:`recheck_poses` as ``recheck``: the fit (:func:`optcal.fit.calibrate`) re-examines outlying
+    poses through it without importing the recording path."""
     iv = detection.intervals
     if not len(iv):
         raise InputError("no static intervals to average into positions")
@@ -36,7 +49,72 @@ def positions_from_recording(recording: Recording, detection: DetectionResult) -
     floor = noise_floor(recording.N, iv, recording.t[iv[:, 0]], recording.rate, recording.units)
     return PositionsData(N=N, t=t, temp=temp, n_samples=(iv[:, 1] - iv[:, 0]).astype(float), std=sd, sem=floor.sem,
                          units=recording.units,
-                         extra={"detection": detection, "source": recording.path, "noise_floor": floor})
+                         extra={"detection": detection, "source": recording.path, "noise_floor": floor,
+                                "recheck": recheck_poses})
+
+
+SMOOTH_S = 0.1  # s: the samples' force is averaged over this before it is judged (the noise of one sample is large)
+DEPART_SIGMAS = 5.0  # an averaged sample this many noise SDs from the pose's direction is not at rest
+DRIFT_SIGMAS = 5.0  # first and last quarters this many standard errors apart: the pose turned while it was held
+
+
+def recheck_poses(data, model, x, suspects, name=None):
+    """Positions ``data`` (from a raw recording: ``extra["detection"]``) with the poses ``suspects`` (row indices)
+    re-examined through the calibration ``model`` at ``x``: (new data or None when nothing changed, notes).
+    A pose cut to its still part keeps its row; a pose that moved throughout is dropped. ``name(i)`` names row
+    i in the notes (the fit's diagnostics name positions; default "position i")."""
+    name = name or (lambda i: f"position {i}")
+    det = data.extra.get("detection") if data.extra else None
+    if det is None or not len(suspects):
+        return None, []
+    rec = det.recording
+    iv = det.intervals.copy()
+    keep = np.ones(len(iv), bool)
+    K = np.abs(np.asarray(x, float)[:3])  # output per g of each axis: the noise of a sample in g
+    noise_g = np.asarray(det.noise if det.noise is not None else rec.N[iv[0, 0]:iv[0, 1]].std(axis=0), float) / K
+    rate = float(rec.rate) if np.isfinite(rec.rate) else 50.0
+    w = max(1, int(round(SMOOTH_S * rate)))
+    notes = []
+    # a handful of suspects (outliers of one fit), each judged on its own samples by NumPy
+    for i in np.asarray(suspects, int):
+        a, b = iv[i]
+        F = model.inverse(np.asarray(x, float)[None], rec.N[a:b])[0]
+        m = len(F)
+        q = max(m // 4, 1)
+        first, last = F[:q].mean(axis=0), F[-q:].mean(axis=0)
+        se = noise_g * np.sqrt(2.0 / q)
+        c = np.concatenate([np.zeros((1, 3)), np.cumsum(F, axis=0)])
+        lo = np.clip(np.arange(m) - w // 2, 0, max(m - w, 0))
+        Fs = (c[lo + min(w, m)] - c[lo]) / min(w, m)
+        ref = np.median(F[m // 4: m - m // 4], axis=0)
+        dev = np.max(np.abs(Fs - ref) / (noise_g / np.sqrt(min(w, m))), axis=1)
+        still = dev <= DEPART_SIGMAS
+        # the longest run of still samples: the pose without the motions at its ends
+        d = np.diff(np.concatenate([[0], still.astype(np.int8), [0]]))
+        starts, stops = np.flatnonzero(d == 1), np.flatnonzero(d == -1)
+        when = f"{rec.t[a]:.1f}-{rec.t[b - 1]:.1f} s"
+        if len(starts):
+            j = int(np.argmax(stops - starts))
+            s0, s1 = int(starts[j]), int(stops[j])
+        else:
+            s0 = s1 = 0
+        if s1 - s0 >= det.min_samples and (s0 > 0 or s1 < m):
+            Fk = F[s0:s1]
+            qk = max(len(Fk) // 4, 1)
+            drift = np.abs(Fk[:qk].mean(axis=0) - Fk[-qk:].mean(axis=0))
+            if np.all(drift <= DRIFT_SIGMAS * noise_g * np.sqrt(2.0 / qk)):
+                iv[i] = (a + s0, a + s1)
+                cut = " and ".join(f"{n / rate:.2g} s at its {end}" for n, end in ((s0, "start"), (m - s1, "end")) if n)
+                notes.append(f"{name(i)} ({when}) re-examined sample by sample: {cut} moved, left out")
+                continue
+        if np.any(np.abs(last - first) > DRIFT_SIGMAS * se) or s1 - s0 < det.min_samples:
+            keep[i] = False
+            notes.append(f"{name(i)} ({when}) re-examined sample by sample: it moved while held "
+                         f"(its force drifts by {np.max(np.abs(last - first)) * 1e3:.3g} mg), dropped")
+    if not notes:
+        return None, []
+    new = replace(det, intervals=iv[keep], notes=list(det.notes))
+    return positions_from_recording(rec, new), notes
 
 
 def mat_positions(path, units: str = "g") -> PositionsData:
