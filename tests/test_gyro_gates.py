@@ -9,7 +9,6 @@ half the rate) passes with the note, and imu_tk's Xsens pair, imucal's session a
 from __future__ import annotations
 
 import dataclasses
-import functools
 import gzip
 import json
 import os
@@ -142,6 +141,7 @@ def test_sdr_short_failed_fit_is_refused_and_nothing_written(sdr, tmp_path, caps
         assert line.startswith("optcal imu: error: gyroscope fit refused: "), line
         assert "≤ 0" in line or ("χ²/dof" in line and "motions off by" in line), line
         assert "--rate" in line and "--gyro-units" in line and "motion in rests" in line and "saturation" in line
+        assert "--force-weak keeps it, marked as forced" in line
 
 
 def test_sdr_long_half_rate_passes_with_the_note(sdr, tmp_path, capsys):
@@ -177,15 +177,22 @@ def test_good_recordings_pass_without_a_scale_note(tmp_path, capsys):
         assert "forced" not in g
 
 
-def test_force_weak_keeps_the_failed_fit_marked(sdr, monkeypatch):
-    """The expert's override, as the accelerometer's `force_weak`: the fit returned, its reasons in ``forced``
-    and the first note (the CLI flag is wired by optcal imu)."""
+def test_force_weak_keeps_the_failed_fit_marked(sdr, tmp_path, capsys):
+    """The expert's override, as the accelerometer's `force_weak` (``optcal imu --force-weak``): the fit returned,
+    its reasons in ``forced`` and the first note; the gyroscope block records them when given them."""
     import optcal
-    import optcal.imu
+    from optcal.gyro.calfile import gyro_block
 
-    monkeypatch.setattr(optcal.imu, "calibrate_gyro", functools.partial(calibrate_gyro, force_weak=True))
     imu = optcal.calibrate_imu(str(sdr["Short"]), columns="0,1,2,3", units="m/s2", gyro_columns="4,5,6",
-                               gyro_units="deg/s")
+                               gyro_units="deg/s", force_weak=True)
     fit = imu.gyroscope
     assert fit.forced and any(r.startswith(("scale K_", "χ²/dof")) for r in fit.forced)
     assert any(n.startswith("gyroscope forced although implausible") for n in imu.notes)
+    block = gyro_block(fit.problem, fit.x, fit.stderr, solver="lm", observability=fit.observability.to_dict(),
+                       forced=fit.forced)
+    assert block["forced"] is True and block["forced_reasons"] == fit.forced
+    assert "forced" not in gyro_block(fit.problem, fit.x, fit.stderr, solver="lm", observability={})
+    out = tmp_path / "short.json"
+    code, text, err = run_cli(["imu", sdr["Short"], *SDR, "--force-weak", "-o", out], capsys)
+    assert code == 0 and out.exists(), err
+    assert "gyroscope forced although implausible" in text
