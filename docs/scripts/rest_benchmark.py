@@ -1,9 +1,9 @@
-"""The labelled benchmark of rest detection (issue #29, item 8): recall of labelled rests and precision by
-sample of the old detection (segment_static, the accelerometer alone), the variance detector with its
-threshold search (choose_threshold, model diag6) and the new detection (optcal.recording.rests.find_rests,
-accelerometer and gyroscope; until that module exists, segment_static stands in for it and the table says so)
-on every labelled recording of the real corpus and on simulated hand-held IMU recordings. Prints one markdown
-table to stdout (for docs/segmentation.md).
+"""The labelled benchmark of rest detection (issue #29, item 8): recall of labelled rests and precision by sample
+of the old detection (segment_static, the accelerometer alone), the variance detector with its threshold search
+(choose_threshold, model diag6) and the new detection (segment_static with its defaults, judging the
+accelerometer and the gyroscope: tests/test_rest_labels.py's find_rests) on every labelled recording of the real
+corpus and on simulated hand-held IMU recordings. Prints one markdown table to stdout (for
+docs/segmentation.md).
 
     .venv/bin/python docs/scripts/rest_benchmark.py
 
@@ -35,7 +35,6 @@ from corpus import corpus_present, corpus_root  # noqa: E402
 from test_rest_labels import (  # noqa: E402
     LABELLED,
     MIN_STATIC_S,
-    NEW_DETECTOR,
     SIM_CASES,
     UNLABELLED,
     find_rests,
@@ -47,11 +46,11 @@ from optcal.recording.labels import gyro_labels, interval_labels, score_rests  #
 from optcal.synthetic_imu import handheld_imu  # noqa: E402
 
 SEEDS = range(5)
-NEW = "new" if NEW_DETECTOR else "new (segment_static standing in)"
+NEW = "new"
 
 
-def _old(acc, gyro):
-    return segment_static(acc).intervals
+def _old(acc, gyro):  # issue #20's segmentation, the accelerometer alone
+    return segment_static(acc, gyro=False, refine=False).intervals
 
 
 def _variance(acc, gyro):

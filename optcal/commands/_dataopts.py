@@ -30,7 +30,6 @@ FLAGS = {
     "min_static_s": "--min-static",
     "init_s": "--init-s",
     "threshold_k": "--threshold-k",
-    "force_weak": "--force-weak",
 }
 # what the library's errors name that is not a parameter of positions_from_raw: its choice of reader
 READERS = {"raw": "--raw"}

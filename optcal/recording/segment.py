@@ -62,8 +62,12 @@ LOUD_SIGMAS = 6.0  # a block-to-block step of the means beyond this many block-n
 # χ²(3) p ≈ 4e-4 for white noise) is motion: a segment rejected as shaking is cut at such steps into its parts
 GYRO_WINDOW_S = 0.25  # s: the gyroscope's rate is averaged over this before it is judged (tremor averages out)
 GYRO_Z = 8.0  # an averaged rate this many noise SDs from the level at rest (any axis) is a turn ...
-HOLD_FACTOR = 4.0  # ... when it is also this many times the level at which the rests are held (a hand's sway)
-GYRO_MARGIN_S = 0.05  # s: samples this close to a turning one are left out of a rest (the turn's edge)
+TURN_FRACTION = 0.005  # ... when it is also this fraction of the recording's turns (the 99th percentile of the
+# averaged rate): about 1 °/s for hand turns at 200 °/s, above a hand's sway in a held pose (tenths of °/s)
+GROW_FRACTION = 0.3  # a turn extends while its averaged rate stays above this fraction of that threshold ...
+GYRO_Z_LOW = 4.0  # ... and this many noise SDs (its slow start, its settling)
+SETTLE_S = 0.15  # s: samples this long after a turn are left out of a rest (a settling fades under the noise)
+GYRO_MARGIN_S = 0.05  # s: and this long before one (the turn's first samples)
 
 
 @dataclass
@@ -539,12 +543,14 @@ def gyro_turning(W: np.ndarray, b: int, seg: np.ndarray, rest: np.ndarray, rate:
 
     The rate is averaged over :data:`GYRO_WINDOW_S` (a hand's tremor averages out; the end of a turn does not)
     and taken from the level at rest (:func:`_rest_level`: a drifting bias is followed), in units of the
-    average's white noise (second differences, :func:`_noise_sd`, never below the quantisation step's q/√12).
-    A sample turns when that exceeds :data:`GYRO_Z`, or :data:`HOLD_FACTOR` times the level at which the
-    accelerometer's rests are held (the median over rests of their 90th percentile): a pose held by hand sways
-    at a fraction of a degree per second, far below a turn between poses but far above the noise, and it is the
-    accelerometer's rest test that judges whether a sway moves the pose. Samples within
-    :data:`GYRO_MARGIN_S` of a turning one turn too; a block turns when it holds a turning sample."""
+    average's white noise (second differences, :func:`_noise_sd`, never below the quantisation step's q/√12);
+    ``z`` is the largest axis. A turn's core is where ``z`` exceeds :data:`GYRO_Z` and :data:`TURN_FRACTION` of
+    the recording's turns (the 99th percentile of ``z``): units-free, that is about 1 °/s for turns by hand at
+    200 °/s, above the sway of a pose held by hand (tenths of °/s, which the accelerometer's rest test judges)
+    and hundreds of times the noise of a MEMS gyroscope. A turn extends from its core while ``z`` stays above
+    :data:`GROW_FRACTION` of that threshold and :data:`GYRO_Z_LOW` (its slow start, its settling), and by
+    :data:`SETTLE_S` after it and :data:`GYRO_MARGIN_S` before it. A block turns when it holds a turning sample.
+    """
     W = np.asarray(W, float)
     n = len(W)
     nb = n // b
@@ -561,13 +567,31 @@ def gyro_turning(W: np.ndarray, b: int, seg: np.ndarray, rest: np.ndarray, rate:
     lo = np.clip(np.arange(n) - w // 2, 0, max(n - w, 0))
     hi = np.minimum(lo + w, n)
     z = np.max(np.abs(c[hi] - c[lo]) / (hi - lo)[:, None] / (s / np.sqrt(w)), axis=1)
-    held = seg[rest & (seg[:, 1] - seg[:, 0] >= 4)] * b
-    p90 = _group_stat(z, held, lambda x, axis: np.nanpercentile(x, 90, axis=axis)) if len(held) else np.zeros(1)
-    hold = float(np.median(p90))
-    samples = (z > max(GYRO_Z, HOLD_FACTOR * hold)) | ~finite
-    samples = _dilate(samples, int(round(GYRO_MARGIN_S * rate)) if np.isfinite(rate) else 2)
+    # a turn: above the noise and above a small fraction of the recording's turns (its 99th percentile), grown
+    # while it stays above a fraction of that (a turn's slow start and its settling), and its edges
+    core = z > max(GYRO_Z, TURN_FRACTION * float(np.percentile(z, 99)))
+    low = z > max(GYRO_Z_LOW, GROW_FRACTION * max(GYRO_Z, TURN_FRACTION * float(np.percentile(z, 99))))
+    d = np.diff(np.concatenate([[0], low.astype(np.int8), [0]]))
+    starts, stops = np.flatnonzero(d == 1), np.flatnonzero(d == -1)
+    cc = np.concatenate([[0], np.cumsum(core)])
+    hit = cc[stops] > cc[starts]  # runs above the low threshold that hold a turn
+    grown = np.zeros(n + 1, np.int64)
+    np.add.at(grown, starts[hit], 1)
+    np.add.at(grown, stops[hit], -1)
+    samples = (np.cumsum(grown[:n]) > 0) | core | ~finite
+    per_s = rate if np.isfinite(rate) else 50.0
+    samples = _dilate_after(samples, int(round(SETTLE_S * per_s)), int(round(GYRO_MARGIN_S * per_s)))
     blocks = samples[: nb * b].reshape(nb, b).any(axis=1)
     return blocks, samples
+
+
+def _dilate_after(mask: np.ndarray, after: int, before: int) -> np.ndarray:
+    """``mask`` (n,) grown by ``after`` samples after each run and ``before`` samples before it."""
+    if not mask.any():
+        return mask
+    c = np.concatenate([[0], np.cumsum(mask)])
+    i = np.arange(len(mask))
+    return (c[np.minimum(i + before + 1, len(mask))] - c[np.maximum(i - after, 0)]) > 0
 
 
 def _loud_blocks(Z: np.ndarray) -> np.ndarray:
