@@ -40,7 +40,7 @@ class ImuCalibration:
 
         fit = self.gyroscope
         return gyro_block(fit.problem, fit.x, fit.stderr, solver=self.solver,
-                          observability=fit.observability.to_dict(), g_test=fit.g_test)
+                          observability=fit.observability.to_dict(), g_test=fit.g_test, forced=fit.forced)
 
     def to_dict(self, source: str | None = None) -> dict:
         """The IMU calibration file's content: the accelerometer's record with the gyroscope block."""

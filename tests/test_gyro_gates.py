@@ -196,3 +196,5 @@ def test_force_weak_keeps_the_failed_fit_marked(sdr, tmp_path, capsys):
     code, text, err = run_cli(["imu", sdr["Short"], *SDR, "--force-weak", "-o", out], capsys)
     assert code == 0 and out.exists(), err
     assert "gyroscope forced although implausible" in text
+    g = json.loads(out.read_text())["gyroscope"]  # the file says so too (optcal.imu.ImuCalibration.gyro_block)
+    assert g["forced"] is True and g["forced_reasons"] and imu.gyro_block()["forced"] is True
