@@ -306,7 +306,7 @@ def test_too_few_intervals_says_why_and_what_to_change(tmp_path, capsys):
     with pytest.raises(InputError) as exc:
         positions_from_raw(path, units="counts", model="linear9", threshold_k=4)
     msg = str(exc.value)
-    assert msg.startswith("found 1 static interval(s) (k = 4), but model linear9 needs at least 9")
+    assert msg.startswith("found 1 static interval(s) (k = 4), model linear9 needs at least 9")
     assert "0 sample(s) set aside as saturated" in msg
     assert "23 candidate(s) shorter than `min_static_s` = 1 s (the longest 0.64 s)" in msg
     assert msg.endswith("lower `min_static_s` to 0.6 s")

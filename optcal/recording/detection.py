@@ -257,6 +257,6 @@ def too_few(found: int, model: Model, how: str = "", diagnosis: tuple[str, str] 
     how = f" {how}" if how else ""
     counts, advice = diagnosis or ("", "record more poses, lower `min_static_s`, or use a smaller model (e.g. diag6)")
     return InputError(
-        f"found {found} static interval(s){how}, but model {model.name} needs at least {model.n_params} "
-        f"(one per parameter){': ' + counts if counts else ''}; {advice}"
+        f"found {found} static interval(s){how}, model {model.name} needs at least {model.n_params}"
+        f"{' (' + counts + ')' if counts else ''}; {advice}"
     )

@@ -707,26 +707,25 @@ def segment_diagnosis(det: DetectionResult, needed: int) -> tuple[str, str]:
     short_rest = sg.short
     outside = len(rec) - det.n_static_samples  # samples not in a found interval
     moving = int(L[~sg.rest].sum() + L[short_rest].sum())
-    counts = (f"{int(trend.sum())} segment(s) trend (the outputs drift: the sensor turns), {int(noisy.sum())} "
-              f"shake beyond {NOISE_RATIO:g} × the noise, {int(short_rest.sum())} at rest but shorter than "
-              f"`min_static_s` = {sec(det.min_samples)}, {sec(sg.n_bad_blocks * b)} set aside as saturated "
-              "or missing")
+    turn = sg.reason == "turn"
+    parts = [(int(trend.sum() + turn.sum()), "turn"), (int(noisy.sum()), "shake"),
+             (int(short_rest.sum()), f"rest < `min_static_s` = {sec(det.min_samples)}")]
+    counts = ", ".join(f"{k} {what}" for k, what in parts if k) or "no segment at rest"
+    counts = "segments: " + counts + (f"; {sec(sg.n_bad_blocks * b)} saturated or missing" if sg.n_bad_blocks else "")
     longest = int(L[short_rest].max()) if short_rest.any() else 0
     moving_frac = float(L[~sg.rest].sum()) / max(len(rec), 1)
     if det.n_intervals == 0 and moving_frac >= 0.5:
-        advice = ("no part of the recording is at rest (its outputs change throughout: a continuous motion, not "
-                  "poses held still); record poses held still for at least `min_static_s`, or give the "
-                  "intervals with `intervals`")
+        advice = ("no part of the recording is at rest (a continuous motion, not held poses); hold poses still "
+                  "for `min_static_s`, or give `intervals`")
     elif moving >= 0.9 * outside and longest < det.min_samples // 2:
-        advice = ("outside the intervals found, no part is at rest (the outputs change throughout: a "
-                  "continuous motion, not poses held still); record poses held still for at least "
-                  "`min_static_s`, or give the intervals with `intervals`")
+        advice = ("outside the intervals found, no part is at rest (a continuous motion); hold poses still for "
+                  "`min_static_s`, or give `intervals`")
     elif short_rest.sum() >= needed - det.n_intervals and longest >= det.min_samples // 2:
         advice = (f"lower `min_static_s` to {max(np.floor(longest / rate * 10) / 10, 0.1):g} s"
                   if np.isfinite(rate) else "lower `min_static_s`")
     else:
-        advice = ("record more poses, each held still for longer than `min_static_s`, or use the variance "
-                  "detector (`method` variance) or intervals given with `intervals`")
+        advice = ("record more poses, each held still for longer than `min_static_s`, or try `method` "
+                  "variance or give `intervals`")
     return counts, advice
 
 
