@@ -11,12 +11,12 @@ from __future__ import annotations
 import dataclasses
 import gzip
 import json
-import os
 from pathlib import Path
 
 import numpy as np
 import pytest
 from conftest import run_cli
+from corpus import corpus
 
 from optcal.errors import MAX_LINE, InputError
 from optcal.gyro import analysis as ga
@@ -26,15 +26,6 @@ from optcal.gyro.workflow import calibrate_gyro
 ROOT = Path(__file__).resolve().parents[1]
 NAMES = get_gyro_model(False, bias=False).names
 DEG = 180.0 / np.pi
-
-
-def _corpus(*parts) -> Path:
-    """A file of the real corpus (``OPTCAL_CORPUS``, else ../shared/data/real beside the clone); the test is
-    skipped where the corpus is absent."""
-    root = Path(os.environ.get("OPTCAL_CORPUS") or ROOT.parent / "shared" / "data" / "real")
-    if not root.is_dir():
-        pytest.skip(f"the real corpus is absent: set OPTCAL_CORPUS (default {root})")
-    return root.joinpath(*parts)
 
 
 def _gunzip(src: Path, dst: Path) -> Path:
@@ -124,7 +115,7 @@ SDR = ["--columns", "0,1,2,3", "--units", "m/s2", "--gyro-columns", "4,5,6", "--
 @pytest.fixture(scope="module")
 def sdr(tmp_path_factory):
     d = tmp_path_factory.mktemp("sdr")
-    return {n: _gunzip(_corpus("sdr_rev2", f"IMU_Rev2_Data_{n}.txt.gz"), d / f"{n}.txt") for n in ("Long", "Short")}
+    return {n: _gunzip(corpus("sdr_rev2", f"IMU_Rev2_Data_{n}.txt.gz"), d / f"{n}.txt") for n in ("Long", "Short")}
 
 
 def test_sdr_short_failed_fit_is_refused_and_nothing_written(sdr, tmp_path, capsys):
@@ -157,15 +148,15 @@ def test_sdr_long_half_rate_passes_with_the_note(sdr, tmp_path, capsys):
 def test_good_recordings_pass_without_a_scale_note(tmp_path, capsys):
     """imu_tk's Xsens pair (counts, scale searched), imucal's session (deg/s, 2.6 % off nominal at most) and
     shen_gesture's MPU-9250 (counts) pass the gates; none is said to be off its units' factor."""
-    acc = _gunzip(_corpus("imu_tk", "xsens_acc.mat.gz"), tmp_path / "xsens_acc.mat")
-    gyr = _gunzip(_corpus("imu_tk", "xsens_gyro.mat.gz"), tmp_path / "xsens_gyro.mat")
+    acc = _gunzip(corpus("imu_tk", "xsens_acc.mat.gz"), tmp_path / "xsens_acc.mat")
+    gyr = _gunzip(corpus("imu_tk", "xsens_gyro.mat.gz"), tmp_path / "xsens_gyro.mat")
     runs = {
         "imu_tk": [acc, "--gyro", gyr, "--gyro-units", "counts", "--units", "counts", "--gravity-ms2", "9.81744",
                    "--model", "linear9"],
-        "imucal": [_corpus("imucal", "example_ferraris_session.csv"), "--columns", "ax=acc_x,ay=acc_y,az=acc_z",
+        "imucal": [corpus("imucal", "example_ferraris_session.csv"), "--columns", "ax=acc_x,ay=acc_y,az=acc_z",
                    "--rate", "102.4", "--units", "m/s2", "--gyro-columns", "gyr_x,gyr_y,gyr_z", "--gyro-units",
                    "deg/s", "--model", "diag6"],
-        "shen": [_corpus("shen_gesture", "caldata.mat"), "--columns", "0,1,2,3", "--units", "counts",
+        "shen": [corpus("shen_gesture", "caldata.mat"), "--columns", "0,1,2,3", "--units", "counts",
                  "--gyro-columns", "4,5,6", "--gyro-units", "counts"],
     }
     for name, argv in runs.items():

@@ -136,7 +136,9 @@ def test_mpu6050_detection_finds_the_reference_poses(mpu):
     assert rec.rate == 100.0 and len(rec) == 10245 and not rec.saturated.any()  # the gyro saturates, not acc
     det = choose_threshold(rec, "diag6")
     assert det.n_intervals == 10 == len(ref)
-    assert det.k == 8  # the search with diag6: k = 8 fits best of those that find the 10 poses
+    # the search with diag6: k = 3 to 10 all find the 10 poses; k = 3, the shortest intervals, gives the most
+    # precise calibration (standard errors 0.05 % on K, 0.07 % at k = 8; both within 0.06 % of the source's K)
+    assert det.k == 3
     ov = _overlaps(det.intervals, ref)
     # one to one: each reference interval lies inside exactly one detected interval, and vice versa
     assert np.all((ov > 0).sum(axis=0) == 1) and np.all((ov > 0).sum(axis=1) == 1)
@@ -161,7 +163,7 @@ def test_mpu6050_scale_factors_near_nominal_and_residual(mpu):
     assert results["default"].model.name == "diag6"
     np.testing.assert_array_equal(results["default"].x, results["diag6"].x)
     weak = calibrate(data, "linear9", force_weak=True)
-    assert any("implausible" in r for r in weak.forced) and weak.fit.rms_g < 60e-6  # 38 µg, 1 dof
+    assert any("implausible" in r for r in weak.forced) and weak.fit.rms_g < 100e-6  # 89 µg, 1 dof
     cal = results["diag6"]
     K = cal.x[:3]
     # MPU-6050 datasheet: 16384 LSB/g ±3 % at ±2 g

@@ -7,7 +7,7 @@ docs/segmentation.md).
 
     .venv/bin/python docs/scripts/rest_benchmark.py
 
-The corpus: OPTCAL_CORPUS, else ../shared/data/real from the repository's root (tests/corpus.py); its
+The corpus: where tests/corpus.py finds it (OPTCAL_CORPUS, else its default beside the clone); its
 labelled recordings and their labels are tests/test_rest_labels.py's LABELLED table. Labels (independent of
 all three detectors) and scores are optcal.recording.labels': the gyroscope's stillness where there is a
 gyroscope, and the source's own intervals where it gives them (their precision by the gyroscope's labels, or

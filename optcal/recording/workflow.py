@@ -43,7 +43,8 @@ def fit_score(data: PositionsData, model, g_local: float = 1.0, solver: str = "l
     when the orientations it keeps leave a direction weak); one that takes a motion into an interval fits
     worse. imu_tk compares raw final costs, and an earlier score here compared σ_up/√n: both could prefer a
     threshold that found 14 intervals where others found 26 (issue #29), and give a scale factor 4 % off.
-    The upper bound stops a fit with few degrees of freedom from winning on luck. The fit goes through
+    The upper bound stops a fit with few degrees of freedom from winning on luck; a fit that would be refused
+    (implausible parameters, a parameter known no better than a datasheet) scores infinity. The fit goes through
     :func:`optcal.fit.calibrate` (the registry, at run time)."""
     from ..distributions import chi2_isf
     from ..fit import calibrate
@@ -58,7 +59,9 @@ def fit_score(data: PositionsData, model, g_local: float = 1.0, solver: str = "l
     sigma = np.sqrt(cal.fit.cost / max(cal.fit.dof, 1))
     sigma_up = np.sqrt(cal.fit.cost / chi2_isf(1.0 - alpha, cal.fit.dof))
     inflate = sigma_up / sigma if sigma > 0 else 1.0
-    return float(np.sqrt(np.mean(rel**2)) * inflate) if np.all(np.isfinite(rel)) else float("inf")
+    if cal.forced or not np.all(np.isfinite(rel)):  # a calibration the data do not determine, or implausible:
+        return float("inf")  # kept only when no candidate does better
+    return float(np.sqrt(np.mean(rel**2)) * inflate)
 
 
 def choose_threshold(recording: Recording, model, fit_cost_fn=None, *, ks=DEFAULT_KS, g_local: float = 1.0,
