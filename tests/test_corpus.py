@@ -323,7 +323,8 @@ def test_phone_recording_shape_and_quantisation(phone_csv):
 
 def test_phone_detection_against_their_sections(phone_csv):
     """Our detector (rate assumed 50 Hz) finds 35 intervals: each of the authors' 30 sections overlaps
-    one or two of ours and lies at least 78 % inside them; the 4 we find after their last section are
+    one or two of ours and lies at least 74 % inside them (the threshold search keeps k = 3, the most precise
+    calibration, whose intervals are the shortest of those that find 35); the 4 we find after their last section are
     more poses they did not use, one more splits their 4th section in two."""
     rec = read_recording(phone_csv, rate=float(HB_PHONE_RATE), units="m/s2")
     det = choose_threshold(rec, "linear9")
@@ -332,7 +333,7 @@ def test_phone_detection_against_their_sections(phone_csv):
                  - np.maximum(a[:, None, 0], HB_PHONE_IV[None, :, 0]), 0, None)
     assert det.n_intervals == 35
     assert np.all((ov > 0).sum(axis=0) >= 1)
-    assert np.all(ov.sum(axis=0) / (HB_PHONE_IV[:, 1] - HB_PHONE_IV[:, 0]) > 0.75)
+    assert np.all(ov.sum(axis=0) / (HB_PHONE_IV[:, 1] - HB_PHONE_IV[:, 0]) > 0.72)
     extra = a[(ov > 0).sum(axis=1) == 0]
     assert len(extra) == 4 and np.all(extra[:, 0] > HB_PHONE_IV[-1, 1])
 
