@@ -36,6 +36,20 @@ The flicker level B² is fitted without a sign constraint (an unbiased estimate;
 seen), and the floor is never below the white-noise value: sem_i = max(√(p/(p − 1)·[PCP]_ii), s_i/√n_i) per
 axis, with s_i the interval's own sample SD.
 
+The fit re-weights each point by its variance under the fitted curve with a negative flicker level taken as
+none (as the floor takes it): with the curve a/τ + b itself, a b < 0 that brings it near 0 at the longest τ gave
+that one point an unbounded weight, and the passes swung between b < 0 and a b > 0 with a vanishing standard
+error, a confident flicker level that the points did not hold (docs/noise.md, "The floor on hand-held logs").
+
+A pose that turns: the residual sees each mean along its specific force only, and a pose turning while it is
+held moves the output across the force (to first order), which the per-axis Allan variance counts as noise. A
+check, which does not change the floor: each axis's Allan variance is read again from the components along the
+force alone (:func:`along_avar`: the projections on each interval's force direction, :func:`force_directions`,
+solved for the three axes by least squares at each τ; consistent whether the pose turns or not, less
+precise), and the white + flicker model fitted to it over the same τ. A per-axis flicker level more than
+:data:`TURN_Z` standard errors (the along-force fit's) above the along-force one is said in a note
+(``turned``, ``turn_z``, ``along_bias_instability``): the floor may then exceed the noise of the means.
+
 The floor is an estimate: B² from a few seconds of data has a standard error (the fit's), which the span
 multiplies. Its effective degrees of freedom (``edf``, Satterthwaite: 2·(Σ sem²)²/Var(Σ sem²)) let the χ²
 test of a fit become the F test of an estimated variance (:func:`optcal.analysis.goodness_of_fit`).
@@ -58,6 +72,9 @@ SLOPE_TOL = 0.1  # a point is on the −1/2 line when its local log-log slope is
 MIN_PAIRS = 8.0  # a τ is fitted when the pooled intervals hold this many independent pairs of τ-averages at it
 FIT_PASSES = 6  # iterative re-weighting of the power-law fit (as optcal.noise.fit.fit_terms)
 MIN_STATIC = 64  # static samples (pooled) below which the Allan deviation says nothing: the floor is σ/√n
+TURN_Z = 3.0  # an axis's flicker level this many SE (the along-force fit's) above the along-force one: the pose turned
+MAX_COND = 100.0  # condition number of the along-force regression beyond which the poses do not tell the axes apart
+MAX_RADIUS_SPREAD = 0.1  # relative SD of the fitted ellipsoid's radius at the means beyond which they are no poses
 ESTIMATORS = {
     "allan": "Allan model of the static intervals (white + flicker noise; each mean's scatter about all "
              "positions' mean)",
@@ -83,6 +100,9 @@ class NoiseFloor:
     edf: float = math.inf  # effective degrees of freedom of the floor's Σ sem² (Satterthwaite): its estimation noise
     flicker: np.ndarray | None = None  # (p, p) p/(p − 1)·P C P of unit flicker (B = 1); its diagonal is g
     b2: np.ndarray | None = None  # (3,) the flicker level B² per axis used in the covariance (≥ 0)
+    turned: np.ndarray | None = None  # (3,) bool: the per-axis flicker exceeds the along-force one (the poses turned)
+    turn_z: np.ndarray | None = None  # (3,) that excess in standard errors of the along-force level (NaN: untested)
+    along_bias_instability: np.ndarray | None = None  # (3,) B read along the force alone, units (NaN: untested)
 
     def covariance(self, k: int) -> np.ndarray:
         """Covariance (p, p) of the means of axis ``k`` about their average, as the floor models it: the
@@ -112,8 +132,12 @@ class NoiseFloor:
         def axes(v, fmt=".3g"):
             return "/".join(format(float(x), fmt) for x in v)
 
+        turned = ("" if self.turned is None or not np.any(self.turned) else
+                  f"; the poses turned while held ({'/'.join(np.array(list('xyz'))[self.turned])}: B along the force "
+                  f"{axes(self.along_bias_instability[self.turned])} {u}): the floor may exceed the means' noise")
         return (head + f"; per axis x/y/z N = {axes(self.density)} {u}/√Hz, B = {axes(self.bias_instability)} {u}, "
-                f"fitted at τ = {self.tau_s[0]:.3g}–{self.tau_s[-1]:.3g} {per}, {self.edf:.3g} degrees of freedom")
+                f"fitted at τ = {self.tau_s[0]:.3g}–{self.tau_s[-1]:.3g} {per}, {self.edf:.3g} degrees of freedom"
+                + turned)
 
     def to_dict(self) -> dict:
         """The JSON form: every key names its unit (the output units are ``units``)."""
@@ -143,25 +167,112 @@ def _pooled(x: np.ndarray, intervals: np.ndarray):
     return y - np.repeat(means, lengths, axis=0), lengths, first, means
 
 
+def _second_differences(y: np.ndarray, lengths: np.ndarray, m: np.ndarray):
+    """For each averaging factor of ``m``: its index, m, the pooled samples ``i`` where a second difference of
+    m-averages starts and lies inside one interval, and those differences (len(i), k), of ``y``, the pooled
+    samples of intervals of ``lengths`` (:func:`_pooled`)."""
+    C = np.vstack([np.zeros((1, y.shape[1])), np.cumsum(y, axis=0)])  # centred: the sums stay small
+    seg_end = np.repeat(np.cumsum(lengths), lengths)  # where each sample's interval ends, in the pooled samples
+    total = len(y)
+    for k, mm in enumerate(np.asarray(m, int)):  # octaves (tens at most), each one vectorised over samples
+        i = np.arange(max(total - 2 * mm + 1, 0))
+        i = i[seg_end[i] >= i + 2 * mm]
+        yield k, mm, i, C[i + 2 * mm] - 2.0 * C[i + mm] + C[i]
+
+
 def pooled_avar(x: np.ndarray, intervals: np.ndarray, m: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Overlapping Allan variance of each column of ``x`` (n, k) at averaging factors ``m`` (samples), pooled
     over the ``intervals`` [start, end): every second difference of the τ-averages that lies inside one
     interval, from all of them, with equal weight (on one interval it is ``allantools.oadev``'s). Returns the
     variance (len(m), k) and the number of differences at each m."""
     y, lengths, _, _ = _pooled(x, intervals)
-    C = np.vstack([np.zeros((1, y.shape[1])), np.cumsum(y, axis=0)])  # centred: the sums stay small
-    seg_end = np.repeat(np.cumsum(lengths), lengths)  # where each sample's interval ends, in the pooled samples
-    total = len(y)
+    avar, count, _, _ = _allan(y, lengths, m)
+    return avar, count
+
+
+_PA, _PB = np.array([0, 1, 2, 0, 0, 1]), np.array([0, 1, 2, 1, 2, 2])  # the products d_a·d_b, a ≤ b
+_PW = np.array([1.0, 1.0, 1.0, 2.0, 2.0, 2.0])  # their weights in (u·d)²
+
+
+def _allan(y: np.ndarray, lengths: np.ndarray, m: np.ndarray, u: np.ndarray | None = None):
+    """:func:`pooled_avar` of the pooled samples ``y`` of intervals of ``lengths`` (:func:`_pooled`), and with
+    ``u`` (p, 3) in the same pass :func:`along_avar`'s variances and ν (else None, None)."""
     avar = np.full((len(m), y.shape[1]), np.nan)
     count = np.zeros(len(m), int)
-    for k, mm in enumerate(np.asarray(m, int)):  # octaves (tens at most), each one vectorised over samples
-        i = np.arange(max(total - 2 * mm + 1, 0))
-        i = i[seg_end[i] >= i + 2 * mm]
+    along = nu = None
+    if u is not None:
+        u = np.asarray(u, float)
+        which = np.repeat(np.arange(len(lengths)), lengths)
+        W = u**2
+        along, nu = np.full((len(m), 3), np.nan), np.zeros((len(m), 3))
+    for k, mm, i, d in _second_differences(y, lengths, m):
         count[k] = i.size
-        if i.size:
-            d = C[i + 2 * mm] - 2.0 * C[i + mm] + C[i]
+        if not i.size:
+            continue
+        if u is None:
             avar[k] = np.sum(d * d, axis=0) / (2.0 * mm * mm * i.size)
-    return avar, count
+            continue
+        # each interval's sums of d_a·d_b (its differences are one run of i): the per-axis sums and, through
+        # u_iᵀ S_i u_i, the sums of the squared projections
+        run = np.flatnonzero(np.r_[True, which[i][1:] != which[i][:-1]])
+        S = np.add.reduceat(d[:, _PA] * d[:, _PB], run, axis=0)
+        avar[k] = S[:, :3].sum(axis=0) / (2.0 * mm * mm * i.size)
+        ui = u[which[i][run]]
+        c = np.diff(np.r_[run, i.size]).astype(float)
+        mean = np.sum(S * ui[:, _PA] * ui[:, _PB] * _PW, axis=1) / (2.0 * mm * mm * c)
+        A = W[which[i][run]] * np.sqrt(c)[:, None]
+        if len(A) < 3 or np.linalg.cond(A) > MAX_COND:  # the poses reaching this τ do not tell the axes apart
+            continue
+        L = np.linalg.pinv(A) * np.sqrt(c)[None, :]  # σ² = L @ mean
+        along[k] = L @ mean
+        var = np.sum(L**2 * (2.0 * (W[which[i][run]] @ avar[k]) ** 2 / (c / mm))[None, :], axis=1)
+        nu[k] = np.where(var > 0, 2.0 * avar[k] ** 2 / np.where(var > 0, var, 1.0), 0.0)
+    return avar, count, along, nu
+
+
+# -- the noise along the force ----------------------------------------------------------------------------------
+
+def force_directions(means: np.ndarray) -> np.ndarray | None:
+    """Unit vectors (p, 3), one per position, along which a change of the output changes the magnitude of the
+    specific force: the gradient of an axis-aligned ellipsoid Σ α_k (y_k − c_k)² = 1 fitted to the positions'
+    mean outputs (algebraically: the null vector of [y², y, 1], in centred and scaled outputs, so that offsets of
+    raw counts do not matter). None when it cannot be fitted: fewer than 7 positions, α of mixed signs (the
+    means lie on no ellipsoid), or an ellipsoid whose radius at the means spreads by more than
+    :data:`MAX_RADIUS_SPREAD` (they are no static poses of one sensor)."""
+    m = np.asarray(means, float)
+    if len(m) < 7:
+        return None
+    s = m.std(axis=0)
+    if np.any(s <= 0):
+        return None
+    z = (m - m.mean(axis=0)) / s
+    v = np.linalg.svd(np.column_stack([z * z, z, np.ones(len(z))]))[2][-1]
+    alpha, beta = (v[:3], v[3:6]) if v[:3].sum() > 0 else (-v[:3], -v[3:6])
+    if np.any(alpha <= 0):
+        return None
+    d = z + beta / (2.0 * alpha)  # z − c
+    radius = np.sqrt(np.sum(alpha * d * d, axis=1))
+    if np.std(radius) > MAX_RADIUS_SPREAD * np.mean(radius):
+        return None
+    grad = alpha * d / s
+    return grad / np.linalg.norm(grad, axis=1, keepdims=True)
+
+
+def along_avar(x: np.ndarray, intervals: np.ndarray, m: np.ndarray,
+               u: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Each axis's Allan variance (len(m), 3) read from the components of the samples along the specific force
+    alone, ``u`` (p, 3) each interval's direction (:func:`force_directions`): the second differences of
+    interval i projected on u_i have variance Σ_k u_ik² σ_k²(τ) when the axes' noises are independent, so the
+    σ_k² at each τ are the least-squares solution over the intervals (each difference weighted equally, as
+    :func:`pooled_avar`; unbiased, of either sign; NaN at a τ where the intervals long enough for it do not
+    tell the axes apart: condition number above :data:`MAX_COND`). A turn of the pose while it is held moves
+    the output across the force, not along it (to first order), and does not enter. Returns the variances and
+    the equivalent number of independent pairs ν, 2σ_k⁴/Var(σ̂_k²) per axis and τ: each interval's mean over
+    ν_i = (its differences)/m pairs has variance 2E_i²/ν_i, E_i = Σ_k u_ik² σ_k², with σ_k² the per-axis
+    pooled variance (:func:`pooled_avar`'s: positive, and the same where the pose does not turn)."""
+    y, lengths, _, _ = _pooled(x, intervals)
+    _, _, along, nu = _allan(y, lengths, m, u)
+    return along, nu
 
 
 # -- the power-law fit ---------------------------------------------------------------------------------------
@@ -172,14 +283,18 @@ def fit_white_flicker(tau: np.ndarray, avar: np.ndarray, nu: np.ndarray) -> tupl
     (re-weighted :data:`FIT_PASSES` times, as :func:`optcal.noise.fit.fit_terms` fits one stretch). Returns
     (a, b) and the standard error of b (the points taken as independent; octave-spaced, they nearly are)."""
     X = np.column_stack([1.0 / tau, np.ones_like(tau)])
-    model = avar.copy()
+    low = np.min(avar[avar > 0]) if np.any(avar > 0) else 1.0  # a point at or below 0 (read along the force) weighs
+    model = np.where(avar > 0, avar, low)  # as the smallest positive one to start with
     for _ in range(FIT_PASSES):
         sd_y = np.maximum(model, 1e-300) * np.sqrt(2.0 / nu)
         Xw = X / sd_y[:, None]
         coef = np.linalg.lstsq(Xw, avar / sd_y, rcond=None)[0]
         if coef[0] < 0:  # no white term: the flicker level alone
             coef = np.array([0.0, float(np.sum(avar / sd_y**2) / np.sum(1.0 / sd_y**2))])
-        model = np.maximum(X @ coef, np.min(avar) * 1e-6)
+        # the weights' σ² with a negative flicker level taken as none (as the floor takes it): a curve a/τ + b that
+        # nears 0 at the longest τ would weight that one point without bound, and the passes would swing between
+        # b < 0 and b > 0 with a vanishing standard error
+        model = np.maximum(X @ np.array([coef[0], max(coef[1], 0.0)]), low * 1e-6)
     cov = np.linalg.pinv(Xw.T @ Xw)
     return coef, float(np.sqrt(max(cov[1, 1], 0.0)))
 
@@ -226,6 +341,33 @@ def octaves(max_m: int) -> np.ndarray:
     return 2 ** np.arange(int(math.floor(math.log2(max_m))) + 1) if max_m >= 1 else np.array([], int)
 
 
+def _fit_axes(tau: np.ndarray, avar: np.ndarray, nu: np.ndarray,
+              first: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """:func:`fit_white_flicker` per axis of ``avar`` (len(tau), 3) with ``nu`` (len(tau), 3), from each axis's
+    point ``first`` on (default: its first point on the −1/2 line). Returns (a, b) per axis (3, 2), the standard
+    errors of b (3,) and the first points (3,)."""
+    coef = np.zeros((3, 2))
+    sd_b = np.zeros(3)
+    firsts = np.zeros(3, int)
+    for k in range(3):  # three axes, each a fit of a few points
+        y = avar[:, k]
+        if not np.any(y > 0):
+            continue
+        if first is None:
+            adev = np.sqrt(np.maximum(y, 0))
+            slope = np.gradient(np.log(np.maximum(adev, 1e-300)), np.log(tau))
+            # from the first point on the −1/2 line (shorter τ may carry quantisation or a low-pass filter), as
+            # optcal.noise.fit.read_terms fits one stretch
+            i_min = int(np.argmin(adev))
+            on_line = np.flatnonzero((np.arange(len(tau)) <= i_min) & (np.abs(slope + 0.5) <= SLOPE_TOL))
+            firsts[k] = int(on_line[0]) if on_line.size and len(tau) - on_line[0] >= 3 else 0
+        else:
+            firsts[k] = first[k]
+        f = firsts[k]
+        coef[k], sd_b[k] = fit_white_flicker(tau[f:], y[f:], nu[f:, k])
+    return coef, sd_b, firsts
+
+
 def noise_floor(N: np.ndarray, intervals: np.ndarray, start_s: np.ndarray, rate_hz: float,
                 units: str = "") -> NoiseFloor:
     """The floor of each interval's mean (module docstring): ``N`` (n, 3) the recording's samples,
@@ -238,7 +380,7 @@ def noise_floor(N: np.ndarray, intervals: np.ndarray, start_s: np.ndarray, rate_
     n = (iv[:, 1] - iv[:, 0]).astype(float)
     fs = float(rate_hz) if rate_hz is not None and math.isfinite(rate_hz) and rate_hz > 0 else math.nan
     per_s = fs if math.isfinite(fs) else 1.0
-    y, _, first, _ = _pooled(N, iv)
+    y, lengths, first, means = _pooled(N, iv)
     sd = np.sqrt(np.add.reduceat(y * y, first, axis=0) / np.maximum(n - 1, 1)[:, None]) * (n > 1)[:, None]
     white = sd / np.sqrt(n)[:, None]
 
@@ -250,10 +392,11 @@ def noise_floor(N: np.ndarray, intervals: np.ndarray, start_s: np.ndarray, rate_
     if n.sum() < MIN_STATIC:
         return plain(f"{int(n.sum())} static samples in all (fewer than {MIN_STATIC}): too few for an Allan deviation")
     m = octaves(int(n.max()) // 2)
-    avar, count = pooled_avar(N, iv, m)
+    count = np.array([np.sum(np.maximum(lengths - 2 * mm + 1, 0)) for mm in m])  # the second differences at m
+    m = m[count / m >= MIN_PAIRS]  # independent pairs of τ-averages (as ν below)
+    u = force_directions(means)  # for the check of turned poses
+    avar, count, av_f, nu_f = _allan(y, lengths, m, u)
     nu = count / m  # independent pairs of τ-averages: a low estimate of the overlapping EDF (Greenhall's 1.1-1.5×)
-    ok = (nu >= MIN_PAIRS) & np.all(np.isfinite(avar), axis=1)
-    m, avar, nu = m[ok], avar[ok], nu[ok]
     if len(m) < 3:
         return plain("the static intervals are too short for three τ of the Allan deviation")
     tau = m / per_s
@@ -261,20 +404,30 @@ def noise_floor(N: np.ndarray, intervals: np.ndarray, start_s: np.ndarray, rate_
     # each mean's flicker variance about all positions' mean, per unit B²; without a rate, times are samples
     G = centred_covariance(flicker_covariance(start_s, T))
     g = np.diag(G)
-    coef = np.zeros((3, 2))
-    sd_b = np.zeros(3)
-    for k in range(3):  # three axes, each a fit of a few points
-        y = avar[:, k]
-        if not np.any(y > 0):
-            continue
-        adev = np.sqrt(np.maximum(y, 0))
-        slope = np.gradient(np.log(np.maximum(adev, 1e-300)), np.log(tau))
-        # from the first point on the −1/2 line (shorter τ may carry quantisation or a low-pass filter), as
-        # optcal.noise.fit.read_terms fits one stretch
-        i_min = int(np.argmin(adev))
-        on_line = np.flatnonzero((np.arange(len(tau)) <= i_min) & (np.abs(slope + 0.5) <= SLOPE_TOL))
-        first = int(on_line[0]) if on_line.size and len(tau) - on_line[0] >= 3 else 0
-        coef[k], sd_b[k] = fit_white_flicker(tau[first:], y[first:], nu[first:])
+    coef, sd_b, firsts = _fit_axes(tau, avar, np.repeat(nu[:, None], 3, axis=1))
+    # A check, not a change of the floor: the residual sees each mean along its force only, and a pose that turns
+    # while held moves the output across the force, which the per-axis Allan variance counts as flicker. The
+    # components along the force alone (no turn enters them) give a consistent, less precise flicker level;
+    # TURN_Z of its standard errors below the per-axis level says the poses turned (module docstring).
+    notes = []
+    turn_z = np.full(3, np.nan)
+    b_along = np.full(3, np.nan)
+    if u is not None:
+        seen = np.all(np.isfinite(av_f), axis=0) & np.all(nu_f > 0, axis=0)  # axes the poses tell apart at every τ
+        coef_f, sd_f, _ = _fit_axes(tau, np.where(seen, av_f, 1.0), np.where(seen, nu_f, 1.0), firsts)
+        seen &= sd_f > 0
+        b_along[seen] = np.sqrt(np.maximum(coef_f[seen, 1], 0.0)) / FLICKER_FACTOR
+        turn_z[seen] = (coef[seen, 1] - coef_f[seen, 1]) / sd_f[seen]
+    turned = (coef[:, 1] > 0) & (np.nan_to_num(turn_z, nan=-np.inf) > TURN_Z)
+    if turned.any():
+        def fmt(v):
+            return "/".join(format(float(x), ".3g") for x in v)
+
+        notes.append(f"the poses turned while held ({'/'.join(np.array(list('xyz'))[turned])}: flicker B = "
+                     f"{fmt(np.sqrt(coef[turned, 1]) / FLICKER_FACTOR)} {units} per axis, "
+                     f"{fmt(b_along[turned])} {units} along the force, {fmt(turn_z[turned])} standard errors "
+                     "apart): a turn moves the output across the force, where the residual does not look, so the "
+                     "floor may exceed the noise of the means")
     B2 = coef[:, 1] / FLICKER_FACTOR**2  # B², possibly negative: the unbiased estimate
     model = coef[None, :, 0] / T[:, None] + B2[None, :] * g[:, None]
     sem = np.sqrt(np.maximum(model, white**2))
@@ -282,8 +435,7 @@ def noise_floor(N: np.ndarray, intervals: np.ndarray, start_s: np.ndarray, rate_
     var = np.sum((sd_b / FLICKER_FACTOR**2 * g.sum()) ** 2)
     edf = float(2.0 * np.sum(sem**2) ** 2 / var) if var > 0 else math.inf
     at_T = np.sqrt(np.maximum(coef[None, :, 0] / T[:, None] + coef[None, :, 1], 0.0))
-    notes = []
     if not math.isfinite(fs):
         notes.append("the recording has no rate: τ and the coefficients' seconds are samples")
     return NoiseFloor(sem, white, "allan", units, fs, np.sqrt(coef[:, 0]), np.sqrt(np.maximum(B2, 0.0)), tau,
-                      np.sqrt(avar), at_T, notes, edf, G, np.maximum(B2, 0.0))
+                      np.sqrt(avar), at_T, notes, edf, G, np.maximum(B2, 0.0), turned, turn_z, b_along)
