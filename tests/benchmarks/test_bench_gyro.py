@@ -5,28 +5,27 @@
   parameters) and fitted (12), scipy-lm on the compiled integrator and lm on the NumPy one (``optcal imu``'s);
   the issue's target is 1 s of solver time.
 * ``test_bench_imu_xsens_process``: the whole ``optcal imu`` process on imu_tk's Xsens pair (accelerometer
-  and gyroscope, from the real corpus beside the project: tests/corpus.py; threshold k = 3 as imu_tk's own
-  search settles near, and the gyroscope's nominal scale of 6258 counts per rad/s and local gravity
-  9.81744 m/s² that imu_tk's own test program is given), one fresh process per round, with Python's bytecode
-  cache (as an installed program runs); the issue quotes imu_tk at 0.52 s of whole-process time for the same
-  pair, and ``imu_tk_ratio`` is the best round over that figure. With ``OPTCAL_IMU_TK`` naming an executable
-  of imu_tk's own ``test_imu_calib`` (not part of this repository; docs/gyroscope.md §5), both programs also
-  run in turn, five rounds each, and ``imu_tk_measured_ratio`` is optcal's best over imu_tk's best measured
-  beside it.
+  and gyroscope, from the real corpus beside the project: tests/corpus.py), one fresh process per round, with
+  Python's bytecode cache (as an installed program runs): ``default``, the command as a new user gives it
+  (units only, no nominal scale: the gyroscope's scale searched), and ``imu_tk_inputs``, with what imu_tk's own
+  test program is given (the gyroscope's nominal scale of 6258 counts per rad/s, local gravity 9.81744 m/s²,
+  linear9, threshold k = 3 as imu_tk's own search settles near). The issue quotes imu_tk at 0.52 s of
+  whole-process time for the same pair, and ``imu_tk_ratio`` is the best round over that figure. With
+  ``OPTCAL_IMU_TK`` naming an executable of imu_tk's own ``test_imu_calib`` (not part of this repository;
+  docs/gyroscope.md §5), both programs also run in turn, paired rounds with the order alternating
+  (test_bench_startup.py's ``paired_with_imu_tk``), and ``imu_tk_paired_median_ratio`` is the median of the
+  rounds' ratios optcal / imu_tk.
 """
 
 from __future__ import annotations
 
 import functools
-import gzip
-import os
 import subprocess
-import sys
 import time
-from pathlib import Path
 
 import numpy as np
 import pytest
+from test_bench_startup import _command, _env, paired_with_imu_tk, xsens_pair
 
 import solvers
 from optcal.gyro import GyroProblem, draw_truth, get_gyro_model, simulate_imu
@@ -57,19 +56,16 @@ def test_bench_gyro_10_minutes(benchmark, bias, backend, solver):
         "nfev": res.nfev, "njev": res.njev, "target_s": 1.0, "ratio_to_target": res.runtime_s / 1.0})
 
 
-def _command() -> list[str]:
-    script = Path(sys.executable).parent / "optcal"
-    return [str(script)] if script.is_file() else [sys.executable, "-m", "optcal.cli"]
+IMU_ARGS = {"default": [],
+            "imu_tk_inputs": ["--gyro-scale", "6258", "--gravity-ms2", "9.81744", "--model", "linear9",
+                              "--threshold-k", "3"]}
 
 
-def test_bench_imu_xsens_process(benchmark, tmp_path, corpus):
-    acc, gyr = tmp_path / "xsens_acc.mat", tmp_path / "xsens_gyro.mat"
-    for f in (acc, gyr):
-        f.write_bytes(gzip.decompress((corpus / "imu_tk" / f"{f.name}.gz").read_bytes()))
-    argv = ["imu", str(acc), "--gyro", str(gyr), "--gyro-units", "counts", "--gyro-scale", "6258", "--units", "counts",
-            "--gravity-ms2", "9.81744", "--model", "linear9", "--threshold-k", "3"]
-    env = {k: v for k, v in os.environ.items() if k != "PYTHONDONTWRITEBYTECODE"}
-    env["PYTHONPYCACHEPREFIX"] = str(tmp_path / "pycache")  # the warm-up round fills it
+@pytest.mark.parametrize("inputs", list(IMU_ARGS))
+def test_bench_imu_xsens_process(benchmark, tmp_path, corpus, inputs):
+    acc, gyr = xsens_pair(corpus, tmp_path)
+    argv = ["imu", str(acc), "--gyro", str(gyr), "--gyro-units", "counts", "--units", "counts", *IMU_ARGS[inputs]]
+    env = _env(tmp_path / "pycache")  # the warm-up round fills it
 
     def run() -> float:
         t = time.perf_counter()
@@ -80,21 +76,6 @@ def test_bench_imu_xsens_process(benchmark, tmp_path, corpus):
     seconds = benchmark.pedantic(run, rounds=5, iterations=1, warmup_rounds=1)
     if benchmark.stats is not None:
         seconds = benchmark.stats.stats.min
-    benchmark.extra_info.update({"command": "optcal " + " ".join(argv[:1]), "seconds": seconds,
+    benchmark.extra_info.update({"command": " ".join(["optcal imu ACC --gyro GYRO", *argv[4:]]), "seconds": seconds,
                                  "imu_tk_s": IMU_TK_WHOLE_PROCESS_S, "imu_tk_ratio": seconds / IMU_TK_WHOLE_PROCESS_S})
-    peer = os.environ.get("OPTCAL_IMU_TK")  # imu_tk's own test_imu_calib (docs/gyroscope.md §5)
-    if peer and os.access(peer, os.X_OK):
-        def run_peer() -> float:
-            t = time.perf_counter()
-            # in the temporary folder: test_imu_calib writes its two .calib files where it runs
-            proc = subprocess.run([peer, str(acc), str(gyr)], capture_output=True, text=True, timeout=300,
-                                  cwd=tmp_path)
-            assert proc.returncode == 0, proc.stderr
-            return time.perf_counter() - t
-
-        # the same rounds, taken in turn with optcal's so that both see the same load
-        run_peer()
-        pairs = [(run_peer(), run()) for _ in range(5)]
-        peer_s, ours_s = min(p for p, _ in pairs), min(o for _, o in pairs)
-        benchmark.extra_info.update({"imu_tk_measured_s": peer_s, "optcal_beside_s": ours_s,
-                                     "imu_tk_measured_ratio": ours_s / peer_s})
+    benchmark.extra_info.update(paired_with_imu_tk(run, acc, gyr, tmp_path))
