@@ -133,8 +133,13 @@ def best(groups: list[Group], n: int = MAX_LINES) -> list[Group]:
 
 
 def _save(fig, path: Path) -> Path:
-    fig.savefig(path, dpi=110, bbox_inches="tight")
-    _plt().close(fig)
+    """Write ``fig`` to ``path`` whole or not at all (:func:`optcal.plots.save_figure`) and close it."""
+    from optcal.plots import save_figure
+
+    try:
+        save_figure(fig, path, dpi=110, bbox_inches="tight")
+    finally:
+        _plt().close(fig)
     return path
 
 

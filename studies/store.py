@@ -14,6 +14,7 @@ import sqlite3
 import time
 from pathlib import Path
 
+from optcal.atomicfile import atomic_write
 from optcal.errors import InputError
 
 FILE = "study.sqlite"
@@ -163,7 +164,8 @@ class Store:
         cur = self.conn.execute(f"SELECT {', '.join(COLUMNS)} FROM trials ORDER BY trial_id")
         rows = cur.fetchall()
         paths = [folder / "trials.csv"]
-        with open(paths[0], "w", newline="") as fh:
+        # each through a temporary file beside it, renamed when complete (optcal.atomicfile)
+        with atomic_write(paths[0], overwrite=True, newline="") as fh:
             w = csv.writer(fh)
             w.writerow(COLUMNS)
             w.writerows(rows)
@@ -173,6 +175,7 @@ class Store:
         except ImportError:
             return paths
         table = pa.table({c: [r[i] for r in rows] for i, c in enumerate(COLUMNS)})
-        pq.write_table(table, folder / "trials.parquet")
+        with atomic_write(folder / "trials.parquet", overwrite=True, binary=True) as fh:
+            pq.write_table(table, fh)
         paths.append(folder / "trials.parquet")
         return paths

@@ -36,7 +36,7 @@ import optcal.atomicfile as af
 
 sig, after, module, *argv = sys.argv[1:]
 sig, after = getattr(signal, sig), int(after)
-if argv and argv[0] == "--no-figures":  # the study report's figures are not written by the helper: skip them
+if argv and argv[0] == "--no-figures":  # the study report's figures skipped: only its three text files counted
     argv = argv[1:]
     import studies.figures
 
@@ -237,6 +237,47 @@ def test_study_export_killed_writes_no_folder(work):
     assert left.is_dir() and left.name.endswith(".tmp")
 
 
+PNG = b"\x89PNG\r\n\x1a\n"
+
+
+def test_calibrate_plot_killed_keeps_the_old_figure(work):
+    """--plot (optcal.plots.save_figure, which calibrate, plan and discover share), cut in its first write."""
+    (fig,) = fresh(work / "calibrate_plot", "fit.png")
+    r = killed(work, 1, "calibrate", work / "pos.csv", "--model", "linear9", "--plot", fig, "--force")
+    assert_killed_mid_write(r, fig, partial=PNG[:4])
+
+
+def test_noise_killed_writes_neither_output(work):
+    """Killed while writing the figure: Kalibr's imu.yaml, written to its temporary file first, is not renamed
+    either."""
+    yml, fig = fresh(work / "noise", "imu.yaml", "allan.png")
+    r = killed(work, 2, "noise", work / "raw.csv", "--kalibr-yaml", yml, "--plot", fig, "--force")
+    assert_killed_mid_write(r, yml, fig, partial=PNG[:4])
+    assert strays(yml.parent, yml.name) and strays(fig.parent, fig.name)  # both begun, neither renamed
+
+
+def test_nav_plot_killed_keeps_the_old_figure(work):
+    (fig,) = fresh(work / "nav", "nav.png")
+    r = killed(work, 1, "nav", work / "cal.json", "--truth", work / "cal.json", "--hours", "0.5", "--plot", fig,
+               "--force")
+    assert_killed_mid_write(r, fig, partial=PNG[:4])
+
+
+def test_study_figures_killed_keep_the_old_figures(work):
+    """A study report killed in its first figure: no figure under its name when new, the old one as it was
+    when redrawn (and the report as it was)."""
+    figdir, report = work / "study" / "figures", work / "study" / "report.md"
+    report.write_bytes(OLD)
+    r = killed(work, 1, "study", "report", figdir.parent)
+    assert r.returncode == -signal.SIGKILL, (r.returncode, r.stderr)
+    (tmp,) = figdir.iterdir()  # the first figure's temporary file, and nothing else
+    fig = figdir / re.fullmatch(r"\.(.+\.png)\.[A-Za-z0-9_]+\.tmp", tmp.name).group(1)
+    assert tmp.read_bytes() == PNG[:4] and report.read_bytes() == OLD
+    tmp.unlink()
+    fig.write_bytes(OLD)
+    assert_killed_mid_write(killed(work, 1, "study", "report", figdir.parent), fig, report, partial=PNG[:4])
+
+
 def test_the_helper(tmp_path, monkeypatch):
     """optcal.atomicfile directly: the mode of a new file is open()'s, a replaced file keeps its mode, a refused
     or failed write leaves nothing, a symbolic link is kept and its target replaced, and the bytes are
@@ -281,3 +322,23 @@ def test_the_helper(tmp_path, monkeypatch):
     assert (tmp_path / "c.json").read_text() == json.dumps({"a": 1}, indent=2) + "\n"
     with pytest.raises(InputError, match="c.json exists; pass --force"):
         write_json_object({"a": 2}, tmp_path / "c.json")
+
+
+def test_save_figure(tmp_path):
+    """optcal.plots.save_figure through the helper: the PNG is savefig(path)'s byte for byte, a name without a
+    suffix gets savefig's .png, and a format matplotlib cannot write is one line, with nothing left behind."""
+    from matplotlib.figure import Figure
+
+    from optcal.plots import save_figure
+
+    fig = Figure()
+    fig.subplots().plot([0, 1, 4])
+    fig.savefig(tmp_path / "ref.png", dpi=110, bbox_inches="tight")
+    (tmp_path / "fig.png").write_bytes(OLD)
+    save_figure(fig, tmp_path / "fig.png", bbox_inches="tight")
+    assert (tmp_path / "fig.png").read_bytes() == (tmp_path / "ref.png").read_bytes()
+    save_figure(fig, tmp_path / "bare")
+    assert (tmp_path / "bare.png").read_bytes()[:8] == PNG
+    with pytest.raises(InputError, match=r"cannot write the figure .*fig.xyz: Format 'xyz' is not supported"):
+        save_figure(fig, tmp_path / "fig.xyz")
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["bare.png", "fig.png", "ref.png"]

@@ -145,6 +145,23 @@ def vectors(model: Model, truth: dict[str, float], estimate: dict[str, float]) -
     return x_true, x_est
 
 
+def _write_plot(args, draw) -> None:
+    """``draw(fh)`` saves the figure to the file handle ``fh``: a temporary file beside --plot, renamed over it
+    when complete (optcal.atomicfile: an interrupted write leaves the old file), in the format --plot's suffix
+    names (matplotlib takes a file handle's format from ``savefig.format``)."""
+    import matplotlib
+
+    from ..atomicfile import atomic_write
+
+    with atomic_write(args.plot, overwrite=args.force, binary=True,
+                      exists="{path} exists; choose another --plot path or pass --force to overwrite it") as fh:
+        try:
+            with matplotlib.rc_context({"savefig.format": Path(args.plot).suffix.lower().lstrip(".")}):
+                draw(fh)
+        except (OSError, ValueError) as exc:
+            raise InputError(f"cannot write the plot {args.plot}: {getattr(exc, 'strerror', None) or exc}") from None
+
+
 def run(args) -> int:
     import numpy as np
 
@@ -180,11 +197,8 @@ def run(args) -> int:
                            self_alignment=args.self_align)
     if args.plot:
         label = "self-aligned" if args.self_align else "known attitude"
-        try:
-            plot_navigation({label: res}, args.plot,
-                            title=f"{Path(args.calibration).name} vs truth, {args.hours:g} h at {args.latitude:g}°")
-        except (OSError, ValueError) as exc:
-            raise InputError(f"cannot write the plot {args.plot}: {getattr(exc, 'strerror', None) or exc}") from None
+        _write_plot(args, lambda fh: plot_navigation(
+            {label: res}, fh, title=f"{Path(args.calibration).name} vs truth, {args.hours:g} h at {args.latitude:g}°"))
     if args.json:
         print(json.dumps(res.to_dict()))
         return 0

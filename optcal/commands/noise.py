@@ -175,11 +175,15 @@ def run(args) -> int:
         files[args.kalibr_yaml] = report.kalibr_yaml(gyro).encode()
     if args.plot:
         files[args.plot] = report.figure_bytes(fmt)
-    for path, content in files.items():
-        try:
-            Path(path).write_bytes(content)
-        except OSError as exc:
-            raise InputError(f"cannot write {path}: {exc.strerror or exc}") from None
+    # each to a temporary file beside it, both complete before either is renamed into place (optcal.atomicfile)
+    from contextlib import ExitStack
+
+    from ..atomicfile import EXISTS_OUTPUT, atomic_write
+
+    with ExitStack() as stack:
+        for path, content in files.items():
+            fh = stack.enter_context(atomic_write(path, overwrite=args.force, binary=True, exists=EXISTS_OUTPUT))
+            fh.write(content)
     if args.json:
         print(json.dumps({**report.to_dict(), **({"gyroscope": gyro.to_dict()} if gyro else {})}, indent=2))
         return 0

@@ -3,7 +3,8 @@
 matplotlib is imported inside the functions, so importing optcal stays light.
 
 Here: the checks every figure file shares, so that a command can refuse a figure path before it writes
-anything (:func:`check_figure_path`), and writing a figure with one-line errors (:func:`save_figure`)."""
+anything (:func:`check_figure_path`), and writing a figure whole or not at all, with one-line errors
+(:func:`save_figure`)."""
 
 from __future__ import annotations
 
@@ -26,10 +27,24 @@ def check_figure_path(path) -> Path:
     return path
 
 
-def save_figure(fig, path, dpi: int = 110) -> None:
-    """Write the matplotlib Figure ``fig`` to ``path`` (the suffix names the format) at ``dpi`` dots per
-    inch; a path that cannot be written is one line naming it."""
-    try:
-        fig.savefig(path, dpi=dpi)
-    except (OSError, ValueError) as exc:
-        raise InputError(f"cannot write the figure {path}: {getattr(exc, 'strerror', None) or exc}") from None
+def save_figure(fig, path, dpi: int = 110, **kwargs) -> None:
+    """Write the matplotlib Figure ``fig`` to ``path`` (the suffix names the format; none: matplotlib's
+    ``savefig.format``, appended to the name as ``savefig`` does) at ``dpi`` dots per inch, whole or not at all
+    (:func:`optcal.atomicfile.atomic_write`: rendered into a temporary file beside ``path``, in that format, and
+    renamed over it; an existing ``path`` is replaced: the commands refuse it without --force before they compute
+    anything). ``kwargs`` go to ``savefig`` (e.g. ``bbox_inches``). A path that cannot be written is one line
+    naming it."""
+    from matplotlib import rcParams
+
+    from ..atomicfile import atomic_write
+
+    path = Path(path)
+    fmt = path.suffix.lower().lstrip(".")
+    if not fmt:  # savefig("name") writes name.png
+        fmt = rcParams["savefig.format"]
+        path = path.with_name(path.name.rstrip(".") + "." + fmt)
+    with atomic_write(path, overwrite=True, binary=True) as fh:
+        try:
+            fig.savefig(fh, format=fmt, dpi=dpi, **kwargs)
+        except (OSError, ValueError) as exc:
+            raise InputError(f"cannot write the figure {path}: {getattr(exc, 'strerror', None) or exc}") from None
