@@ -88,12 +88,14 @@ def test_two_files_sharing_times_as_imu_tk(tmp_path, capsys, corpus):
     imu_tk = 1 / np.array([0.000209295, 0.000209899, 0.000209483])
     assert np.all(np.abs(K - imu_tk) < 3 * se), (K - imu_tk) / se
     # the rests are found on both sensors (issue #29): the 4 settling poses that the accelerometer alone took
-    # for the ends of motions (36 rests) are the accelerometer's rests too, as imu_tk's variance detector finds
-    # them (40 rests), none left for the gyroscope to find inside a motion. The motions' residual is the
-    # script's 0.35° (0.75° with the settling poses inside motions: the two that bridged one carried 2.5° and 3.2°)
-    assert g["data"]["n_rests"] == 40 and g["data"]["n_motions"] == 39
+    # for the ends of motions (36 rests; imu_tk's variance detector finds 40) are the accelerometer's rests too,
+    # none left for the gyroscope to find inside a motion, and a pose disturbed once is two rests (a "motion" of
+    # under 1° between them). The motions' residual is the script's 0.35° (0.75° with the settling poses inside
+    # motions: the two that bridged one carried 2.5° and 3.2°)
+    n = g["data"]["n_rests"]
+    assert 40 <= n <= 42 and g["data"]["n_motions"] == n - 1
     assert 0.33 < np.rad2deg(g["data"]["rms_motion_angle_rad"]) < 0.37
-    assert "accelerometer: model linear9, 40 rests" in text and "found by the gyroscope" not in text
+    assert f"accelerometer: model linear9, {n} rests" in text and "found by the gyroscope" not in text
 
 
 def test_imucal_ferraris_session_end_to_end(tmp_path, capsys, corpus):

@@ -64,7 +64,7 @@ GYRO_WINDOW_S = 0.25  # s: the gyroscope's rate is averaged over this before it 
 GYRO_Z = 8.0  # an averaged rate this many noise SDs from the level at rest (any axis) is a turn ...
 TURN_FRACTION = 0.005  # ... when it is also this fraction of the recording's turns (the 99th percentile of the
 # averaged rate): about 1 °/s for hand turns at 200 °/s, above a hand's sway in a held pose (tenths of °/s)
-GROW_FRACTION = 0.3  # a turn extends while its averaged rate stays above this fraction of that threshold ...
+GROW_FRACTION = 0.5  # a turn extends while its averaged rate stays above this fraction of that threshold ...
 GYRO_Z_LOW = 4.0  # ... and this many noise SDs (its slow start, its settling)
 SETTLE_S = 0.15  # s: samples this long after a turn are left out of a rest (a settling fades under the noise)
 GYRO_MARGIN_S = 0.05  # s: and this long before one (the turn's first samples)
@@ -95,6 +95,9 @@ def _noise_sd(d2: np.ndarray) -> np.ndarray:
     the differences inside the cut, corrected for the cut (a normal cut at ±3σ keeps 97.33 % of its
     variance). Second differences cancel a constant rate of change: a slow turn does not pass for noise."""
     s0 = np.percentile(np.abs(d2), 10.0, axis=0) / (Q10_HALF_NORMAL * np.sqrt(6.0))
+    # coarse outputs (a gyroscope at 0.06 °/s per count, sampled faster than it changes) can hold a tenth of their
+    # second differences at exactly 0: then the median, 0.6745 SDs of |d2|, sets the first guess
+    s0 = np.where(s0 > 0, s0, np.percentile(np.abs(d2), 50.0, axis=0) / (0.6745 * np.sqrt(6.0)))
     inside = np.abs(d2) <= 3.0 * np.sqrt(6.0) * s0
     ms = np.sum(np.where(inside, d2 * d2, 0.0), axis=0) / np.maximum(inside.sum(axis=0), 1)
     return np.sqrt(ms / (6.0 * TRUNCATED_VARIANCE_3SD))
@@ -513,18 +516,23 @@ def _dilate(mask: np.ndarray, r: int) -> np.ndarray:
 
 
 def _rest_level(G: np.ndarray, t: np.ndarray, seg: np.ndarray, rest: np.ndarray) -> np.ndarray:
-    """The gyroscope's output at rest (its bias) at each of the times ``t``: the median of its block means ``G``
-    over each accelerometer rest ``seg[rest]`` (a median: a turn at a rest's edge does not move it),
-    interpolated linearly in time between the rests' mid-blocks, so that a drifting bias is followed. Without
-    a rest, the median of the fifth of the blocks that change least."""
+    """The gyroscope's output at rest (its bias) at each of the times ``t``: within each accelerometer rest
+    ``seg[rest]``, the line from the median of its block means ``G`` over its first half (at its start) to that
+    over its second half (at its end), and between rests the line from one to the next. A median: a turn at a
+    rest's edge does not move it. Each rest keeps its own level (a gyroscope's g-sensitivity shifts it by
+    tenths of a degree per second from pose to pose) and a drifting bias is followed. Without a rest, the
+    median of the fifth of the blocks that change least."""
     r = seg[rest & (seg[:, 1] - seg[:, 0] >= 4)]
     if not len(r):
         d = np.linalg.norm(np.diff(G, axis=0), axis=1)
         quiet = np.argsort(d)[: max(1, len(d) // 5)]
         return np.broadcast_to(np.median(G[quiet], axis=0), (len(t), 3))
-    med = _group_stat(G, r, np.nanmedian)
-    mid = (r[:, 0] + r[:, 1] - 1) / 2.0
-    return np.column_stack([np.interp(t, mid, med[:, i]) for i in range(3)])
+    half = (r[:, 0] + r[:, 1]) // 2
+    first = _group_stat(G, np.column_stack([r[:, 0], half]), np.nanmedian)
+    second = _group_stat(G, np.column_stack([half, r[:, 1]]), np.nanmedian)
+    knots = np.column_stack([r[:, 0], r[:, 1] - 1]).ravel().astype(float)
+    values = np.stack([first, second], axis=1).reshape(-1, 3)
+    return np.column_stack([np.interp(t, knots, values[:, i]) for i in range(3)])
 
 
 def _group_stat(x: np.ndarray, r: np.ndarray, fn) -> np.ndarray:
@@ -650,7 +658,8 @@ def segment_static(recording: Recording, *, min_static_s: float | None = None,
     iv = iv[iv[:, 1] > iv[:, 0]]
     notes = []
     if sg.turning is not None and len(iv):  # no sample the gyroscope sees turning stays in a rest
-        iv, n_cut = _still_parts(iv, sg.turning, m)
+        # a pose of at least min_static_s (decided on its segment) keeps what its edges leave, down to half that
+        iv, n_cut = _still_parts(iv, sg.turning, max(3, m // 2))
         if n_cut:
             notes.append(f"{n_cut} rest(s) cut where the gyroscope turns (a motion's edge or a bump)")
     n_short = int(np.sum(sg.short))
