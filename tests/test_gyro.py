@@ -156,41 +156,49 @@ def test_bad_rests_refused(rests, message):
 
 def test_unknown_scale_found_by_the_common_scale_search():
     """Without a nominal scale the problem's centre comes from a one-dimensional search; the fit from
-    there reaches the same optimum as from the nominal scale."""
+    there reaches the same optimum as from the nominal scale (the same parameters; the χ² differs by the
+    whitening, which takes the nominal scale: 0.1 % apart here, 0.2 % in χ²)."""
     sim, x = _sim(7)
     p = GyroProblem(sim.data)
-    assert abs(p.centre[0] / SCALE - 1) < 0.05
+    assert abs(p.centre[0] / SCALE - 1) < 0.005
     res = get("scipy-lm").solve(p, rng=0, budget=2000)
     _, ref = _fit(sim.data, False)
-    assert res.fun == pytest.approx(ref.fun, rel=1e-8)
+    np.testing.assert_allclose(res.x, ref.x, rtol=1e-6, atol=1e-8)
+    assert res.fun == pytest.approx(ref.fun, rel=5e-3)
 
 
-def test_scale_search_on_the_most_turning_motions_finds_the_every_motion_grid_point():
-    """The coarse grid over the eight motions that turn gravity the most, then the fine grid over every
-    motion, lands on the very scale of the coarse and fine grids over every motion (written out here), on
-    both back ends, for ten simulated recordings of 24 and 36 poses with the bias from the rests and fitted."""
-    from optcal.gyro.problem import common_scale, rotations, start_vector
+def test_scale_search_bracketed_by_the_motions_finds_the_every_motion_minimum():
+    """The search bracketed by the motions' own bound (scale_bound: ∫|W| dt / θ; a grid over 0.5-1.1 times it on
+    the eight motions that turn gravity the most, a finer one on every motion, a parabola's vertex) lands
+    within 0.3 % of the minimum of an exhaustive search over every motion (a 10-decade grid, then 41 points
+    0.2 % apart about its best), at a cost no higher, on both back ends, for ten simulated recordings of 24 and
+    36 poses with the bias from the rests and fitted; the bound is above the scale found."""
+    from optcal.gyro.problem import common_scale, rotations, scale_bound, start_vector
 
-    def every_motion(model, data, n=240, k_min=1e-3, k_max=1e7):
-        rot = rotations(data, "numpy")
+    def cost(model, data, rot, ks):
+        R = rot.rotate_batch(model.affine(start_vector(model, data, np.asarray(ks, float)[:, None])))
+        return np.sum(R**2, axis=(1, 2))
 
-        def best(ks):
-            R = rot.rotate_batch(model.affine(np.array([start_vector(model, data, k) for k in ks])))
-            return ks[int(np.argmin(np.sum(R**2, axis=(1, 2))))]
-
-        k = best(np.geomspace(k_min, k_max, n))
+    def every_motion(model, data, rot, n=240, k_min=1e-3, k_max=1e7):
+        ks = np.geomspace(k_min, k_max, n)
+        k = ks[int(np.argmin(cost(model, data, rot, ks)))]
         step = (k_max / k_min) ** (1.0 / (n - 1))
-        return best(np.geomspace(k / step, k * step, 41))
+        fine = np.geomspace(k / step, k * step, 41)
+        c = cost(model, data, rot, fine)
+        return fine[int(np.argmin(c))], c.min()
 
     for seed in range(10):
         sim, _ = _sim(300 + seed, poses=24 if seed % 2 else 36)
         for bias in ("rests", "fit"):
             data = sim.data.debiased() if bias == "rests" else sim.data.centred()
             model = get_gyro_model(False, bias=bias == "fit")
-            ref = every_motion(model, data)
-            assert common_scale(model, data, 1e-3, 1e7, backend="numpy") == pytest.approx(ref, rel=1e-12)
-            if seed < 2:
-                assert common_scale(model, data, 1e-3, 1e7, backend="kernel") == pytest.approx(ref, rel=1e-12)
+            rot = rotations(data, "numpy")
+            ref, ref_cost = every_motion(model, data, rot)
+            for backend in ("numpy", "kernel") if seed < 2 else ("numpy",):
+                k = common_scale(model, data, 1e-3, 1e7, backend=backend)
+                assert abs(k / ref - 1) < 3e-3, (seed, bias, k, ref)
+                assert cost(model, data, rot, [k])[0] <= ref_cost * (1 + 1e-9)
+                assert scale_bound(data) > 0.95 * k
 
 
 @pytest.mark.parametrize("solver", ["scipy-trf", "casadi-ipopt", "nlopt-bobyqa", "cmaes", "bsas", "staged:scipy-lm"])

@@ -106,25 +106,66 @@ def start_vector(model: GyroModel, data: GyroData, K) -> np.ndarray:
 
 # The scale search's coarse grid integrates only this many motions, those that turn gravity the most
 SCALE_SEARCH_MOTIONS = 8
+# The scale's bracket below the bound of :func:`scale_bound`: the bound is met by a turn about one axis across
+# gravity; a hand's turns are near that, and a gyroscope's axes differ by a few % (the gates refuse 25 %)
+SCALE_BRACKET = (0.5, 1.1)
+SCALE_BRACKET_POINTS = 24
+SCALE_FINE_POINTS = 9
+BOUND_MIN_TURN = np.deg2rad(20.0)  # motions that turn gravity less than this give no useful bound
+
+
+def scale_bound(data: GyroData) -> float:
+    """An upper bound of the gyroscope's scale (output units per rad/s) from the motions alone: a motion turns
+    the gravity direction by θ no more than it rotates, and rotates no more than its rate's path length, so
+    ∫|W| dt ≥ K·θ for each motion (W the outputs less the rests' level); the bound is the least of
+    ∫|W| dt / θ over the motions that turn gravity by :data:`BOUND_MIN_TURN` or more (NaN without one)."""
+    speed = np.linalg.norm(data.W, axis=1)
+    c = np.concatenate([[0.0], np.cumsum(0.5 * (speed[1:] + speed[:-1]) * np.diff(data.t))])
+    path = c[data.stop] - c[data.start]
+    big = data.turn >= BOUND_MIN_TURN
+    return float(np.min(path[big] / data.turn[big])) if big.any() else float("nan")
 
 
 def common_scale(model: GyroModel, data: GyroData, k_min: float, k_max: float, n: int = 240,
                  backend: str = "kernel") -> float:
     """The one scale factor (output units per rad/s, every axis) under which the motions best carry each
-    rest's gravity direction onto the next's: a log-spaced grid of ``n`` candidates over the
-    :data:`SCALE_SEARCH_MOTIONS` motions that turn gravity the most (a wrong scale by a grid step or more
-    shows on any turn), then a grid 20 times finer over two coarse steps either side of the best, over
-    every motion (the same points as a fine grid around the best of every motion's coarse search, whenever
-    that is within a step of this one's). For raw counts with no nominal scale. ``backend``: the
-    integrator's (:data:`BACKENDS`)."""
-    def best(rot, ks):
+    rest's gravity direction onto the next's. For raw counts with no nominal scale; ``backend``: the
+    integrator's (:data:`BACKENDS`).
+
+    The search is bracketed by the motions themselves (:func:`scale_bound`): :data:`SCALE_BRACKET_POINTS`
+    log-spaced candidates over :data:`SCALE_BRACKET` times the bound, on the :data:`SCALE_SEARCH_MOTIONS`
+    motions that turn gravity the most (a wrong scale by a few % shows on any turn); then
+    :data:`SCALE_FINE_POINTS` over the two neighbours of the best, on every motion, and the vertex of the
+    parabola in log k through the best of those and its neighbours. Without a bound, or when the best lies at
+    the bracket's edge (turns mostly about gravity), the bracket is a log-spaced grid of ``n`` candidates
+    from ``k_min`` to ``k_max``."""
+    def cost(rot, ks):
         R = rot.rotate_batch(model.affine(start_vector(model, data, ks[:, None])))
-        return ks[int(np.argmin(np.sum(R**2, axis=(1, 2))))]
+        return np.sum(R**2, axis=(1, 2))
 
     turning = np.sort(np.argsort(data.turn, kind="stable")[::-1][:SCALE_SEARCH_MOTIONS])
-    k = best(rotations(data, backend, turning), np.geomspace(k_min, k_max, n))
-    step = (k_max / k_min) ** (1.0 / (n - 1))
-    return float(best(rotations(data, backend), np.geomspace(k / step**2, k * step**2, 81)))
+    few = rotations(data, backend, turning)
+    bound = scale_bound(data)
+    ks = None
+    if np.isfinite(bound) and bound > 0:
+        ks = np.geomspace(SCALE_BRACKET[0] * bound, SCALE_BRACKET[1] * bound, SCALE_BRACKET_POINTS)
+        i = int(np.argmin(cost(few, ks)))
+        if i in (0, len(ks) - 1):
+            ks = None
+    if ks is None:
+        ks = np.geomspace(k_min, k_max, n)
+        i = int(np.argmin(cost(few, ks)))
+    fine = np.geomspace(ks[max(i - 1, 0)], ks[min(i + 1, len(ks) - 1)], SCALE_FINE_POINTS)
+    c = cost(rotations(data, backend), fine)
+    j = int(np.argmin(c))
+    if 0 < j < len(fine) - 1:  # the parabola's vertex in log k: the grid's spacing no longer limits the start
+        x, y = np.log(fine[j - 1:j + 2]), c[j - 1:j + 2]
+        den = (x[0] - x[1]) * (x[0] - x[2]) * (x[1] - x[2])
+        A = (x[2] * (y[1] - y[0]) + x[1] * (y[0] - y[2]) + x[0] * (y[2] - y[1])) / den
+        B = (x[2] ** 2 * (y[0] - y[1]) + x[1] ** 2 * (y[2] - y[0]) + x[0] ** 2 * (y[1] - y[2])) / den
+        if A > 0:
+            return float(np.exp(np.clip(-B / (2 * A), x[0], x[2])))
+    return float(fine[j])
 
 
 BIAS_MODES = ("fit", "rests")
