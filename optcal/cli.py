@@ -216,7 +216,19 @@ def _keep_freed_memory() -> None:
         pass
 
 
+def _one_blas_thread() -> None:
+    """One BLAS thread unless the user set another number: optcal's arrays are small (a few hundred positions,
+    tens of motions), where a second BLAS thread costs more to wake than it saves, and on a shared machine it
+    takes a core from whatever else runs (measured on imu_tk's pair: the same wall time when the machine is
+    quiet, 0.06-0.08 s less CPU per run; docs/performance.md). Read once, when NumPy loads its BLAS: numpy is
+    imported by the commands, after this."""
+    for var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
+        os.environ.setdefault(var, "1")
+
+
 def main(argv: list[str] | None = None) -> int:
+    if "numpy" not in sys.modules:
+        _one_blas_thread()
     _keep_freed_memory()
     parser = build_parser(sys.argv[1:] if argv is None else argv)
     args = parser.parse_args(argv)
