@@ -138,6 +138,23 @@ def test_the_floor_of_white_plus_flicker_is_the_scatter_of_the_means():
     assert f.edf > 50  # B is well determined here: the F test is nearly the χ² test
 
 
+def test_a_floor_like_another_keeps_its_model_for_trimmed_intervals():
+    """A pose re-examined and trimmed keeps the recording's noise model (``like``): on the same intervals the
+    floor is the full computation's to rounding; with three poses trimmed by 0.3 s it is within 5 % of the full
+    computation on the trimmed intervals (the Allan fit over nearly the same samples)."""
+    rec, iv = _recording(7, **MEMS)
+    full = noise_floor(rec.N, iv, rec.t[iv[:, 0]], RATE, "g")
+    same = noise_floor(rec.N, iv, rec.t[iv[:, 0]], RATE, "g", like=full)
+    np.testing.assert_allclose(same.sem, full.sem, rtol=1e-12)
+    assert same.edf == pytest.approx(full.edf, rel=1e-12)
+    cut = iv.copy()
+    cut[[2, 9, 17], 1] -= int(0.3 * RATE)
+    again = noise_floor(rec.N, cut, rec.t[cut[:, 0]], RATE, "g")
+    kept = noise_floor(rec.N, cut, rec.t[cut[:, 0]], RATE, "g", like=full)
+    np.testing.assert_allclose(kept.sem, again.sem, rtol=0.05)
+    assert kept.sem[2, 0] > full.sem[2, 0] * 0.99  # a shorter pose's mean is no better known
+
+
 def test_short_or_single_intervals_fall_back_to_white_with_a_note_and_bad_intervals_are_refused():
     rec, iv = _recording(1, white=1e-4)
     f = noise_floor(rec.N, iv[:1], rec.t[iv[:1, 0]], RATE, "g")

@@ -103,6 +103,8 @@ class NoiseFloor:
     turned: np.ndarray | None = None  # (3,) bool: the per-axis flicker exceeds the along-force one (the poses turned)
     turn_z: np.ndarray | None = None  # (3,) that excess in standard errors of the along-force level (NaN: untested)
     along_bias_instability: np.ndarray | None = None  # (3,) B read along the force alone, units (NaN: untested)
+    coef: np.ndarray | None = None  # (3, 2) the Allan model's white and flicker coefficients as fitted (B² unclipped)
+    coef_sd: np.ndarray | None = None  # (3,) the flicker coefficient's standard error
 
     def covariance(self, k: int) -> np.ndarray:
         """Covariance (p, p) of the means of axis ``k`` about their average, as the floor models it: the
@@ -369,10 +371,12 @@ def _fit_axes(tau: np.ndarray, avar: np.ndarray, nu: np.ndarray,
 
 
 def noise_floor(N: np.ndarray, intervals: np.ndarray, start_s: np.ndarray, rate_hz: float,
-                units: str = "") -> NoiseFloor:
+                units: str = "", like: NoiseFloor | None = None) -> NoiseFloor:
     """The floor of each interval's mean (module docstring): ``N`` (n, 3) the recording's samples,
     ``intervals`` (p, 2) [start, end) sample indices, ``start_s`` (p,) each interval's first time (s), and the
-    sample rate. Without a rate (NaN) the seconds are samples."""
+    sample rate. Without a rate (NaN) the seconds are samples. ``like``: the floor of the same recording on
+    nearly the same intervals (poses re-examined and trimmed, :func:`optcal.recording.positions.recheck_poses`),
+    whose Allan model is kept: only each mean's floor is computed again for the new intervals."""
     iv = np.asarray(intervals, int).reshape(-1, 2)
     if not len(iv) or np.any(iv[:, 1] <= iv[:, 0]):
         raise InputError("`intervals` must be [start, end) pairs of sample indices with end > start")
@@ -391,6 +395,8 @@ def noise_floor(N: np.ndarray, intervals: np.ndarray, start_s: np.ndarray, rate_
         return plain("one position: no other to compare its mean with")
     if n.sum() < MIN_STATIC:
         return plain(f"{int(n.sum())} static samples in all (fewer than {MIN_STATIC}): too few for an Allan deviation")
+    if like is not None and like.coef is not None:
+        return _same_model(like, white, n / per_s, start_s)
     m = octaves(int(n.max()) // 2)
     count = np.array([np.sum(np.maximum(lengths - 2 * mm + 1, 0)) for mm in m])  # the second differences at m
     m = m[count / m >= MIN_PAIRS]  # independent pairs of τ-averages (as ν below)
@@ -438,4 +444,21 @@ def noise_floor(N: np.ndarray, intervals: np.ndarray, start_s: np.ndarray, rate_
     if not math.isfinite(fs):
         notes.append("the recording has no rate: τ and the coefficients' seconds are samples")
     return NoiseFloor(sem, white, "allan", units, fs, np.sqrt(coef[:, 0]), np.sqrt(np.maximum(B2, 0.0)), tau,
-                      np.sqrt(avar), at_T, notes, edf, G, np.maximum(B2, 0.0), turned, turn_z, b_along)
+                      np.sqrt(avar), at_T, notes, edf, G, np.maximum(B2, 0.0), turned, turn_z, b_along, coef, sd_b)
+
+
+def _same_model(like: NoiseFloor, white: np.ndarray, T: np.ndarray, start_s: np.ndarray) -> NoiseFloor:
+    """The floor of new intervals (their σ/√n ``white``, lengths ``T`` and starts) under ``like``'s Allan model:
+    the model's white and flicker terms and the flicker covariance of the new intervals, as in
+    :func:`noise_floor`."""
+    coef, sd_b = like.coef, like.coef_sd
+    G = centred_covariance(flicker_covariance(start_s, T))
+    g = np.diag(G)
+    B2 = coef[:, 1] / FLICKER_FACTOR**2
+    sem = np.sqrt(np.maximum(coef[None, :, 0] / T[:, None] + B2[None, :] * g[:, None], white**2))
+    var = np.sum((sd_b / FLICKER_FACTOR**2 * g.sum()) ** 2)
+    edf = float(2.0 * np.sum(sem**2) ** 2 / var) if var > 0 else math.inf
+    at_T = np.sqrt(np.maximum(coef[None, :, 0] / T[:, None] + coef[None, :, 1], 0.0))
+    return NoiseFloor(sem, white, like.estimator, like.units, like.rate_hz, like.density, like.bias_instability,
+                      like.tau_s, like.adev, at_T, list(like.notes), edf, G, like.b2, like.turned, like.turn_z,
+                      like.along_bias_instability, coef, sd_b)

@@ -31,10 +31,11 @@ if TYPE_CHECKING:
     from .reading import Recording
 
 
-def positions_from_recording(recording: Recording, detection: DetectionResult) -> PositionsData:
+def positions_from_recording(recording: Recording, detection: DetectionResult, *, floor_like=None) -> PositionsData:
     """One position per interval: mean output, n, per-axis SD, the standard error of the mean ``sem``
     (:func:`optcal.recording.floor.noise_floor`: the Allan model of the recording's static intervals, never below
-    SD/√n), middle time and mean temperature. The detection, the recording's path and the noise floor
+    SD/√n; ``floor_like``: a floor of the same recording whose noise model is kept), middle time and mean
+    temperature. The detection, the recording's path and the noise floor
     (:class:`optcal.recording.floor.NoiseFloor`) are kept in ``extra`` (``detection``, ``source``, ``noise_floor``),
     with :func:`recheck_poses` as ``recheck``: the fit (:func:`optcal.fit.calibrate`) re-examines outlying
     poses through it without importing the recording path."""
@@ -46,7 +47,7 @@ def positions_from_recording(recording: Recording, detection: DetectionResult) -
     sd = np.array([recording.N[s:e].std(axis=0, ddof=1) if e - s > 1 else np.zeros(3) for s, e in iv])
     t = np.array([recording.t[s:e].mean() for s, e in iv])
     temp = None if recording.temp is None else np.array([recording.temp[s:e].mean() for s, e in iv])
-    floor = noise_floor(recording.N, iv, recording.t[iv[:, 0]], recording.rate, recording.units)
+    floor = noise_floor(recording.N, iv, recording.t[iv[:, 0]], recording.rate, recording.units, like=floor_like)
     return PositionsData(N=N, t=t, temp=temp, n_samples=(iv[:, 1] - iv[:, 0]).astype(float), std=sd, sem=floor.sem,
                          units=recording.units,
                          extra={"detection": detection, "source": recording.path, "noise_floor": floor,
@@ -114,7 +115,8 @@ def recheck_poses(data, model, x, suspects, name=None):
     if not notes:
         return None, []
     new = replace(det, intervals=iv[keep], notes=list(det.notes))
-    return positions_from_recording(rec, new), notes
+    # the recording's noise model is kept: a pose's ends trimmed do not change it
+    return positions_from_recording(rec, new, floor_like=data.extra.get("noise_floor")), notes
 
 
 def mat_positions(path, units: str = "g") -> PositionsData:
