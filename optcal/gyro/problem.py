@@ -127,7 +127,7 @@ def scale_bound(data: GyroData) -> float:
 
 
 def common_scale(model: GyroModel, data: GyroData, k_min: float, k_max: float, n: int = 240,
-                 backend: str = "kernel") -> float:
+                 backend: str = "kernel", every=None) -> float:
     """The one scale factor (output units per rad/s, every axis) under which the motions best carry each
     rest's gravity direction onto the next's. For raw counts with no nominal scale; ``backend``: the
     integrator's (:data:`BACKENDS`).
@@ -138,7 +138,8 @@ def common_scale(model: GyroModel, data: GyroData, k_min: float, k_max: float, n
     :data:`SCALE_FINE_POINTS` over the two neighbours of the best, on every motion, and the vertex of the
     parabola in log k through the best of those and its neighbours. Without a bound, or when the best lies at
     the bracket's edge (turns mostly about gravity), the bracket is a log-spaced grid of ``n`` candidates
-    from ``k_min`` to ``k_max``."""
+    from ``k_min`` to ``k_max``. ``every``: the integrator of every motion (:func:`rotations`), when the caller
+    has built it already."""
     def cost(rot, ks):
         R = rot.rotate_batch(model.affine(start_vector(model, data, ks[:, None])))
         return np.sum(R**2, axis=(1, 2))
@@ -156,7 +157,7 @@ def common_scale(model: GyroModel, data: GyroData, k_min: float, k_max: float, n
         ks = np.geomspace(k_min, k_max, n)
         i = int(np.argmin(cost(few, ks)))
     fine = np.geomspace(ks[max(i - 1, 0)], ks[min(i + 1, len(ks) - 1)], SCALE_FINE_POINTS)
-    c = cost(rotations(data, backend), fine)
+    c = cost(rotations(data, backend) if every is None else every, fine)
     j = int(np.argmin(c))
     if 0 < j < len(fine) - 1:  # the parabola's vertex in log k: the grid's spacing no longer limits the start
         x, y = np.log(fine[j - 1:j + 2]), c[j - 1:j + 2]
@@ -222,7 +223,7 @@ class GyroProblem(ParameterViews):
         _check_rotation_seen(data)
         self._rotations = rotations(data, backend)
         if scale is None:
-            scale = common_scale(self.model, data, 1e-3, 1e7, backend=backend)
+            scale = common_scale(self.model, data, 1e-3, 1e7, backend=backend, every=self._rotations)
         K = np.broadcast_to(np.asarray(scale, float), (3,)).copy()
         if not np.all(np.isfinite(K) & (K > 0)):
             raise InputError(f"the gyroscope's nominal scale must be positive (output units per rad/s), got {scale}")
