@@ -222,7 +222,7 @@ def way_out(refusals: list[Refusal], model: Model, smaller: str | None) -> str:
     model of :data:`FALLBACK` these positions determine, when there is one), or the expert's override. The
     parameters are named in backquotes (the CLI turns them into its options)."""
     kinds = {r.kind for r in refusals}
-    force = "or pass `force_weak` to write the weak fit anyway, marked as forced"
+    force = "or pass `force_weak` to write it anyway, marked as forced"
     if "implausible" in kinds:
         return ("are these static positions of one sensor in these units? check the units (`units`), that the "
                 f"positions were still and the intervals; {force}")
@@ -239,8 +239,8 @@ def line(refusals: list[Refusal], model: Model, smaller: str | None, *, chain_tr
     """The one-line refusal: the reasons, that no smaller model of the chain is determined either
     (``chain_tried``: the default model's fallback found none), then the way out."""
     least = get_model(FALLBACK[-1])
-    also = (f" (nor is any smaller model of {' → '.join(FALLBACK)}: {least.name} needs {least.n_params + MIN_DOF} "
-            "varied positions or more)" if chain_tried else "")
+    also = (f" (nor any smaller model of {'/'.join(FALLBACK)}: {least.name} needs {least.n_params + MIN_DOF} varied "
+            "positions)" if chain_tried else "")
     return "; ".join(r.reason for r in refusals) + also + "; " + way_out(refusals, model, smaller)
 
 
