@@ -219,7 +219,7 @@ class _Fit:
 def _fit(problem: CalibrationProblem, slv, solver: str, x0, budget, seed, noise_g, refused) -> _Fit:
     """One model's fit with its standard errors, notes and the post-fit judgement (:mod:`optcal.determination`)."""
     model = problem.model
-    rng = np.random.default_rng(seed)
+    rng = seed  # the solver builds its Generator from the seed, if it draws at all (Solver.uses_rng)
     result = slv.solve(problem, x0=x0, budget=budget, rng=rng)
     x = problem.to_full(result.x)[0]
     obs = observability(problem, x)

@@ -103,6 +103,7 @@ class LevenbergMarquardt(Solver):
     name = "lm"
     family = "local"
     few_evaluations = True  # tens of residuals and Jacobians: the NumPy evaluation, not the compiled kernel
+    uses_rng = False  # deterministic: no Generator is built for it
     options = {
         "ftol": Option(1e-15, float, "relative reduction of the cost to stop", check=positive, check_doc="> 0"),
         "xtol": Option(1e-15, float, "relative change of x to stop", check=positive, check_doc="> 0"),

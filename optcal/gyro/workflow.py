@@ -53,7 +53,7 @@ def _fit(data, *, g_sensitivity, bias, scale, solver, options, seed, budget) -> 
     check_observable(p, p.centre)  # before solving: a solver wanders along an undetermined direction
 
     def solve(x0=None):
-        res = slv.solve(p, x0=x0, rng=np.random.default_rng(seed), budget=budget)
+        res = slv.solve(p, x0=x0, rng=seed, budget=budget)  # a Generator from the seed, if the solver draws
         if not np.isfinite(res.fun):
             raise InputError(f"the gyroscope fit found no finite cost ({res.message}); check the gyroscope's "
                              "columns and units")
