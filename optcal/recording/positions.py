@@ -57,6 +57,7 @@ def positions_from_recording(recording: Recording, detection: DetectionResult, *
 SMOOTH_S = 0.1  # s: the samples' force is averaged over this before it is judged (the noise of one sample is large)
 DEPART_SIGMAS = 5.0  # an averaged sample this many noise SDs from the pose's direction is not at rest
 DRIFT_SIGMAS = 5.0  # first and last quarters this many standard errors apart: the pose turned while it was held
+TRIM_SIGMAS = 1.0  # a pose is trimmed only when that moves its mean by this many standard errors or more
 
 
 def recheck_poses(data, model, x, suspects, name=None):
@@ -104,6 +105,9 @@ def recheck_poses(data, model, x, suspects, name=None):
             qk = max(len(Fk) // 4, 1)
             drift = np.abs(Fk[:qk].mean(axis=0) - Fk[-qk:].mean(axis=0))
             if np.all(drift <= DRIFT_SIGMAS * noise_g * np.sqrt(2.0 / qk)):
+                # a trim that moves the pose's mean by less than its own noise changes nothing the fit sees
+                if np.all(np.abs(Fk.mean(axis=0) - F.mean(axis=0)) < TRIM_SIGMAS * noise_g / np.sqrt(len(Fk))):
+                    continue
                 iv[i] = (a + s0, a + s1)
                 cut = " and ".join(f"{n / rate:.2g} s at its {end}" for n, end in ((s0, "start"), (m - s1, "end")) if n)
                 notes.append(f"{name(i)} ({when}) re-examined sample by sample: {cut} moved, left out")
