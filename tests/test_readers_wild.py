@@ -126,7 +126,8 @@ def test_a_broken_row_of_a_wide_file_is_named_in_a_short_line(tmp_path, capsys):
     lines = path.read_text().splitlines()
     lines[5] = ",".join(["x"] * 40)  # 40 text cells where the data have 62 numbers
     path.write_text("\n".join(lines) + "\n")
-    _refused(["calibrate", path, "--raw"], capsys, "line 6 (x,x,x,x,x,x,x,x,x,x,x,x,… (28 more)) breaks")
+    line = _refused(["calibrate", path, "--raw"], capsys, "line 6 (x,x,x,x,x,x,x,x,x,x,x,x,… (28 more)) breaks")
+    assert line.endswith("breaks the data rows: 40 field(s) where they have 62; fix or remove it")
 
 
 # == 2. intervals in seconds: {"intervals": [[s, e], ...]} ==============================================
@@ -293,10 +294,12 @@ def test_mat_v73_named_variables_are_columns(tmp_path, poses):
 
 def test_mat_v73_without_numbers_and_broken_are_one_line(tmp_path, capsys):
     text = write_mat73(tmp_path / "text.mat", {"note": "nothing here"})
-    _refused(["calibrate", text, "--raw"], capsys, "holds no numeric matrix (variables: note)")
+    line = _refused(["calibrate", text, "--raw"], capsys, "holds no numeric matrix (variables: note)")
+    assert line.endswith("save the samples as an n × 3 or n × 4 matrix")
     broken = tmp_path / "broken.mat"
     broken.write_bytes(text.read_bytes()[:700])
-    _refused(["calibrate", broken, "--raw"], capsys, "is a MATLAB v7.3 (HDF5) file that cannot be read")
+    line = _refused(["calibrate", broken, "--raw"], capsys, "is a MATLAB v7.3 (HDF5) file that cannot be read")
+    assert line.endswith("save it again from MATLAB, with save(FILE, ..., '-v7') or '-v7.3'")
 
 
 def test_a_mat_v73_positions_file_calibrates(tmp_path, capsys):
@@ -406,7 +409,8 @@ def test_the_twlogger_recording_is_read_without_columns():
 def test_a_raw_recording_with_recognised_names_given_as_positions_is_told_to_use_raw(tmp_path, capsys):
     rows = _imu_rows(1500)
     path = _write(tmp_path / "named.csv", "T,ACCELX,ACCELY,ACCELZ", rows[:, [1, 3, 4, 5]])
-    _refused(["calibrate", path], capsys, "looks like a raw recording, not a positions file")
+    line = _refused(["calibrate", path], capsys, "looks like a raw recording, not a positions file")
+    assert "(1500 rows, one per sample" in line and line.endswith("; pass --raw")
 
 
 # == 6. --columns naming a column or a role twice =====================================================

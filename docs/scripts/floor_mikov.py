@@ -60,45 +60,21 @@ RATE = 100.0
 G_LOCAL = 9.81 / G0  # the source's |g| = 9.81 m/s²
 COLUMNS = "ax=0,ay=1,az=2"
 ARGS = ["--raw", "--units", "m/s2", "--gravity-ms2", "9.81", "--rate", "100", "--columns", COLUMNS, "--json"]
-# The source's table (images/real_imu.png of github.com/mikoff/imu-calib; the folder's README): scale errors s
-# (%), non-orthogonalities m_yz, m_xy, m_xz (°) and biases b (m/s²) of a_meas = M·a + b,
-# M = [[1 + s_x, m_xy, m_xz], [0, 1 + s_y, m_yz], [0, 0, 1 + s_z]] (tests/test_corpus_wild.py's MIKOV)
-SOURCE = {
-    0: ([0.363, 0.315, 0.647], [0.123, 0.02, 0.317], [0.103, 0.097, 0.344]),
-    1: ([0.471, 0.482, 0.932], [-0.284, -0.01, 0.145], [0.09, 0.07, 0.338]),
-    2: ([0.382, 0.355, 0.78], [0.26, -0.012, 0.282], [0.096, 0.008, -0.045]),
-    3: ([0.263, 0.448, 0.721], [-0.009, -0.028, -0.104], [0.065, 0.092, -0.009]),
-    4: ([0.251, 0.286, 0.804], [0.056, 0.0, 0.191], [0.07, 0.036, 0.182]),
-}
-
-
-def _rows(M):
-    """Row norms and the cosines (x,y), (x,z), (y,z) of a sensitivity matrix."""
-    n = np.linalg.norm(M, axis=1)
-    C = (M / n[:, None]) @ (M / n[:, None]).T
-    return n, np.array([C[0, 1], C[0, 2], C[1, 2]])
-
-
-def source(i):
-    s, (m_yz, m_xy, m_xz), b = SOURCE[i]
-    s = np.array(s) / 100
-    m_yz, m_xy, m_xz = np.radians([m_yz, m_xy, m_xz])
-    scale, cos = _rows(np.array([[1 + s[0], m_xy, m_xz], [0.0, 1 + s[1], m_yz], [0.0, 0.0, 1 + s[2]]]))
-    return scale * G0, np.array(b), cos
+# The source's table and its comparison with optcal's gauge: tests/test_corpus_wild.py's MIKOV (images/real_imu.png
+# of github.com/mikoff/imu-calib; the folder's README)
+from test_corpus_wild import _mikov_ref as source  # noqa: E402
+from test_corpus_wild import _ours  # noqa: E402
 
 
 def ours(p, se):
-    """Scale factors, offsets (output units) and cosines from optcal's parameters, with standard errors (the
-    cosines' to first order: those of S_yz, S_zy, S_zx)."""
-    T = np.eye(3)
-    T[1, 0], T[2, 0], T[2, 1] = p.get("S_yz", 0.0), p.get("S_zy", 0.0), p.get("S_zx", 0.0)
+    """Scale factors, offsets (output units) and cosines from optcal's parameters (tests/test_corpus_wild.py's
+    ``_ours``), with standard errors (the cosines' to first order: those of S_yz, S_zy, S_zx)."""
+    scale, offset, cos = _ours(p)
     K = np.array([p["K_x"], p["K_y"], p["K_z"]])
-    b = np.array([p["b_x"], p["b_y"], p["b_z"]])
-    scale, cos = _rows(K[:, None] * T)
     se_k = np.array([se["K_x"], se["K_y"], se["K_z"]])
     se_b = K * np.array([se["b_x"], se["b_y"], se["b_z"]])
     se_c = np.array([se.get("S_yz", np.nan), se.get("S_zy", np.nan), se.get("S_zx", np.nan)])
-    return (scale, se_k), (K * b, se_b), (cos, se_c)
+    return (scale, se_k), (offset, se_b), (cos, se_c)
 
 
 def command(i):
