@@ -97,8 +97,8 @@ def variance_statistic(N: np.ndarray, window: int) -> np.ndarray:
     return s
 
 
-def _runs(mask: np.ndarray) -> np.ndarray:
-    """[start, end) of each run of True."""
+def runs(mask: np.ndarray) -> np.ndarray:
+    """[start, end) (k, 2) of each run of True in ``mask``: the one run-finder of the recording path."""
     d = np.diff(np.concatenate([[0], mask.astype(np.int8), [0]]))
     return np.column_stack([np.flatnonzero(d == 1), np.flatnonzero(d == -1)])
 
@@ -166,7 +166,7 @@ class Detector:
 
     def intervals(self, k: float, notes: list[str]) -> np.ndarray:
         static = np.nan_to_num(self.statistic, nan=np.inf) < k * self.init_variance
-        iv = _runs(static)
+        iv = runs(static)
         short = iv[:, 1] - iv[:, 0] < self.min_samples
         if short.any():
             notes.append(f"{int(short.sum())} static run(s) shorter than {self.min_samples} samples ignored")
@@ -191,14 +191,14 @@ class Detector:
         threshold but not under it (too noisy)."""
         thr = k * self.init_variance
         stat = np.nan_to_num(self.statistic, nan=np.inf)
-        runs = _runs(stat < thr)
-        lens = runs[:, 1] - runs[:, 0]
+        below = runs(stat < thr)
+        lens = below[:, 1] - below[:, 0]
         short = np.sort(lens[lens < self.min_samples])[::-1]
-        long_runs = runs[lens >= self.min_samples]
+        long_runs = below[lens >= self.min_samples]
         c = np.concatenate([[0], np.cumsum(self.rec.saturated)])
         lost = int(np.sum(c[long_runs[:, 1]] - c[long_runs[:, 0]] > 0)) if len(long_runs) else 0
         found = len(long_runs) - lost
-        near = _runs(stat < NOISY_FACTOR * thr)
+        near = runs(stat < NOISY_FACTOR * thr)
         near = near[near[:, 1] - near[:, 0] >= self.min_samples]
         cs = np.concatenate([[0], np.cumsum(stat < thr)])
         noisy = int(np.sum(cs[near[:, 1]] - cs[near[:, 0]] == 0)) if len(near) else 0

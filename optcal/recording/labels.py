@@ -68,6 +68,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..errors import InputError
+from .detection import runs  # noqa: F401 - the run-finder, also for the tests and the benchmark
 from .reading import Recording
 
 BLOCK_S = 0.25  # s: blocks for the quiet stretches (bias, noise)
@@ -105,13 +106,6 @@ class RestLabels:
     @property
     def n(self) -> int:
         return len(self.still)
-
-
-def runs(mask: np.ndarray) -> np.ndarray:
-    """[start, end) of the runs of True in ``mask``."""
-    m = np.concatenate([[False], np.asarray(mask, bool), [False]])
-    d = np.flatnonzero(m[1:] != m[:-1])
-    return d.reshape(-1, 2).astype(np.int64)
 
 
 def _cover(iv: np.ndarray, n: int) -> np.ndarray:

@@ -23,6 +23,7 @@ import numpy as np
 
 from ..data import PositionsData
 from ..errors import InputError
+from .detection import runs
 from .floor import noise_floor
 from .sniff import mat_table
 
@@ -92,8 +93,7 @@ def recheck_poses(data, model, x, suspects, name=None):
         dev = np.max(np.abs(Fs - ref) / (noise_g / np.sqrt(min(w, m))), axis=1)
         still = dev <= DEPART_SIGMAS
         # the longest run of still samples: the pose without the motions at its ends
-        d = np.diff(np.concatenate([[0], still.astype(np.int8), [0]]))
-        starts, stops = np.flatnonzero(d == 1), np.flatnonzero(d == -1)
+        starts, stops = runs(still).T
         when = f"{rec.t[a]:.1f}-{rec.t[b - 1]:.1f} s"
         if len(starts):
             j = int(np.argmax(stops - starts))

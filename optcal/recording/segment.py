@@ -34,7 +34,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import InputError
-from .detection import DetectionResult
+from .detection import DetectionResult, runs
 from .pelt import RUPTURES_FROM_BLOCKS, pelt_l2_many
 from .reading import Recording
 
@@ -306,11 +306,9 @@ def _change_points(Z: np.ndarray, good: np.ndarray) -> np.ndarray:
     """Segments [start, end) (blocks) of the good blocks of ``Z`` (normalised block means) by PELT with a
     linear kernel on pieces of at most :data:`PIECE_BLOCKS` blocks: :func:`optcal.recording.pelt.pelt_l2_many`, or
     ruptures' compiled KernelCPD (the same change points) for a series long enough to pay for its import."""
-    d = np.diff(np.concatenate([[0], good.astype(np.int8), [0]]))
-    runs = np.column_stack([np.flatnonzero(d == 1), np.flatnonzero(d == -1)])
     pen = PENALTY
     pieces = []  # [start, end) of each piece: the runs of good blocks (none with drops), cut to PIECE_BLOCKS
-    for s, e in runs:
+    for s, e in runs(good):
         cuts = np.linspace(s, e, -(-(e - s) // PIECE_BLOCKS) + 1).round().astype(int)
         pieces.extend(zip(cuts[:-1].tolist(), cuts[1:].tolist()))
     long = [(ps, pe) for ps, pe in pieces if pe - ps >= 4]
@@ -414,10 +412,10 @@ def segment_recording(rec: Recording, min_static_s: float | None = None,
     seg2, rest2 = _merge(Z, seg, reason == "", w, gap_ok, step, excess)
     if len(seg2) != len(seg):  # joined groups passed the test; the other segments keep their reasons
         # a segment the merge left as it was keeps its reason (a piece the gyroscope saw turning stays "turn")
-        same = dict(zip(map(tuple, seg.tolist()), reason))
+        at = np.minimum(np.searchsorted(seg[:, 0], seg2[:, 0]), len(seg) - 1)
+        same = np.all(seg[at] == seg2, axis=1)
         retest = _rest_test(Z, seg2, w, excess, step)
-        seg, reason = seg2, np.array([("" if r else same.get(tuple(sg_), rt)) for sg_, r, rt
-                                      in zip(seg2.tolist(), rest2, retest)], dtype=object)
+        seg, reason = seg2, np.where(rest2, "", np.where(same, reason[at], retest)).astype(object)
     # rests long enough to keep are tested against their surroundings (step 4c)
     # long enough: at least min_static_s with a block at each end (a step or a motion inside a block
     # leaves that block to neither side)
@@ -448,9 +446,7 @@ def _refine(Z, seg, reason, w, excess, step, b, rate, W):
     nb = len(Z)
     if W is not None:
         tb, turning = gyro_turning(W, b, seg, reason == "", rate)
-        c = np.concatenate([[0], np.cumsum(tb)])
-        which = (c[seg[:, 1]] - c[seg[:, 0]]) > 0
-        seg, reason, n = _cut(Z, seg, reason, tb, which, "turn", w, excess, step)
+        seg, reason, n = _cut(Z, seg, reason, tb, ~_still(seg, tb), "turn", w, excess, step)
         n_split += n
         # a piece the gyroscope sees still throughout keeps its gravity direction: a slope of its specific force
         # is a hand letting go or the sensor settling, not a turn (the gyroscope sees far smaller turns)
@@ -500,19 +496,21 @@ def _split_at(seg: np.ndarray, flag: np.ndarray, which: np.ndarray) -> tuple[np.
     return np.column_stack([lo, hi]), flag[lo] & which[owner[lo]], owner[lo]
 
 
+def _dilate(mask: np.ndarray, after: int, before: int | None = None) -> np.ndarray:
+    """``mask`` (n,) grown by ``after`` samples after each run and ``before`` (default ``after``) before it (a
+    moving maximum through cumulative sums)."""
+    before = after if before is None else before
+    if not mask.any() or (after <= 0 and before <= 0):
+        return mask
+    c = np.concatenate([[0], np.cumsum(mask)])
+    i = np.arange(len(mask))
+    return (c[np.minimum(i + before + 1, len(mask))] - c[np.maximum(i - after, 0)]) > 0
+
+
 def _still(seg: np.ndarray, turning_blocks: np.ndarray) -> np.ndarray:
     """Whether each segment of ``seg`` (k, 2) holds no turning block."""
     c = np.concatenate([[0], np.cumsum(turning_blocks)])
     return (c[seg[:, 1]] - c[seg[:, 0]]) == 0
-
-
-def _dilate(mask: np.ndarray, r: int) -> np.ndarray:
-    """``mask`` (n,) grown by ``r`` samples on each side (a moving maximum through cumulative sums)."""
-    if r <= 0 or not mask.any():
-        return mask
-    c = np.concatenate([[0], np.cumsum(mask)])
-    i = np.arange(len(mask))
-    return (c[np.minimum(i + r + 1, len(mask))] - c[np.maximum(i - r, 0)]) > 0
 
 
 def _rest_level(G: np.ndarray, t: np.ndarray, seg: np.ndarray, rest: np.ndarray) -> np.ndarray:
@@ -577,10 +575,9 @@ def gyro_turning(W: np.ndarray, b: int, seg: np.ndarray, rest: np.ndarray, rate:
     z = np.max(np.abs(c[hi] - c[lo]) / (hi - lo)[:, None] / (s / np.sqrt(w)), axis=1)
     # a turn: above the noise and above a small fraction of the recording's turns (its 99th percentile), grown
     # while it stays above a fraction of that (a turn's slow start and its settling), and its edges
-    core = z > max(GYRO_Z, TURN_FRACTION * float(np.percentile(z, 99)))
-    low = z > max(GYRO_Z_LOW, GROW_FRACTION * max(GYRO_Z, TURN_FRACTION * float(np.percentile(z, 99))))
-    d = np.diff(np.concatenate([[0], low.astype(np.int8), [0]]))
-    starts, stops = np.flatnonzero(d == 1), np.flatnonzero(d == -1)
+    thr = max(GYRO_Z, TURN_FRACTION * float(np.percentile(z, 99)))
+    core = z > thr
+    starts, stops = runs(z > max(GYRO_Z_LOW, GROW_FRACTION * thr)).T
     cc = np.concatenate([[0], np.cumsum(core)])
     hit = cc[stops] > cc[starts]  # runs above the low threshold that hold a turn
     grown = np.zeros(n + 1, np.int64)
@@ -588,18 +585,9 @@ def gyro_turning(W: np.ndarray, b: int, seg: np.ndarray, rest: np.ndarray, rate:
     np.add.at(grown, stops[hit], -1)
     samples = (np.cumsum(grown[:n]) > 0) | core | ~finite
     per_s = rate if np.isfinite(rate) else 50.0
-    samples = _dilate_after(samples, int(round(SETTLE_S * per_s)), int(round(GYRO_MARGIN_S * per_s)))
+    samples = _dilate(samples, int(round(SETTLE_S * per_s)), int(round(GYRO_MARGIN_S * per_s)))
     blocks = samples[: nb * b].reshape(nb, b).any(axis=1)
     return blocks, samples
-
-
-def _dilate_after(mask: np.ndarray, after: int, before: int) -> np.ndarray:
-    """``mask`` (n,) grown by ``after`` samples after each run and ``before`` samples before it."""
-    if not mask.any():
-        return mask
-    c = np.concatenate([[0], np.cumsum(mask)])
-    i = np.arange(len(mask))
-    return (c[np.minimum(i + before + 1, len(mask))] - c[np.maximum(i - after, 0)]) > 0
 
 
 def _loud_blocks(Z: np.ndarray) -> np.ndarray:
@@ -686,18 +674,16 @@ def segment_static(recording: Recording, *, min_static_s: float | None = None,
 def _still_parts(iv: np.ndarray, turning: np.ndarray, m: int) -> tuple[np.ndarray, int]:
     """The parts of the intervals ``iv`` (k, 2) without a ``turning`` sample, those of at least ``m`` samples;
     and how many intervals held a turning sample. Vectorised over intervals through the runs of still samples."""
-    still = ~turning
-    d = np.diff(np.concatenate([[0], still.astype(np.int8), [0]]))
-    runs = np.column_stack([np.flatnonzero(d == 1), np.flatnonzero(d == -1)])
+    still = runs(~turning)
     c = np.concatenate([[0], np.cumsum(turning)])
     n_cut = int(np.sum(c[iv[:, 1]] - c[iv[:, 0]] > 0))
     # each interval against each run that overlaps it (runs sorted, so a searchsorted range per interval)
-    lo = np.searchsorted(runs[:, 1], iv[:, 0], side="right")
-    hi = np.searchsorted(runs[:, 0], iv[:, 1], side="left")
+    lo = np.searchsorted(still[:, 1], iv[:, 0], side="right")
+    hi = np.searchsorted(still[:, 0], iv[:, 1], side="left")
     cnt = np.maximum(hi - lo, 0)
     which = np.repeat(np.arange(len(iv)), cnt)
     r = np.arange(int(cnt.sum())) - np.repeat(np.cumsum(cnt) - cnt, cnt) + np.repeat(lo, cnt)
-    parts = np.column_stack([np.maximum(iv[which, 0], runs[r, 0]), np.minimum(iv[which, 1], runs[r, 1])])
+    parts = np.column_stack([np.maximum(iv[which, 0], still[r, 0]), np.minimum(iv[which, 1], still[r, 1])])
     return parts[parts[:, 1] - parts[:, 0] >= m].reshape(-1, 2), n_cut
 
 
