@@ -121,11 +121,17 @@ def calibrate(data, model=None, *, solver: str = "lm", units: str | None = None,
 def _positions_for(data, model, units, raw: bool, g_local: float, reading: dict) -> PositionsData:
     """A raw recording's intervals are found for the model asked for; for the default, for nonlinear12, or, when
     the recording has too few intervals for it, for the next model of the fallback chain."""
+    return _first_found(lambda name: _positions(data, units, raw, g_local, name, reading), model, raw)
+
+
+def _first_found(find, model, raw: bool = True):
+    """``find(name)`` for ``model``; for the default (None), for each model of the fallback chain in turn until
+    one has intervals enough (a raw recording's detection may find too few for nonlinear12)."""
     from .determination import FALLBACK
 
     for k, name in enumerate((model,) if model is not None else FALLBACK):
         try:
-            return _positions(data, units, raw, g_local, name, reading)
+            return find(name)
         except InputError:
             if model is not None or not raw or k == len(FALLBACK) - 1:
                 raise
@@ -166,14 +172,18 @@ def calibrate_imu(data, gyro=None, *, gyro_units: str, gyro_columns=None, gyro_s
         raise InputError(f"gyro must be the path of the gyroscope's file, got {type(gyro).__name__}")
     check_imu_options(gyro_scale=gyro_scale, gyro_bias=gyro_bias, g_sensitivity=g_sensitivity)
     from .recording.reading import read_recording
+    from .recording.workflow import positions_from_raw_recording
 
-    # the gyroscope is read first: the detection of the rests judges its stillness too
-    acc = read_recording(os.fspath(data), reading.get("columns"), reading.get("rate"), units or "g",
-                         saturation=reading.get("saturation"), adc=reading.get("adc"),
-                         time_unit=reading.get("time_unit"), refuse_positions=True)
+    # the recording is read once, and the gyroscope before the rests are found: their detection judges its
+    # stillness too
+    read = {k: reading.pop(k, None) for k in ("columns", "rate", "saturation", "adc", "time_unit")}
+    acc = read_recording(os.fspath(data), read["columns"], read["rate"], units or "g", saturation=read["saturation"],
+                         adc=read["adc"], time_unit=read["time_unit"], labels=reading.get("labels"),
+                         refuse_positions=True)
     rates = read_gyro(os.fspath(data), acc, gyro=None if gyro is None else os.fspath(gyro), gyro_columns=gyro_columns,
-                      units=gyro_units, rate=reading.get("rate"), time_unit=reading.get("time_unit"))
-    positions = _positions_for(data, model, units, True, g_local, {**reading, "gyro": rates})
+                      units=gyro_units, rate=read["rate"], time_unit=read["time_unit"])
+    positions = _first_found(lambda name: positions_from_raw_recording(acc, gyro=rates, model=name, g_local=g_local,
+                                                                        **reading), model)
     return fit_imu(positions, rates, model=model, solver=solver, options=options, g_local=g_local, seed=seed,
                    budget=budget, gyro_units=gyro_units, gyro_scale=gyro_scale, gyro_bias=gyro_bias,
                    g_sensitivity=g_sensitivity, force_weak=force_weak)
