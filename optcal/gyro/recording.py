@@ -64,29 +64,16 @@ def read_gyro(data, acc, *, gyro=None, gyro_columns=None, units: str, rate: floa
     return read_recording(data, spec, rate, label, time_unit=time_unit)
 
 
-def refuse_saturated_motion(saturated: np.ndarray, data: GyroData) -> None:
-    """Refuse ``data`` when a gyroscope sample flagged in ``saturated`` (n,) lies in a motion (from the last
-    sample of one rest to the first of the next): the rotation integrated over it would be wrong."""
-    seen = np.concatenate([[0], np.cumsum(np.asarray(saturated, bool))])  # flagged samples before each index
-    inside = np.flatnonzero(seen[data.stop + 1] > seen[data.start])
-    if inside.size:
-        k = int(inside[0])
-        raise InputError(f"the gyroscope is saturated during motion {k + 1} (between rests {k + 1} and {k + 2}, "
-                         f"t = {data.t[data.start[k]]:.2f}-{data.t[data.stop[k]]:.2f} s): its rotation cannot be "
-                         "integrated; turn the sensor more slowly or cut that motion out")
-
-
 def gyro_data(t, W, N_acc, intervals, acc_model, x_acc, *, units: str,
               temp=None, rails: tuple[float, float] | None = None) -> GyroData:
     """The gyroscope's :class:`GyroData`: samples ``W`` (n, 3) at times ``t``, the accelerometer's raw
     samples ``N_acc`` calibrated by ``acc_model`` at ``x_acc`` into specific force (g), the rests
-    ``intervals`` (r, 2) of its detection. A motion with a gyroscope sample at one of ``rails`` is refused:
-    its integrated rotation would be wrong."""
+    ``intervals`` (r, 2) of its detection. A motion with a gyroscope sample at one of ``rails`` is left out of the
+    motions, as ``optcal imu`` leaves it (:class:`GyroData`'s ``saturated``): its integrated rotation would be
+    wrong."""
     model = get_model(acc_model)
     ctx = Context.from_columns(temp=temp if "temp" in model.needs else None, t=t if "t" in model.needs else None)
     F = model.inverse(np.asarray(x_acc, float)[None], np.asarray(N_acc, float), ctx)[0]
-    data = GyroData(t, W, F, intervals, units=units)
-    if rails is not None:
-        W = np.asarray(W, float)
-        refuse_saturated_motion(np.any((W <= rails[0]) | (W >= rails[1]), axis=1), data)
-    return data
+    W = np.asarray(W, float)
+    saturated = None if rails is None else np.any((W <= rails[0]) | (W >= rails[1]), axis=1)
+    return GyroData(t, W, F, intervals, units=units, saturated=saturated)
