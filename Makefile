@@ -11,6 +11,7 @@ $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
 	$(PY) -m pip install --quiet --upgrade pip
 	$(PY) -m pip install --quiet -e ".[test]"
+	$(PY) -m pip install --quiet --no-deps $$($(PY) -c "import sys; t = __import__('tomllib' if sys.version_info >= (3, 11) else 'tomli'); print(' '.join(t.load(open('pyproject.toml', 'rb'))['tool']['optcal']['install-without-deps']))")
 	$(PY) -m optcal.warmup
 	touch $(STAMP)
 
