@@ -407,8 +407,6 @@ def test_interval_labels_without_a_gyroscope_call_moving_only_what_moved():
 # Where the detection does not yet meet the targets (measured with docs/scripts/rest_benchmark.py; recall,
 # precision by sample): strict expected failures, each naming why, so that a fix shows as an unexpected pass.
 SHORT_OF_TARGET = {
-    ("imucal_labelled", "gyroscope"): "precision 0.976: the file is cut and joined; a part's first samples move",
-    ("imucal_labelled", "source: 6 static parts"): "precision 0.976, as by the gyroscope's labels",
     ("imucal_continuous", "gyroscope"): "recall 0.929: 13 of 14, one labelled rest split by a step the detection "
                                         "does not see",
     ("mpu6050", "gyroscope"): "recall 0.846, precision 0.957: hand-held poses that sway at 1-2 °/s",
@@ -418,8 +416,6 @@ SHORT_OF_TARGET = {
        for i, r in enumerate(("0.840", "0.800", "0.880", "0.846", "0.875"))},
     ("sdr_long", "gyroscope"): "recall 0.848, precision 0.978: 20 Hz, poses of 1-2 s back to back",
     ("sdr_short", "gyroscope"): "recall 0.812: 20 Hz, poses of 1-2 s back to back",
-    ("hassan_bao_phone", "source: 30 sections (off-pose rule)"): "recall 0.867: no gyroscope, hand-held poses "
-                                                                 "the accelerometer finds shaking",
     ("ck_explorer", "source: the logger's 160 blocks"): "recall 0.756: no gyroscope; 1-s poses that vibrate at "
                                                         "3-8 times the recording's quietest noise are refused as "
                                                         "shaking",

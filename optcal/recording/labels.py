@@ -91,6 +91,8 @@ FILL_S = 0.25  # s: a still run shorter than this between motions moves (an osci
 STEP_SAMPLES = 5  # samples each side whose medians are compared for a step of the accelerometer
 CHI2_STEP = 60.0  # a step of the accelerometer's outputs (χ² of the median difference in noise units)
 CHI2_OFF_POSE = 30.7  # χ²(3) upper 10⁻⁶ quantile: a sample off a pose's mean (interval labels without a gyro)
+STEADY_SAMPLES = 2 * STEP_SAMPLES  # samples: a change of the outputs moves this window around it (a stretch
+# off both poses without such a change is a pause)
 MAD_SD = 1.4826  # SD of a normal variable per median absolute deviation
 
 
@@ -403,18 +405,17 @@ def _off_pose(iv: np.ndarray, N: np.ndarray, n: int) -> np.ndarray:
     # gap index: the interval it precedes (0 before the first, k after the last: one pose known, not counted)
     gap = np.where(inside, -1, np.clip(which + 1, 0, k))
     off = ~inside & (gap > 0) & (gap < k) & ((d_prev > CHI2_OFF_POSE) & (d_next > CHI2_OFF_POSE) | ~ok)
-    # in each gap, the hull from the first to the last sample off both poses
-    idx = np.arange(n)
-    gi = gap[off]
-    first = np.full(k + 1, n, np.int64)
-    last = np.full(k + 1, -1, np.int64)
-    np.minimum.at(first, gi, idx[off])
-    np.maximum.at(last, gi, idx[off])
-    has = last >= 0
-    hull = np.zeros(n + 1, np.int64)
-    np.add.at(hull, first[has], 1)
-    np.add.at(hull, last[has] + 1, -1)
-    return np.cumsum(hull)[:n] > 0
+    # a sample off both poses surely moved unless it lies in a steady stretch: the sensor may pause at a pose
+    # the source did not use (an intermediate rest), and that pause is not surely moving. Steady: the medians
+    # of STEP_SAMPLES samples before and after it agree (χ² ≤ CHI2_OFF_POSE in units of their difference's
+    # SD), over the whole run of STEADY_SAMPLES samples around it
+    h = STEP_SAMPLES
+    pad = np.pad(Nf, ((h, h), (0, 0)), mode="edge")
+    win = np.lib.stride_tricks.sliding_window_view(pad, h, axis=0)  # (n + h + 1, 3, h)
+    med = np.median(win, axis=2)
+    change = np.sum(((med[h:h + n] - med[:n]) / (sigma * np.sqrt(np.pi / h))) ** 2, axis=1) > CHI2_OFF_POSE
+    moving_near = _dilate(change, STEADY_SAMPLES // 2)
+    return off & (moving_near | ~ok)
 
 
 def score_rests(found, labels: RestLabels, *, min_static: int = 1) -> dict:

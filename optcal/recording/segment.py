@@ -47,6 +47,7 @@ NOISE_RATIO = 3.0  # a segment whose block means scatter more than this × the r
 LINE_SLACK = 1.5  # a line fits when its residual χ² is at most this × its dof (+ LINE_SIGMAS SDs): flicker
 LINE_SIGMAS = 3.0  # a straight line explains a stretch when its residual χ² is within this many SDs of its dof
 HINGE_S = 2.0  # s: the stretch at each end of a rest searched for the start of a slow motion
+TREND_BIAS_SE = 0.5  # ... and when the slow turn it means shortens the pose's mean by this many standard errors
 DRIFT_SIGMAS = 3.0  # a significant slope is a motion when it moves the outputs by more than this many SDs:
 # a hand settling moves a pose by 1.4-2.7 SDs (three of the MPU-6050 log's poses), which turns the
 # direction by a fraction of a degree and biases the mean's norm by (Δθ)²/24, micro-g; a turn that PELT
@@ -117,7 +118,7 @@ def _sums(x: np.ndarray) -> np.ndarray:
     return np.concatenate([np.zeros((1,) + x.shape[1:]), np.cumsum(x, axis=0)])
 
 
-def _rest_test(M: np.ndarray, seg: np.ndarray, w: int, excess=None, sample_sd=None) -> np.ndarray:
+def _rest_test(M: np.ndarray, seg: np.ndarray, w: int, excess=None, noise: SampleNoise | None = None) -> np.ndarray:
     """For each segment [a, b) of block means ``M`` (in units of the recording's block noise, so σ_b = 1
     per axis): "" at rest, "noisy" or "trend" (step 4 of the module docstring). Vectorised over segments
     and windows through cumulative sums."""
@@ -174,13 +175,49 @@ def _rest_test(M: np.ndarray, seg: np.ndarray, w: int, excess=None, sample_sd=No
     # and large enough to matter: the line moves by more than DRIFT_SIGMAS sample-noise SDs across the
     # window (a pose's slow wander moves its mean by a fraction of that; a turn that PELT cut into pieces
     # moves each piece by several)
-    drift = slope * (n - 1)[:, None] / (1.0 if sample_sd is None else sample_sd)
-    moved = np.linalg.norm(drift, axis=1) > DRIFT_SIGMAS
+    moved = _moved(slope * (n - 1)[:, None], sy / np.maximum(n, 1)[:, None], n, noise)
     trend = np.zeros(k, bool)
     np.logical_or.at(trend, seg_of, (z2 > TREND_CHI2) & moved)
     out[trend] = "trend"
     out[noisy & ~trend] = "noisy"
     return out
+
+
+@dataclass(frozen=True)
+class SampleNoise:
+    """A sample's white noise SD per axis in block-noise units (``sd``); the blocks' length in samples; and,
+    for the slope test's split of a drift (:func:`_moved`), the block-noise unit of each axis in sensor units
+    (``scale``), the outputs' centre in block-noise units (``centre``: the offsets, from the outputs' range)
+    and gravity's magnitude in sample-noise SDs (``g_sd``; None: unknown, every drift judged by DRIFT_SIGMAS)."""
+
+    sd: np.ndarray
+    block: int
+    scale: np.ndarray | None = None
+    centre: np.ndarray | None = None
+    g_sd: float | None = None
+
+
+def _moved(drift: np.ndarray, mean: np.ndarray, n_blocks: np.ndarray, noise: SampleNoise | None) -> np.ndarray:
+    """Whether a line that moves the block means by ``drift`` (k, 3) across ``n_blocks`` blocks (k,), about the
+    window means ``mean`` (k, 3) (block-noise units), moves the sensor enough to be a motion. Along the pose's
+    specific force a drift changes its magnitude (a linear acceleration, or a sensor that is not still): a
+    motion beyond :data:`DRIFT_SIGMAS` sample SDs. Across it a drift is a tilt, which shortens the magnitude
+    of the pose's mean only at second order: turning through Δθ while held shortens it by g·Δθ²/24 (the mean
+    of a direction swept at a constant rate); a tilt of D sample SDs σ is Δθ = Dσ/g, and the mean's standard
+    error over n samples is σ/√n, so the tilt is a motion when D > √(24·TREND_BIAS_SE·(g/σ)/√n) (and
+    DRIFT_SIGMAS). Without a known gravity every drift is judged by DRIFT_SIGMAS."""
+    if noise is None or noise.g_sd is None:
+        sd = 1.0 if noise is None else noise.sd
+        return np.linalg.norm(drift / sd, axis=1) > DRIFT_SIGMAS
+    sig = float(np.exp(np.mean(np.log(noise.sd * noise.scale))))  # a sample's SD, sensor units (one number)
+    d = drift * noise.scale / sig  # in sample SDs
+    u = (mean - noise.centre) * noise.scale
+    u = u / np.maximum(np.linalg.norm(u, axis=1, keepdims=True), 1e-300)
+    along = np.sum(d * u, axis=1)
+    across = np.linalg.norm(d - along[:, None] * u, axis=1)
+    ns = np.maximum(n_blocks, 1) * noise.block
+    tilt = np.maximum(DRIFT_SIGMAS, np.sqrt(24.0 * TREND_BIAS_SE * noise.g_sd / np.sqrt(ns)))
+    return (np.abs(along) > DRIFT_SIGMAS) | (across > tilt)
 
 
 def _slopes(c0, c1, lo, hi):
@@ -194,7 +231,7 @@ def _slopes(c0, c1, lo, hi):
     return sxy / np.where(ok, sxx, 1.0)[:, None], sxx
 
 
-def _continues_motion(M: np.ndarray, seg: np.ndarray, excess=None, sample_sd=None) -> np.ndarray:
+def _continues_motion(M: np.ndarray, seg: np.ndarray, excess=None, noise: SampleNoise | None = None) -> np.ndarray:
     """For each segment [a, b) of block means ``M`` (unit noise, segments in order): whether it is a piece
     of a smooth motion that runs on into a neighbour (step 4c). It is when, for the segment and a touching
     neighbour (the one before, the one after, or both), (i) one straight line through all of them fits
@@ -230,7 +267,8 @@ def _continues_motion(M: np.ndarray, seg: np.ndarray, excess=None, sample_sd=Non
         else:
             floor = excess[np.clip(np.floor(np.log2(np.maximum(n, 2) / 2)).astype(int), 0, len(excess) - 1)]
         significant = np.sum(slope**2 / floor, axis=1) * sxx > TREND_CHI2
-        drift = slope * (n - 1)[:, None] / (1.0 if sample_sd is None else sample_sd)
+        drift = slope * (n - 1)[:, None] / (1.0 if noise is None else noise.sd)
+        # (a piece of a turn that runs on into its neighbours is a motion however slow: DRIFT_SIGMAS only)
         significant &= np.linalg.norm(drift, axis=1) > DRIFT_SIGMAS
         agrees = np.sum((own - slope) ** 2, axis=1) * own_sxx <= TREND_CHI2
         out |= wider & (n >= 4) & fits & significant & agrees
@@ -331,11 +369,11 @@ def _change_points(Z: np.ndarray, good: np.ndarray) -> np.ndarray:
 
 
 def _merge(M: np.ndarray, seg: np.ndarray, rest: np.ndarray, w: int, gap_ok: np.ndarray,
-           step_norm: np.ndarray, excess=None) -> tuple[np.ndarray, np.ndarray]:
+           noise: SampleNoise, excess=None) -> tuple[np.ndarray, np.ndarray]:
     """Join neighbouring rest segments (step 5): returns the new segments and their rest flags."""
     c = _sums(M)
     means = (c[seg[:, 1]] - c[seg[:, 0]]) / (seg[:, 1] - seg[:, 0])[:, None]
-    close = np.linalg.norm((means[1:] - means[:-1]) / step_norm, axis=1) < MERGE_SIGMA
+    close = np.linalg.norm((means[1:] - means[:-1]) / noise.sd, axis=1) < MERGE_SIGMA
     join = rest[:-1] & rest[1:] & close & gap_ok
     if not join.any():
         return seg, rest
@@ -344,7 +382,7 @@ def _merge(M: np.ndarray, seg: np.ndarray, rest: np.ndarray, w: int, gap_ok: np.
     ends = np.concatenate([starts[1:], [len(seg)]])
     merged = np.column_stack([seg[starts, 0], seg[ends - 1, 1]])
     multi = ends - starts > 1
-    passes = _rest_test(M, merged, w, excess, step_norm) == ""
+    passes = _rest_test(M, merged, w, excess, noise) == ""
     keep_group = multi & passes  # a joined group that passes replaces its members
     take = keep_group[group]
     out = np.concatenate([merged[keep_group], seg[~take]])
@@ -401,7 +439,13 @@ def segment_recording(rec: Recording, min_static_s: float | None = None,
     # slow noise (flicker, a hand's wander) is more at a pose's length than the blocks' white noise
     # says: its excess variance there, per axis, from second differences of means over BLOCKS_PER_POSE
     excess = _slow_noise_excess(Z, good, w)
-    step = np.where(sigma > 0, sigma, np.max(sigma)) / scale  # a sample's noise SD, in block-noise units
+    sd = np.where(sigma > 0, sigma, np.max(sigma))
+    # gravity's magnitude in the outputs' units, from their range (the sensor is turned: each axis sees about
+    # ±g; a recording turned less gives less, so slow turns are judged more strictly), offsets cancelled
+    hi, lo = np.percentile(M[good], 99, axis=0), np.percentile(M[good], 1, axis=0)
+    g = float(np.max(hi - lo) / 2)
+    step = SampleNoise(sd / scale, b, scale, (hi + lo) / 2 / scale,
+                       g / float(np.exp(np.mean(np.log(sd)))) if g > 0 else None)
     reason = _rest_test(Z, seg, w, excess, step)
     n_split, turning = 0, None
     if refine:
@@ -416,23 +460,36 @@ def segment_recording(rec: Recording, min_static_s: float | None = None,
         same = np.all(seg[at] == seg2, axis=1)
         retest = _rest_test(Z, seg2, w, excess, step)
         seg, reason = seg2, np.where(rest2, "", np.where(same, reason[at], retest)).astype(object)
-    # rests long enough to keep are tested against their surroundings (step 4c)
-    # long enough: at least min_static_s with a block at each end (a step or a motion inside a block
-    # leaves that block to neither side)
-    cand = (reason == "") & ((seg[:, 1] - seg[:, 0] + 2) * b >= m)
+    # rests are tested against their surroundings (step 4c), short ones too (a turn's pieces must not pass
+    # for short rests); long enough to keep: at least min_static_s with a block at each end (a step or a
+    # motion inside a block leaves that block to neither side) and, beside a turn the gyroscope sees, the
+    # margins its turn was dilated by (samples of the rest set aside as a precaution, not seen moving)
+    length = (seg[:, 1] - seg[:, 0] + 2) * b + _turn_margins(seg, reason, rate)
     cont = _continues_motion(Z, seg, excess, step)
     if turning is not None:  # the gyroscope sees whether a piece continues a turn
         cont &= ~_still(seg, turning[: len(Z) * b].reshape(len(Z), b).any(axis=1))
-    reason[cand & cont] = "trend"
+    reason[(reason == "") & cont] = "trend"
     seg = seg.copy()
     # the hinge search leaves out the end blocks (which may mix motion and rest; they are dropped at the
     # end anyway) and looks at most half way into the rest from each end
     H = max(4, int(round(HINGE_S * (rate if np.isfinite(rate) else 50.0) / b)))
-    keep = (reason == "") & ((seg[:, 1] - seg[:, 0] + 2) * b >= m)
+    keep = (reason == "") & (length >= m)
     short = (reason == "") & ~keep
     seg[keep] = _hinge_trim(Z, seg[keep] + [1, -1], H) + [-1, 1]
     rest = reason == ""
     return Segmentation(b, w, seg, rest, reason, sigma, sigma_b, int((~good).sum()), keep, short, n_split, turning)
+
+
+def _turn_margins(seg: np.ndarray, reason: np.ndarray, rate: float) -> np.ndarray:
+    """Samples (k,) each segment of ``seg`` lost to the margins of the turns it touches: :data:`SETTLE_S` after a
+    turn before it, :data:`GYRO_MARGIN_S` before a turn after it (:func:`gyro_turning`)."""
+    turn = reason == "turn"
+    touch_l = np.zeros(len(seg), bool)
+    touch_r = np.zeros(len(seg), bool)
+    touch_l[1:] = turn[:-1] & (seg[1:, 0] == seg[:-1, 1])
+    touch_r[:-1] = turn[1:] & (seg[:-1, 1] == seg[1:, 0])
+    per_s = rate if np.isfinite(rate) else 50.0
+    return (touch_l * int(round(SETTLE_S * per_s)) + touch_r * int(round(GYRO_MARGIN_S * per_s))).astype(np.int64)
 
 
 def _refine(Z, seg, reason, w, excess, step, b, rate, W):
@@ -567,14 +624,33 @@ def gyro_turning(W: np.ndarray, b: int, seg: np.ndarray, rest: np.ndarray, rate:
     s = np.maximum(_noise_sd(np.diff(Wf, 2, axis=0)[ok]), q / np.sqrt(12.0))
     s = np.where(s > 0, s, 1.0)
     G = Wf[: nb * b].reshape(nb, b, 3).mean(axis=1)
-    level = _rest_level(G, (np.arange(n, dtype=float) - (b - 1) / 2.0) / b, seg, rest)
+    t = (np.arange(n, dtype=float) - (b - 1) / 2.0) / b
     w = max(1, int(round(GYRO_WINDOW_S * rate))) if np.isfinite(rate) else 5
-    c = np.concatenate([np.zeros((1, 3)), np.cumsum(Wf - level, axis=0)])
+    samples = _turning_samples(Wf - _rest_level(G, t, seg, rest), s, w) | ~finite
+    # the accelerometer's rests may hold part of a turn, which moves their level (by more than the threshold
+    # on a quiet gyroscope): the level again from the gyroscope's own still runs, whole blocks of them
+    still = runs(~samples)
+    still = np.column_stack([-(-still[:, 0] // b), still[:, 1] // b])
+    still = still[still[:, 1] - still[:, 0] >= 2]
+    if len(still):
+        samples = _turning_samples(Wf - _rest_level(G, t, still, np.ones(len(still), bool)), s, w) | ~finite
+    per_s = rate if np.isfinite(rate) else 50.0
+    samples = _dilate(samples, int(round(SETTLE_S * per_s)), int(round(GYRO_MARGIN_S * per_s)))
+    blocks = samples[: nb * b].reshape(nb, b).any(axis=1)
+    return blocks, samples
+
+
+def _turning_samples(X: np.ndarray, s: np.ndarray, w: int) -> np.ndarray:
+    """Samples (n,) of a turn, from the rates ``X`` (n, 3) less their level at rest and their white noise SD
+    ``s`` (3,): the rate averaged over ``w`` samples, in units of the average's noise (the largest axis), is
+    above the threshold at the core and grown while above the lower one (:func:`gyro_turning`)."""
+    n = len(X)
+    c = np.concatenate([np.zeros((1, 3)), np.cumsum(X, axis=0)])
     lo = np.clip(np.arange(n) - w // 2, 0, max(n - w, 0))
     hi = np.minimum(lo + w, n)
     z = np.max(np.abs(c[hi] - c[lo]) / (hi - lo)[:, None] / (s / np.sqrt(w)), axis=1)
     # a turn: above the noise and above a small fraction of the recording's turns (its 99th percentile), grown
-    # while it stays above a fraction of that (a turn's slow start and its settling), and its edges
+    # while it stays above a fraction of that (a turn's slow start and its settling)
     thr = max(GYRO_Z, TURN_FRACTION * float(np.percentile(z, 99)))
     core = z > thr
     starts, stops = runs(z > max(GYRO_Z_LOW, GROW_FRACTION * thr)).T
@@ -583,11 +659,7 @@ def gyro_turning(W: np.ndarray, b: int, seg: np.ndarray, rest: np.ndarray, rate:
     grown = np.zeros(n + 1, np.int64)
     np.add.at(grown, starts[hit], 1)
     np.add.at(grown, stops[hit], -1)
-    samples = (np.cumsum(grown[:n]) > 0) | core | ~finite
-    per_s = rate if np.isfinite(rate) else 50.0
-    samples = _dilate(samples, int(round(SETTLE_S * per_s)), int(round(GYRO_MARGIN_S * per_s)))
-    blocks = samples[: nb * b].reshape(nb, b).any(axis=1)
-    return blocks, samples
+    return (np.cumsum(grown[:n]) > 0) | core
 
 
 def _loud_blocks(Z: np.ndarray) -> np.ndarray:
