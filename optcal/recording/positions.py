@@ -3,7 +3,7 @@ data set of docs/design.md §9.1 (mean output, n, per-axis SD, the standard erro
 sensor's correlated noise, middle time, mean temperature); poses that check themselves (:func:`recheck_poses`);
 and a positions file stored as a MATLAB matrix (:func:`mat_positions`).
 
-Poses that check themselves (issue #29; docs/segmentation.md, step 9): a position of a raw recording that lies
+Poses that check themselves (issue #29; docs/segmentation.md, step 10): a position of a raw recording that lies
 far off the fit of the others is looked at again sample by sample, through the fitted calibration. Its
 samples' specific force, averaged over :data:`SMOOTH_S`, is compared with the pose's own direction (the median
 of its central half): a run of samples at either end that departs from it by more than :data:`DEPART_SIGMAS`
