@@ -44,7 +44,9 @@ def _positions(data, units: str | None, raw: bool, g_local: float, model, readin
         return data
     if _is_path(data):
         path = os.fspath(data)
-        if not os.path.isfile(path):
+        from .recording.robotlogs import log_kind
+
+        if not os.path.isfile(path) and log_kind(path) is None:  # a ROS 2 bag is a folder
             raise InputError(f"{path} does not exist or is not a file; give a positions CSV, or a raw recording "
                              "with raw=True")
         if raw:
@@ -73,7 +75,7 @@ def _positions(data, units: str | None, raw: bool, g_local: float, model, readin
 
 # the keyword arguments of optcal.recording.positions_from_raw that describe a raw recording
 _READING = ("columns", "rate", "saturation", "adc", "time_unit", "labels", "label_values", "intervals",
-            "method", "threshold_k", "window_s", "min_static_s", "init_s")
+            "method", "threshold_k", "window_s", "min_static_s", "init_s", "topic")
 
 
 def _check_reading(function: str, reading: dict) -> None:
@@ -95,9 +97,9 @@ def calibrate(data, model=None, *, solver: str = "lm", units: str | None = None,
     static intervals are found as ``optcal calibrate --raw`` finds them (§9.2). ``units``: the outputs'
     units (g, m/s2, counts, volts, mg; default g). Keyword arguments for a raw recording, as
     :func:`optcal.recording.positions_from_raw` takes them: ``columns``, ``rate`` (Hz), ``saturation``, ``adc``
-    (the counts' format, e.g. "uint16"), ``time_unit`` (of the time column),
-    ``labels`` (a label column) and ``label_values``, ``intervals`` (a file), ``method`` ("segment", the
-    default, or "variance"), ``threshold_k`` ("2:10"),
+    (the counts' format, e.g. "uint16"), ``time_unit`` (of the time column), ``topic`` (a ROS bag's or a PX4
+    ULog's IMU topic, docs/real_data.md), ``labels`` (a label column) and ``label_values``, ``intervals`` (a
+    file), ``method`` ("segment", the default, or "variance"), ``threshold_k`` ("2:10"),
     ``window_s``, ``min_static_s`` and ``init_s`` (s). ``g_local``: local gravity in g
     (``optcal.gravity.local_gravity_g`` converts m/s² or a latitude). The rest is :func:`optcal.fit.calibrate`'s:
     the registered solver and its options, turntable ``reference``, ``presets``, the solver's ``seed``, the
@@ -176,10 +178,10 @@ def calibrate_imu(data, gyro=None, *, gyro_units: str, gyro_columns=None, gyro_s
 
     # the recording is read once, and the gyroscope before the rests are found: their detection judges its
     # stillness too
-    read = {k: reading.pop(k, None) for k in ("columns", "rate", "saturation", "adc", "time_unit")}
+    read = {k: reading.pop(k, None) for k in ("columns", "rate", "saturation", "adc", "time_unit", "topic")}
     acc = read_recording(os.fspath(data), read["columns"], read["rate"], units or "g", saturation=read["saturation"],
                          adc=read["adc"], time_unit=read["time_unit"], labels=reading.get("labels"),
-                         refuse_positions=True)
+                         refuse_positions=True, topic=read["topic"])
     rates = read_gyro(os.fspath(data), acc, gyro=None if gyro is None else os.fspath(gyro), gyro_columns=gyro_columns,
                       units=gyro_units, rate=read["rate"], time_unit=read["time_unit"])
     positions = _first_found(lambda name: positions_from_raw_recording(acc, gyro=rates, model=name, g_local=g_local,
@@ -256,27 +258,31 @@ def apply(calibration, samples, *, temp=None, t=None) -> np.ndarray:
 
 def read_recording(path, columns=None, rate: float | None = None, units: str = "g", *,
                    saturation: float | None = None, labels: str | None = None, need_time: bool = True,
-                   adc: str | None = None, time_unit: str | None = None) -> Recording:
+                   adc: str | None = None, time_unit: str | None = None, topic: str | None = None) -> Recording:
     """A raw recording (docs/design.md §9.2) as a :class:`~optcal.recording.Recording`: samples ``N``
     (n, 3) in ``units``, time ``t`` (s), ``rate`` (Hz), optional ``temp`` (°C) and the ``saturated`` flags.
     ``columns``: "t,ax,ay,az", "ax,ay,az" (with ``rate``) or role=column items, names or 0-based indices
     (default: from the header); ``labels``: a column of section labels; ``need_time=False`` accepts a
     file with neither a time column nor a rate; ``adc``: the counts' format ("int16", "uint16", ...; default
-    from the data); ``time_unit``: the time column's unit ("s", "ms", "us", "ns"; default from its step)."""
+    from the data); ``time_unit``: the time column's unit ("s", "ms", "us", "ns"; default from its step). A ROS
+    bag (ROS 1 ``.bag``, a ROS 2 bag's folder or its ``.db3``/``.mcap``) or a PX4 ULog is read from its IMU
+    messages, in m/s² (and the gyroscope's rad/s in ``W``) at their stamps; ``topic`` picks the IMU's topic
+    ("NAME", or "ACC,GYRO"; docs/real_data.md)."""
     from .recording import read_recording as read
 
     return read(path, columns, rate, units, saturation=saturation, labels=labels, need_time=need_time, adc=adc,
-                time_unit=time_unit)
+                time_unit=time_unit, topic=topic)
 
 
 def noise(source, rate: float | None = None, *, units: str | None = None, columns=None, interval=None,
-          scale: float | None = None, ci: float | None = None, tau_max_s: float | None = None) -> NoiseReport:
+          scale: float | None = None, ci: float | None = None, tau_max_s: float | None = None,
+          topic: str | None = None) -> NoiseReport:
     """The Allan-deviation noise analysis of a static stretch (docs/noise.md): white-noise density
     (g/√Hz), bias instability (g) and bias random walk (g/√s) per axis, with intervals, as a
     :class:`~optcal.noise.NoiseReport` (``table()``, ``to_dict()``, ``kalibr_yaml()``, ``figure()``).
 
-    ``source``: a recording file (read as :func:`read_recording` reads it, with ``columns``, ``rate`` and
-    ``units``; ``interval`` = (start, end) in seconds from its first sample), a
+    ``source``: a recording file (read as :func:`read_recording` reads it, with ``columns``, ``rate``,
+    ``units`` and ``topic``; ``interval`` = (start, end) in seconds from its first sample), a
     :class:`~optcal.recording.Recording`, or an (n, 3) array of samples in ``units`` at ``rate`` Hz.
     ``scale``: output units per g for counts or volts (default: the mean output's magnitude); ``ci``: the
     confidence level (default 0.683); ``tau_max_s``: the longest averaging time (default a quarter of the
@@ -287,9 +293,9 @@ def noise(source, rate: float | None = None, *, units: str | None = None, column
     kw = {"scale": scale, "tau_max_s": tau_max_s, **({} if ci is None else {"ci": ci})}
     if _is_path(source):
         return noise_from_recording(os.fspath(source), columns=columns, rate=rate, units=units or "g",
-                                    interval=interval, **kw)
-    if interval is not None or columns is not None:
-        raise InputError("interval and columns apply to a recording file; slice the samples instead")
+                                    interval=interval, topic=topic, **kw)
+    if interval is not None or columns is not None or topic is not None:
+        raise InputError("interval, columns and topic apply to a recording file; slice the samples instead")
     if isinstance(source, Recording):
         if units is not None and units != source.units:
             raise InputError(f"the recording is in {source.units!r} but units={units!r}; drop units")

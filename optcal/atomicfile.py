@@ -115,3 +115,51 @@ def write_atomic(path, content: str | bytes, *, overwrite: bool, encoding: str |
     with atomic_write(path, overwrite=overwrite, binary=binary, encoding=encoding, check=check,
                       exists=exists) as fh:
         fh.write(content)
+
+
+def _sync_tree(path: Path) -> None:
+    """fsync every file under ``path`` (a file or a folder) and the folders holding them (best effort)."""
+    files = [path] if path.is_file() else [p for p in path.rglob("*") if p.is_file()]
+    for f in files:
+        with open(f, "rb") as fh:
+            os.fsync(fh.fileno())
+    for folder in {f.parent for f in files}:
+        _sync_folder(folder)
+
+
+@contextmanager
+def atomic_output(path, *, overwrite: bool, exists: str = EXISTS) -> Iterator[Path]:
+    """:func:`atomic_write` for a writer that creates its output itself, a file or a folder (rosbags' writers,
+    which refuse an existing path; a ROS 2 bag is a folder): a path not yet made, ``path``'s name inside a new
+    temporary folder beside it (``.NAME.XXXXXXXX.tmp/NAME``, so the writer names what it makes inside after
+    ``NAME``). When the ``with`` block ends without an exception what was written there is synced and renamed
+    to ``path``; on any exception the temporary folder is removed and ``path`` left as it was. An existing
+    file is replaced in one rename; an existing folder (or a file replaced by a folder) is first renamed into
+    the temporary folder, then removed: a process killed between the two renames leaves the new output in
+    ``.NAME.XXXXXXXX.tmp`` and no ``NAME``. An existing ``path`` is refused unless ``overwrite``."""
+    import shutil
+
+    path = Path(path)
+    if not overwrite and path.exists():
+        raise InputError(exists.format(path=path))
+    target = Path(os.path.realpath(path)) if path.is_symlink() else path
+    try:
+        tmpdir = Path(tempfile.mkdtemp(prefix=f".{target.name}.", suffix=".tmp", dir=target.parent))
+    except OSError as exc:
+        raise InputError(f"cannot write {path}: {exc.strerror or exc}") from None
+    inner = tmpdir / target.name
+    try:
+        yield inner
+        if not os.path.lexists(inner):
+            raise InputError(f"cannot write {path}: the writer made nothing")
+        _sync_tree(inner)
+        if not overwrite and path.exists():  # appeared while we wrote: still not ours to replace
+            raise InputError(exists.format(path=path))
+        if target.exists() and (target.is_dir() or inner.is_dir()):
+            os.rename(target, tmpdir / f"{target.name}.old")
+        os.replace(inner, target)
+    except OSError as exc:
+        raise InputError(f"cannot write {path}: {exc.strerror or exc}") from None
+    finally:
+        shutil.rmtree(tmpdir, ignore_errors=True)
+    _sync_folder(target.parent)

@@ -30,6 +30,7 @@ FLAGS = {
     "min_static_s": "--min-static",
     "init_s": "--init-s",
     "threshold_k": "--threshold-k",
+    "topic": "--topic",
 }
 # what the library's errors name that is not a parameter of positions_from_raw: its choice of reader
 READERS = {"raw": "--raw"}
@@ -49,6 +50,8 @@ def add_data_options(p: argparse.ArgumentParser, *, units_default: str | None = 
     d.add_argument("--units", default=units_default, help=units_help)
     d.add_argument("--raw", action="store_true", help="DATA is a raw recording (t, ax, ay, az per sample)")
     r = p.add_argument_group("raw recordings (with --raw; docs/design.md §9.2)")
+    r.add_argument("--topic", metavar="NAME[,GYRO]", help="a ROS bag's or PX4 ULog's IMU topic (default: its one IMU "
+                   "topic); ACC,GYRO for an accelerometer and a gyroscope on topics of their own (docs/real_data.md)")
     r.add_argument("--columns", help="columns by name or 0-based index: t,ax,ay,az or ax,ay,az (with --rate), "
                    "t,ax,ay,az,temp, or role=column items")
     r.add_argument("--rate", type=float, metavar="HZ", help="sample rate when the recording has no time column")
@@ -143,7 +146,8 @@ def load_raw_positions(args, path, gyro_of=None) -> PositionsData:
     with flag_names():
         rec = read_recording(path, opts.pop("columns"), opts.pop("rate"), opts.pop("units"),
                              saturation=opts.pop("saturation"), labels=opts["labels"], adc=opts.pop("adc"),
-                             time_unit=opts.pop("time_unit"), refuse_positions=True)
+                             time_unit=opts.pop("time_unit"), refuse_positions=True,
+                             topic=getattr(args, "topic", None))
         return positions_from_raw_recording(rec, gyro=None if gyro_of is None else gyro_of(rec), **opts)
 
 
@@ -161,7 +165,7 @@ def load_positions(args, path) -> PositionsData:
     from ..recording.reading import raw_file_reason
     from ..recording.sniff import is_mat
 
-    found = raw_file_reason(Path(path)) if Path(path).is_file() else None
+    found = raw_file_reason(Path(path)) if Path(path).exists() else None
     if found:
         reason, timed = found
         raise InputError(f"{path} looks like a raw recording, not a positions file ({reason}); pass --raw"

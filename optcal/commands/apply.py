@@ -1,5 +1,6 @@
 """optcal apply: turn a raw recording into calibrated specific force with a calibration file, and, with an IMU
-file (optcal imu -o), the gyroscope's samples into calibrated angular rate."""
+file (optcal imu -o), the gyroscope's samples into calibrated angular rate: a table, or, for a ROS bag, a bag of
+the same storage with the IMU's messages calibrated (optcal.recording.bags.write_calibrated)."""
 
 from __future__ import annotations
 
@@ -21,8 +22,13 @@ OUTPUT_UNITS = {"g": 1.0, "m/s2": G0}
 
 def add_arguments(p):
     p.add_argument("calibration", metavar="CALIBRATION.json", help="calibration file (optcal calibrate -o)")
-    p.add_argument("data", metavar="RAW", help="raw recording (CSV or whitespace-separated; see --columns)")
-    p.add_argument("-o", "--output", required=True, metavar="CALIBRATED.csv", help="output CSV")
+    p.add_argument("data", metavar="RAW", help="raw recording (CSV or whitespace-separated; see --columns), or a ROS "
+                   "bag or PX4 ULog (--topic)")
+    p.add_argument("-o", "--output", required=True, metavar="CALIBRATED.csv", help="output CSV; for a ROS bag, a "
+                   "name without .csv/.txt is a bag of the same storage (.bag; a ROS 2 bag's folder, or its .mcap "
+                   "or .db3 file) with the IMU's messages calibrated and every other topic copied")
+    p.add_argument("--output-topic", metavar="NAME[,GYRO]", help="bag output: put the calibrated messages on this "
+                   "new topic (ACC,GYRO for two) beside the originals, instead of replacing them")
     p.add_argument("--output-units", choices=tuple(OUTPUT_UNITS), default="g",
                    help="units of the calibrated specific force (default g = 9.80665 m/s²)")
     p.add_argument("--force", action="store_true", help="overwrite an existing output file")
@@ -51,6 +57,42 @@ def write_csv(path: Path, columns: dict[str, np.ndarray], fmt: dict[str, str], *
         np.savetxt(fh, M, fmt=row.split(","), delimiter=",")
 
 
+def write_bag(args, cal, rec, gyro_note) -> int:
+    """The calibrated bag: the input's storage and topics, the IMU's messages with the calibrated specific force
+    (m/s², as sensor_msgs/msg/Imu defines it) and, with an IMU file, angular rate (rad/s)."""
+    import numpy as np
+
+    from ..gyro.calfile import read_gyro_block
+    from ..recording.bags import write_calibrated
+
+    has_t = "t" in rec.columns
+    gcal = read_gyro_block(cal.meta, args.calibration) if isinstance(cal.meta.get("gyroscope"), dict) else None
+
+    def acc(t, N):
+        with np.errstate(all="ignore"):
+            return cal.apply(N, temp=None, t=t if has_t else None) * G0
+
+    def gyro(t, W, A):
+        return gcal.apply(W, A / G0 if gcal.model.g_sensitivity else None)
+
+    with flag_names():
+        done = write_calibrated(args.data, args.output, topic=args.topic, t0_ns=int(rec.reading["first_stamp_ns"]),
+                                acc=acc, gyro=None if gcal is None else gyro, output_topic=args.output_topic,
+                                overwrite=args.force)
+    what = "linear_acceleration (m/s²)" + (", angular_velocity (rad/s)" if gcal is not None else "")
+    topics = ", ".join(f"{t} ({done['messages'][t]} messages)" + (f" on {new}" if new != t else "")
+                       for t, new in done["topics"].items())
+    print(f"applied {args.calibration} (model {cal.model.name}, outputs in {cal.units_out}) to {args.data}; wrote "
+          f"{args.output} ({done['format']}): {what} calibrated on {topics}; the other topics copied")
+    if cal.forced:
+        print(f"note: applying a forced calibration (written with --force-weak although the data did not determine "
+              f"it): {'; '.join(cal.forced)}")
+    if gyro_note:
+        print(f"note: {gyro_note}")
+    return 0
+
+
+TABLE_SUFFIXES = (".csv", ".txt", ".tsv")  # apply's output for a ROS bag is a table when named so, else a bag
 # Options of add_data_options that only the static-interval detector reads: apply converts every sample.
 DETECTOR_OPTIONS = {"raw": ("--raw", False), "intervals": ("--intervals", None), "labels": ("--labels", None),
                     "init_s": ("--init-s", None), "threshold_k": ("--threshold-k", None),
@@ -124,11 +166,20 @@ def run(args) -> int:
 
     from ..calfile import read_calibration
     from ..recording.reading import read_recording
+    from ..recording.robotlogs import check_gyro_units, log_kind
 
     given = [flag for key, (flag, default) in DETECTOR_OPTIONS.items() if getattr(args, key, default) != default]
     if given:
         raise InputError(f"{', '.join(given)} select static intervals, which apply does not: it converts every "
                          "sample of the recording; drop them")
+    kind = log_kind(args.data)
+    bag_out = kind == "bag" and Path(args.output).suffix.lower() not in TABLE_SUFFIXES
+    if kind == "ulog" and Path(args.output).suffix.lower() not in TABLE_SUFFIXES:
+        raise InputError(f"-o {args.output}: apply writes a ULog's calibrated samples as a table, not a ULog; name "
+                         "the output .csv")
+    if args.output_topic is not None and not bag_out:
+        raise InputError("--output-topic names the topic of a calibrated bag; apply writes one for a ROS bag with "
+                         "-o not ending .csv or .txt: drop --output-topic")
     refuse_same_file(args.output, args.calibration, args.data, args.gyro)
     refuse_overwrite(args.output, args.force)
     check_output_folder(args.output)
@@ -139,10 +190,18 @@ def run(args) -> int:
             f"the data are declared in {args.units!r} but {args.calibration} was fitted to outputs in "
             f"{cal.units_out!r}; convert the data or drop --units"
         )
+    if kind is not None:  # a log's units are its messages': m/s² and rad/s
+        if cal.units_out != "m/s2":
+            raise InputError(f"{args.data}'s accelerometer is in m/s², but {args.calibration} was fitted to outputs "
+                             f"in {cal.units_out!r}; apply a calibration fitted in m/s² (from a log, or --units m/s2)")
+        block = cal.meta.get("gyroscope")
+        if isinstance(block, dict):
+            check_gyro_units(args.data, str(block.get("units", {}).get("raw")))
     try:
         with flag_names():
             rec = read_recording(args.data, args.columns, args.rate, cal.units_out, saturation=args.saturation,
-                                 need_time="t" in cal.model.needs, adc=args.adc, time_unit=args.time_unit)
+                                 need_time="t" in cal.model.needs, adc=args.adc, time_unit=args.time_unit,
+                                 topic=args.topic)
     except InputError as exc:
         if "looks like" not in str(exc) or args.units is not None:
             raise
@@ -154,6 +213,8 @@ def run(args) -> int:
         A = cal.apply(rec.N, temp=rec.temp, t=rec.t if has_t else None)
     check_magnitude(cal, rec.N, A, args.data)
     omega, gyro_saturated, gyro_note = gyro_rates(args, cal, rec, A)
+    if bag_out:
+        return write_bag(args, cal, rec, gyro_note)
     scale = OUTPUT_UNITS[args.output_units]
     cols: dict[str, np.ndarray] = {}
     if has_t or np.isfinite(rec.rate):

@@ -29,6 +29,8 @@ def add_arguments(p):
                    "or role=column items (default: from the header)")
     d.add_argument("--rate", type=float, metavar="HZ", help="sample rate when the recording has no time column "
                    "(and no Fs line)")
+    d.add_argument("--topic", metavar="NAME[,GYRO]", help="a ROS bag's or PX4 ULog's IMU topic (default: its one IMU "
+                   "topic); ACC,GYRO for sensors on topics of their own")
     d.add_argument("--scale", type=float, metavar="UNITS_PER_G", help="output units per g, for counts or volts "
                    "(default: the magnitude of the mean output, as a static sensor reads 1 g)")
     g = p.add_argument_group("the gyroscope (its columns as optcal imu reads them)")
@@ -115,7 +117,11 @@ def gyro_report(args, scale: float, interval):
     from ..recording.reading import read_recording
     from .imu import gyro_recording
 
-    acc = read_recording(args.recording, args.columns, args.rate, args.units)
+    acc = read_recording(args.recording, args.columns, args.rate, args.units, topic=args.topic)
+    if args.gyro is None and acc.reading.get("topic") is not None:  # a ROS bag or a ULog: its units are rad/s
+        from ..recording.robotlogs import check_gyro_units
+
+        check_gyro_units(args.recording, args.gyro_units)
     if args.gyro is not None or args.gyro_columns is not None:
         how = SimpleNamespace(gyro=args.gyro, gyro_columns=args.gyro_columns, gyro_units=args.gyro_units,
                               rate=args.rate, time_unit=None, data=args.recording)
@@ -134,7 +140,8 @@ def gyro_report(args, scale: float, interval):
     # checks no magnitude for it), the scale turns them into rad/s
     spec = ",".join(f"{role}={col}" for role, col in columns.items() if role in ("t", "ax", "ay", "az"))
     report = noise_from_recording(args.gyro or args.recording, columns=spec, rate=args.rate, units="volts",
-                                  interval=interval, scale=scale, ci=args.ci, tau_max_s=args.tau_max)
+                                  interval=interval, scale=scale, ci=args.ci, tau_max_s=args.tau_max,
+                                  topic=None if args.gyro else args.topic)
     report.sensor, report.units = "gyroscope", args.gyro_units
     report.scale_source = "--gyro-scale" if args.gyro_scale is not None else f"{args.gyro_units}, exact"
     return report
@@ -167,7 +174,8 @@ def run(args) -> int:
     scale = gyro_scale(args)
     interval = parse_interval(args.interval)
     report = noise_from_recording(args.recording, columns=args.columns, rate=args.rate, units=args.units,
-                                  interval=interval, scale=args.scale, ci=args.ci, tau_max_s=args.tau_max)
+                                  interval=interval, scale=args.scale, ci=args.ci, tau_max_s=args.tau_max,
+                                  topic=args.topic)
     gyro = None if scale is None else gyro_report(args, scale, interval)
     # Everything is rendered before anything is written: a failure leaves no partial output behind.
     files: dict[str, bytes] = {}

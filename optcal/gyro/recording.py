@@ -47,9 +47,12 @@ def read_gyro(data, acc, *, gyro=None, gyro_columns=None, units: str, rate: floa
     file ``gyro`` (times and three rates; ``gyro_columns`` names the four, "t,gx,gy,gz", or its first four
     columns are taken) or from the accelerometer's file ``data``, whose recording ``acc`` is, in the columns
     ``gyro_columns`` ("gx,gy,gz" or a list) beside its time column. ``units``: the gyroscope's (counts, deg/s,
-    rad/s, volts)."""
+    rad/s, volts). A ROS bag's or a ULog's gyroscope was read with its accelerometer: it is ``acc``'s
+    (:func:`log_gyro`)."""
     from ..recording.reading import read_recording
 
+    if gyro is None and acc.reading.get("topic") is not None:
+        return log_gyro(acc, units, gyro_columns)
     label = _READER_UNITS.get(units, "volts")
     if gyro is not None:
         cols = _columns(gyro_columns, 4)
@@ -62,6 +65,30 @@ def read_gyro(data, acc, *, gyro=None, gyro_columns=None, units: str, rate: floa
     time = acc.columns.get("t")
     spec = (f"t={time}," if time is not None else "") + f"ax={cols[0]},ay={cols[1]},az={cols[2]}"
     return read_recording(data, spec, rate, label, time_unit=time_unit)
+
+
+def log_gyro(acc, units: str, gyro_columns=None):
+    """The gyroscope of a ROS bag or a ULog, read with its accelerometer as the Recording ``acc`` (its ``W``), as
+    a Recording of its own whose ``N`` holds the rates: what :func:`read_gyro` gives for a table's gyroscope
+    columns (labelled as it labels rad/s, saturation found as for them). The log defines the units: rad/s."""
+    from dataclasses import replace
+
+    from ..recording.reading import saturation_of
+    from ..recording.robotlogs import check_gyro_units
+
+    check_gyro_units(acc.path, units)
+    if acc.W is None:
+        raise InputError(f"{acc.path}: topic {acc.reading.get('topic')} has no gyroscope (angular_velocity); give "
+                         "the gyroscope's topic too with `topic` ACC,GYRO")
+    if gyro_columns is not None:
+        names = [c.strip() for c in gyro_columns.split(",")] if isinstance(gyro_columns, str) else list(gyro_columns)
+        if names != ["gx", "gy", "gz"]:
+            raise InputError(f"`gyro_columns` {','.join(map(str, names))}: a log's gyroscope is its columns gx,gy,gz; "
+                             "drop `gyro_columns`")
+    label = _READER_UNITS[units]
+    sat, _ = saturation_of(acc.W, label, None, None)
+    return replace(acc, N=acc.W, units=label, saturated=sat, temp=None, W=None, gyro_saturated=None,
+                   columns={"t": "t", "ax": "gx", "ay": "gy", "az": "gz"})
 
 
 def gyro_data(t, W, N_acc, intervals, acc_model, x_acc, *, units: str,

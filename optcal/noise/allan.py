@@ -151,13 +151,13 @@ def analyse(N, rate: float, *, units: str = "g", scale: float | None = None, ci:
 
 def noise_from_recording(path, *, columns=None, rate: float | None = None, units: str = "g",
                          interval=None, scale: float | None = None, ci: float = DEFAULT_CI,
-                         tau_max_s: float | None = None) -> NoiseReport:
-    """Read a raw recording (:func:`optcal.recording.read_recording`: the same columns, units and rate
-    rules as a calibration recording) and analyse the stretch ``interval`` = (start, end) in seconds from
+                         tau_max_s: float | None = None, topic: str | None = None) -> NoiseReport:
+    """Read a raw recording (:func:`optcal.recording.read_recording`: the same columns, units, rate and
+    ``topic`` rules as a calibration recording) and analyse the stretch ``interval`` = (start, end) in seconds from
     its first sample (either may be None; default the whole file)."""
     from ..recording.reading import read_recording  # the core reader (the package also re-exports its workflow)
 
-    rec = read_recording(path, columns, rate, units)
+    rec = read_recording(path, columns, rate, units, topic=topic)
     start, end = interval if interval is not None else (None, None)
     t = rec.t - rec.t[0]
     steps = np.diff(rec.t)

@@ -5,7 +5,8 @@ whitespace-separated, gzip/bz2/xz-compressed, with or without a header, and may 
 lines; their layout is read by :mod:`optcal.recording.sniff`. MATLAB ``.mat`` files (level 5, and v7.3 through
 h5py) hold the same table as a matrix or named variables. Integer counts may be signed or unsigned
 (offset-binary); saturation is found from the ADC's rails (declared, or inferred from the data) and from runs
-at the recording's own extremes (:func:`saturation_of`).
+at the recording's own extremes (:func:`saturation_of`). ROS bags and PX4 ULog (:mod:`optcal.recording.robotlogs`)
+are read as a table of the same columns (:func:`read_log`).
 """
 
 from __future__ import annotations
@@ -91,7 +92,7 @@ class Recording:
 def read_recording(path, columns=None, rate: float | None = None, units: str = "g", *,
                    saturation: float | None = None, labels: str | None = None, need_time: bool = True,
                    adc: str | None = None, time_unit: str | None = None,
-                   refuse_positions: bool = False) -> Recording:
+                   refuse_positions: bool = False, topic: str | None = None) -> Recording:
     """Read a raw recording (docs/design.md §9.2). ``columns``: ``"t,ax,ay,az"`` (names or 0-based indices;
     3 entries mean ax,ay,az, 5 add temp) or ``"ax=acc_x,..."``; ``rate`` (Hz) when there is no time column;
     ``units`` of the outputs; ``saturation``: |value| at which a sample is saturated; ``adc``: the counts'
@@ -101,7 +102,9 @@ def read_recording(path, columns=None, rate: float | None = None, units: str = "
     ``COLUMN=L1,L2`` (kept as strings; the labels after ``=`` are for
     :func:`~optcal.recording.label_intervals`); ``need_time=False`` accepts a file without time or rate
     (time is then the sample index and the rate NaN); ``refuse_positions``: a file that looks like a
-    positions file is an error that says so (calibration's path). Every problem is an InputError."""
+    positions file is an error that says so (calibration's path). A ROS bag or a PX4 ULog is read from its IMU
+    messages (:func:`read_log`; ``topic`` picks among them) in the units and at the stamps the log gives.
+    Every problem is an InputError."""
     path = Path(path)
     if units not in UNITS:
         raise InputError(f"unknown units {units!r}; use one of {', '.join(UNITS)}")
@@ -109,7 +112,13 @@ def read_recording(path, columns=None, rate: float | None = None, units: str = "
         raise InputError(f"`time_unit` {time_unit!r}: use one of {', '.join(TIME_UNITS)}")
     fmt = parse_adc(adc)
     table = None
-    if is_mat(path):
+    log = read_log(path, topic, rate=rate, labels=labels, adc=adc, time_unit=time_unit)
+    if log is not None:
+        from .robotlogs import log_layout
+
+        lay, table = log_layout(log)
+        time_unit = "s"
+    elif is_mat(path):
         lay, table = mat_layout(path)
         if labels is not None:
             raise InputError(f"{path} is a MAT file, which has no text label column; drop `labels`")
@@ -120,6 +129,10 @@ def read_recording(path, columns=None, rate: float | None = None, units: str = "
             f"{path} has a single column; a raw recording needs ax, ay, az (and t, or `rate`) on each row"
         )
     cols = role_columns(columns, lay, path)
+    if log is not None:
+        from .robotlogs import log_units
+
+        units = log_units(lay, cols, units, path)
     order = [r for r in ROLES if r in cols]
     idx = [cols[r] for r in order]
     raw = table[:, idx] if table is not None else _load_numeric(path, lay, idx)
@@ -127,8 +140,8 @@ def read_recording(path, columns=None, rate: float | None = None, units: str = "
     n = len(raw)
     if n < 2:
         raise InputError(f"{path} has {n} sample(s); a raw recording needs many samples per static pose")
-    reason = positions_file_reason(lay, raw[:, [order.index(a) for a in ("ax", "ay", "az")]]) if refuse_positions \
-        else None
+    reason = positions_file_reason(lay, raw[:, [order.index(a) for a in ("ax", "ay", "az")]]) \
+        if refuse_positions and log is None else None
     if reason:
         raise InputError(f"{path} looks like a positions file, not a raw recording ({reason}); "
                          "read it as positions (drop `raw`)")
@@ -173,10 +186,36 @@ def read_recording(path, columns=None, rate: float | None = None, units: str = "
         gyro_sat, gyro_how = gyro_saturation_of(W, units, fmt)
         how.update(gyro_how)
     names = {r: (lay.header[j] if lay.header else j) for r, j in cols.items()}
-    how.update(format="MAT file" if table is not None else "text", compression=compression(path),
-               delimiter=None if table is not None else (lay.delimiter or "whitespace"), decimal=lay.decimal,
-               time_unit=unit, header=_header_kind(lay, table is not None))
+    if log is not None:
+        how.update(log.how)
+    else:
+        how.update(format="MAT file" if table is not None else "text", compression=compression(path),
+                   delimiter=None if table is not None else (lay.delimiter or "whitespace"), decimal=lay.decimal,
+                   time_unit=unit, header=_header_kind(lay, table is not None))
     return Recording(t, N, data.get("temp"), units, float(fs), sat, str(path), names, lab, lay.meta, how, W, gyro_sat)
+
+
+def read_log(path: Path, topic: str | None, **options):
+    """The IMU samples of a robot or drone log (:class:`~optcal.recording.robotlogs.LogSamples`: a ROS bag,
+    :func:`~optcal.recording.bags.read_bag`, or a PX4 ULog, :func:`~optcal.recording.ulog.read_ulog`), or None
+    for any other file. The reading ``options`` a log has no use for (rate, labels, adc, time_unit) are refused
+    when given, and so is ``topic`` for another file."""
+    from .robotlogs import log_kind, refuse_options
+
+    kind = log_kind(path)
+    if kind is None:
+        if topic is not None:
+            raise InputError(f"`topic` picks the IMU's topic of a ROS bag or a PX4 ULog; {path} is neither: drop "
+                             "`topic`")
+        return None
+    refuse_options(path, **options)
+    if kind == "bag":
+        from .bags import read_bag
+
+        return read_bag(path, topic)
+    from .ulog import read_ulog
+
+    return read_ulog(path, topic)
 
 
 def _header_kind(lay: Layout, mat: bool) -> str:
@@ -371,6 +410,11 @@ def raw_file_reason(path) -> tuple[str, bool] | None:
     them without `columns` (the first :data:`~optcal.recording.sniff.KIND_ROWS` rows are read). A file whose
     layout or columns cannot be found is left to the positions reader, whose message names the problem."""
     path = Path(path)
+    from .robotlogs import log_kind
+
+    kind = log_kind(path)
+    if kind is not None:
+        return f"it is a {'ROS bag' if kind == 'bag' else 'PX4 ULog'}, which holds samples", True
     try:
         if is_mat(path):
             lay, table = mat_layout(path)

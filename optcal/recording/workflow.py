@@ -136,9 +136,10 @@ def positions_from_raw(path: str | Path, *, columns=None, rate: float | None = N
                        method: str | None = None,
                        threshold_k: float | str | Sequence[float] | None = None, window_s: float | None = None,
                        min_static_s: float | None = None, init_s: float | None = None, model="diag6",
-                       g_local: float = 1.0, gyro=None) -> PositionsData:
+                       g_local: float = 1.0, gyro=None, topic: str | None = None) -> PositionsData:
     """Positions from a raw recording. ``columns``, ``rate`` (Hz), ``units``, ``saturation``, ``adc``,
-    ``time_unit`` and ``labels`` (a label column) are :func:`~optcal.recording.read_recording`'s. The
+    ``time_unit``, ``labels`` (a label column) and ``topic`` (a ROS bag's or ULog's) are
+    :func:`~optcal.recording.read_recording`'s. The
     static intervals come from the file ``intervals`` (:func:`~optcal.recording.read_intervals`), else from
     the runs of ``label_values`` (all labels if None) in the column ``labels``, else from a detector
     (:func:`detection_method`):
@@ -160,7 +161,7 @@ def positions_from_raw(path: str | Path, *, columns=None, rate: float | None = N
     Fewer intervals than ``model`` has parameters (a recording without rest among them, said so), or
     outputs whose magnitude does not fit ``units``, are an InputError."""
     rec = read_recording(path, columns, rate, units, saturation=saturation, labels=labels, adc=adc,
-                         time_unit=time_unit, refuse_positions=True)
+                         time_unit=time_unit, refuse_positions=True, topic=topic)
     return positions_from_raw_recording(rec, gyro=gyro, labels=labels, label_values=label_values,
                                         intervals=intervals, method=method, threshold_k=threshold_k,
                                         window_s=window_s, min_static_s=min_static_s, init_s=init_s, model=model,
