@@ -134,7 +134,10 @@ def write_ulog(path: Path, topics: dict, start_us: int = 0) -> Path:
     records = []
     for msg_id, ((name, instance), fields) in enumerate(sorted(topics.items())):
         out.append(_message("A", struct.pack("<BH", instance, msg_id) + name.encode()))
-        dt = _dtype(FORMATS[name])
+        fields_logged = list(FORMATS[name])
+        while fields_logged[-1][1].startswith("_padding"):  # the spec: a message's trailing padding is not logged
+            fields_logged.pop()
+        dt = _dtype(fields_logged)
         n = len(fields["timestamp"])
         rec = np.zeros(n, np.dtype([("size", "<u2"), ("type", "u1"), ("id", "<u2"), ("p", dt)]))
         rec["size"], rec["type"], rec["id"] = 2 + dt.itemsize, ord("D"), msg_id

@@ -121,7 +121,27 @@ def source(tmp_path_factory):
     # gyroscope's samples whose times are half a step off the recordings'; Kalibr noise without the gyroscope's
     _imu_files(d)
     _reader_files(d, A)
+    _robot_files(d)
     return d
+
+
+def _robot_files(d):
+    """Robot and drone logs optcal refuses (issue #33), written by rosbags' writer (tests/robot_logs_files.py): a
+    bag without IMU messages, one with two IMU topics, one cut in half, and a ULog."""
+    import robot_logs_files as R
+
+    t_ns = R.EPOCH_NS + np.arange(300) * 10_000_000
+    acc, gyro = np.tile([0.0, 0.0, 9.81], (300, 1)), np.zeros((300, 3))
+    ts = R.typestore("ros1")
+    chatter = [(int(s), R.serialise(ts, "ros1", ts.types["std_msgs/msg/String"](data="hi"), "std_msgs/msg/String"))
+               for s in t_ns[::10]]
+    R.write_bag(d / "noimu", "ros1", {"/chatter": ("std_msgs/msg/String", chatter)})
+    imu1 = [(int(s), R.serialise(ts, "ros1", R.imu_message(ts, "ros1", int(s), a, g), R.IMU))
+            for s, a, g in zip(t_ns, acc, gyro)]
+    full = R.imu_bag(d / "two_imu", "ros1", t_ns, acc, gyro, topic="/imu0", extra={"/imu1": (R.IMU, imu1)})
+    (d / "cut.bag").write_bytes(full.read_bytes()[:full.stat().st_size // 2])
+    R.write_ulog(d / "x.ulg", {("sensor_combined", 0): {"timestamp": np.arange(300) * 10_000,
+                                                      "accelerometer_m_s2": acc.astype(np.float32)}})
 
 
 def _reader_files(d, A):
@@ -307,6 +327,15 @@ CASES = [
                                       "gyro_shifted.csv"], "times disagree"),
     row("apply-gyro-columns-wrong-count", ["apply", "imu_g.json", "raw_g.csv", "-o", "out.csv", "--gyro-columns",
                                            "gx,gy"], "must name 3 columns"),
+    # robot and drone logs (issue #33): no IMU messages, two IMU topics, a bag cut short, another message type, an
+    # output apply cannot write
+    row("calibrate-raw-bag-without-imu", ["calibrate", "noimu.bag", "--raw"], "holds no IMU messages"),
+    row("calibrate-raw-bag-two-imu-topics", ["calibrate", "two_imu.bag", "--raw"],
+        "holds 2 IMU topics (/imu0, /imu1); pick one with --topic"),
+    row("calibrate-raw-bag-cut-short", ["calibrate", "cut.bag", "--raw"], "as a ROS 1 bag"),
+    row("noise-bag-topic-not-imu", ["noise", "noimu.bag", "--topic", "/chatter"],
+        "carries std_msgs/msg/String, not an IMU's message"),
+    row("apply-ulog-to-ulog", ["apply", "cal.json", "x.ulg", "-o", "y.ulg"], "as a table, not a ULog"),
     # info
     row("info-zero-noise", INFO + ["--noise-ug", "0"], "--noise-ug 0"),
     row("info-negative-noise", INFO + ["--noise-ug", "-1"], "--noise-ug -1"),

@@ -28,6 +28,7 @@ original.
 
 from __future__ import annotations
 
+import re
 from collections.abc import Callable
 from contextlib import contextmanager
 from dataclasses import dataclass, field
@@ -57,7 +58,10 @@ GYRO_FIELD = {IMU: "angular_velocity", VECTOR: "vector"}
 ACC_WORDS = ("acc", "accel", "accelerometer", "acceleration", "linear_acceleration", "specific_force")
 GYRO_WORDS = ("gyr", "gyro", "gyroscope", "angular_velocity", "angvel", "rate", "omega")
 BATCH = 1 << 16  # messages decoded at a time (bounds the memory: about 20 MB of Imu messages)
-FIX = "is the file complete? A bag cut short needs `rosbag reindex` (ROS 1) or `ros2 bag reindex` (ROS 2)"
+# the way out of a bag rosbags cannot read: most often one cut short (a recording stopped by a power loss)
+FIX = {"ros1": "is the file complete? A ROS 1 bag cut short is mended by rosbag reindex",
+       "sqlite3": "is the file complete? A ROS 2 bag cut short is mended by ros2 bag reindex",
+       "mcap": "is the file complete? An MCAP file cut short is mended by mcap recover"}
 
 
 def storage_of(path: Path) -> str:
@@ -80,8 +84,9 @@ def _rosbags_errors(path: Path, storage: str):
     except InputError:
         raise
     except Exception as exc:  # noqa: BLE001 - rosbags and its storage libraries raise many kinds on a damaged file
-        said = (str(exc).splitlines() or [type(exc).__name__])[0].rstrip(".") or type(exc).__name__
-        raise InputError(f"cannot read {path} as a {FORMAT[storage]}: {said}; {FIX}") from None
+        said = (str(exc).splitlines() or [""])[0]
+        said = re.sub(r"\('(.*)',\)", r"\1", said).rstrip(".") or type(exc).__name__  # rosbags quotes some args
+        raise InputError(f"cannot read {path} as a {FORMAT[storage]}: {said}; {FIX[storage]}") from None
 
 
 def _reader(path: Path, storage: str):
