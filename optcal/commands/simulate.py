@@ -9,7 +9,8 @@ import math
 from ..errors import InputError
 from ._common import check_output_folder, check_seed, read_json_object, refuse_overwrite, refuse_same_file
 
-HELP = "simulate static positions of an accelerometer and write a positions CSV (default model nonlinear12)"
+HELP = ("simulate static positions of an accelerometer and write a positions CSV (default model nonlinear12), or "
+        "with --raw a hand-held IMU recording")
 
 
 def add_arguments(p):
@@ -29,7 +30,12 @@ def add_arguments(p):
     p.add_argument("--reference-error-arcsec", type=float, default=0.0,
                    help="with --reference: SD per axis of the true orientation about the commanded one, arcsec")
     p.add_argument("--gravity-g", type=float, default=1.0, help="local gravity in g (default 1)")
-    p.add_argument("-o", "--output", required=True, help="positions CSV to write")
+    p.add_argument("--raw", action="store_true",
+                   help="write a raw recording instead: an IMU turned by hand through --poses poses at 100 Hz (t in "
+                        "s, ax ay az in g, gx gy gz in deg/s; each sensor with its own scale and offset), for "
+                        "calibrate --raw, imu and apply")
+    p.add_argument("--poses", type=int, default=24, help="with --raw: poses held (default 24)")
+    p.add_argument("-o", "--output", required=True, help="positions CSV (or with --raw the recording) to write")
     p.add_argument("--truth-out", help="also write the full truth (with effects) as JSON")
     p.add_argument("--force", action="store_true", help="overwrite existing output files")
 
@@ -109,9 +115,46 @@ def check_options(args) -> None:
     check_output_folder(args.truth_out, "--truth-out")
 
 
+RAW_ONLY, RAW_DEFAULTS = ("--poses",), {"scheme": "24", "model": "nonlinear12", "truth": None, "noise_ug": 10.0,
+                                           "tilt_deg": 0.0, "temp": None, "dwell_s": None, "effect": [],
+                                           "reference": False, "reference_error_arcsec": 0.0, "gravity_g": 1.0,
+                                           "truth_out": None}
+
+
+def run_raw(args) -> int:
+    """A hand-held IMU recording (optcal.synthetic_imu.handheld_imu, its defaults) as a CSV with a header."""
+    import numpy as np
+
+    from ..atomicfile import EXISTS_OUTPUT, atomic_write
+    from ..synthetic_imu import handheld_imu
+
+    given = [k for k, v in RAW_DEFAULTS.items() if getattr(args, k) != v]
+    if given:
+        raise InputError(f"--raw simulates a hand-held IMU recording; --{given[0].replace('_', '-')} is for "
+                         "positions: leave it out, or leave out --raw")
+    check_seed(args.seed)
+    if not 6 <= args.poses <= 1000:
+        raise InputError(f"--poses {args.poses}: give 6 to 1000 poses (a calibration needs at least 6)")
+    refuse_overwrite(args.output, args.force)
+    check_output_folder(args.output)
+    # re-seats happen with a (short) motion: a pose that jumps while logging pauses is no first example
+    sim = handheld_imu(np.random.default_rng(args.seed), n_poses=args.poses, p_reseat_still=0.0)
+    table = np.column_stack([sim.acc.t, sim.acc.N, sim.gyro.N])
+    body = "\n".join(",".join(f"{v:.7g}" for v in row) for row in table.tolist())
+    with atomic_write(args.output, overwrite=args.force, exists=EXISTS_OUTPUT) as f:
+        f.write("t,ax,ay,az,gx,gy,gz\n" + body + "\n")
+    print(f"wrote a hand-held IMU recording of {args.poses} poses, {len(table)} samples at {sim.acc.rate:g} Hz "
+          f"({table[-1, 0]:.1f} s; t in s, ax ay az in g, gx gy gz in deg/s) to {args.output}")
+    return 0
+
+
 def run(args) -> int:
     import numpy as np
 
+    if args.raw:
+        return run_raw(args)
+    if args.poses != 24:
+        raise InputError("--poses is the number of poses of a --raw recording; for positions give --scheme")
     from ..model import get_model
     from ..presets import draw_truth
     from ..simulate import simulate
