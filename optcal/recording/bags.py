@@ -33,6 +33,7 @@ from collections.abc import Callable
 from contextlib import contextmanager
 from dataclasses import dataclass, field
 from itertools import chain, islice
+from operator import itemgetter
 from pathlib import Path
 
 import numpy as np
@@ -285,6 +286,41 @@ def _mcap_rows(reader, name: str) -> tuple[np.ndarray, list[tuple[np.ndarray, np
     return t[order], [(rank[a:b], M) for a, b, M in zip(bounds[:-1], bounds[1:], rows_of)]
 
 
+def _sqlite_rows(reader, name: str) -> tuple[np.ndarray, list[tuple[np.ndarray, np.ndarray]]] | None:
+    """A ROS 2 SQLite bag's topic in bulk, as :func:`_ros1_rows` reads a ROS 1 bag's: one query on rosbags' own
+    connection to each storage file (the one rosbags' reader makes per message, without its generator), the
+    rows fetched by SQLite, the messages of one length joined into one matrix. None for messages compressed one
+    by one (``compression_mode: message``) or a reader without that connection: then they are read one by one."""
+    storage = getattr(reader, "storage", None)
+    if getattr(getattr(storage, "metadata", None), "compression_mode", None) == "message":
+        return None
+    stamps, datas = [], []
+    for st in getattr(storage, "storages", [storage]):
+        db = getattr(st, "dbconn", None)
+        if db is None:
+            return None
+        ids = [c.id for c in st.connections if c.topic == name]
+        if not ids:
+            continue
+        rows = db.cursor().execute("SELECT timestamp, data FROM messages WHERE topic_id IN "
+                                   f"({','.join('?' * len(ids))}) ORDER BY timestamp, id", ids).fetchall()
+        stamps.append(np.fromiter(map(itemgetter(0), rows), np.int64, len(rows)))
+        datas.extend(map(itemgetter(1), rows))
+    if not datas:
+        return np.zeros(0, np.int64), []
+    t = np.concatenate(stamps)
+    order = np.argsort(t, kind="stable")  # several storage files: merged by the bag's stamps
+    lengths = np.fromiter(map(len, datas), np.int64, len(datas))
+    out = []
+    for L in np.unique(lengths):
+        k = np.flatnonzero(lengths == L)
+        blob = b"".join(datas) if len(k) == len(datas) else b"".join([datas[i] for i in k])
+        out.append((k, np.frombuffer(blob, np.uint8).reshape(len(k), int(L))))
+    rank = np.empty(len(t), np.int64)
+    rank[order] = np.arange(len(t))
+    return t[order], [(rank[k], M) for k, M in out]
+
+
 def _op_offset(header: bytes) -> int | None:
     """Where the value of the field ``op`` lies in a ROS 1 record header (``len name=value`` fields), or None."""
     at = 0
@@ -298,13 +334,14 @@ def _op_offset(header: bytes) -> int | None:
 
 
 def read_topic(reader, path: Path, storage: str, name: str, msgtype: str) -> Topic:
-    """Every message of topic ``name``, decoded: a ROS 1 bag's or an MCAP file's in bulk (:func:`_ros1_rows`,
-    :func:`_mcap_rows`), else (SQLite) a batch of :data:`BATCH` messages at a time from rosbags' reader
-    (:func:`decode`). A malformed message is refused."""
+    """Every message of topic ``name``, decoded: in bulk (:func:`_ros1_rows`, :func:`_mcap_rows`,
+    :func:`_sqlite_rows`), or where that does not apply a batch of :data:`BATCH` messages at a time from rosbags'
+    reader (:func:`decode`). A malformed message is refused."""
     conns = [c for c in reader.connections if c.topic == name]
     ros1 = storage == "ros1"
     with _rosbags_errors(path, storage):
-        bulk = _ros1_rows(reader, conns) if ros1 else _mcap_rows(reader, name) if storage == "mcap" else None
+        bulk = (_ros1_rows(reader, conns) if ros1 else _mcap_rows(reader, name) if storage == "mcap"
+                else _sqlite_rows(reader, name))
         if bulk is not None:
             received, rows = bulk
             parts = [(r, *decode_rows(M, ros1, msgtype), np.full(len(r), M.shape[1])) for r, M in rows]
