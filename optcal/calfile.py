@@ -1,8 +1,8 @@
 """The calibration file (docs/design.md §9.3): a versioned JSON record of a fitted calibration that can be applied
 to new raw data to give calibrated specific force.
 
-Content: ``format``, ``format_version`` (2), ``model``, ``terms``, ``parameters`` {name: value},
-``stderr`` {name: value or null}, ``units`` {``raw``: the sensor's output units (what the data were in and what
+Content: ``format``, ``format_version`` (2, or 3 with user-defined terms), ``model``, ``terms``, ``parameters``
+{name: value}, ``stderr`` {name: value or null}, ``units`` {``raw``: the sensor's output units (what the data were in and what
 :meth:`CalibrationFile.apply` takes), ``calibrated``: "g" (what it gives), ``parameters``: {name: unit}},
 ``g_local`` (in g), ``data`` {``n_positions``, ``rms_residual_g``, ``source``}, ``solver``, ``created``
 (ISO-8601 UTC), ``observability`` {rank, n_parameters, unobservable}, for models with temperature or drift
@@ -12,7 +12,10 @@ terms, ``context`` {``T0``, ``t0``}: the reference temperature and time of the c
 ``forced_reasons`` (the one-line reasons it would have been refused for).
 
 Version 1 named the units ``input`` ("g") and ``output`` (the raw units), which read backwards to users; a
-version-1 file is still read, its fields mapped by :func:`upgrade`.
+version-1 file is still read, its fields mapped by :func:`upgrade`. Version 3 is version 2 with user-defined
+terms (:func:`optcal.terms.user_term`, e.g. ``ax.ay@z``, found by ``optcal discover``): ``user_terms``
+{term: its formula} documents each, and the reader checks that the formula is the one the name defines. A file
+of built-in terms is written as version 2, so that readers of version 2 read it as before.
 
 Floats are written with ``repr`` precision (Python's ``json`` does this), so a round trip is exact.
 """
@@ -29,11 +32,12 @@ import numpy as np
 
 from .data import UNITS
 from .errors import InputError
-from .model import Context, Model, get_model
+from .model import TERMS, Context, Model, get_model
 
 FORMAT = "optcal-calibration"
 FORMAT_VERSION = 2
-READ_VERSIONS = (1, 2)  # version 1 is mapped to 2 on reading (upgrade)
+USER_TERMS_VERSION = 3  # a file with user-defined terms (user_terms)
+READ_VERSIONS = (1, 2, 3)  # version 1 is mapped to 2 on reading (upgrade)
 CALIBRATED_UNITS = "g"  # what apply() gives: specific force in units of g0 (docs/design.md §2)
 CHUNK = 65_536  # samples per inverse call in apply(): temporaries stay in cache-friendly sizes (measured fastest)
 
@@ -85,7 +89,7 @@ def calibration_to_dict(cal, *, units_in: str = "g", units_out: str | None = Non
         raise InputError(f"the model's input is specific force in g; units_in {units_in!r} is not supported")
     out = {
         "format": FORMAT,
-        "format_version": FORMAT_VERSION,
+        "format_version": USER_TERMS_VERSION if model.user_terms else FORMAT_VERSION,
         "model": model.name,
         "terms": list(model.terms),
         "parameters": {n: float(v) for n, v in zip(model.names, np.asarray(cal.x, float))},
@@ -101,6 +105,8 @@ def calibration_to_dict(cal, *, units_in: str = "g", units_out: str | None = Non
         "created": datetime.now(timezone.utc).isoformat(timespec="seconds").replace("+00:00", "Z"),
         "observability": cal.observability.to_dict(),
     }
+    if model.user_terms:
+        out["user_terms"] = model.user_formulas
     context = {}
     if "temp" in model.needs and data.temp is not None:
         context["T0"] = float(np.mean(data.temp))
@@ -184,6 +190,10 @@ class CalibrationFile:
         if N.ndim != 2 or N.shape[1] != 3:
             raise InputError(f"raw outputs must have three columns ax, ay, az; got shape {N.shape}")
         n = len(N)
+        prev = [t for t in self.model.user_terms if TERMS[t].feature.prev is not None]
+        if prev:
+            raise InputError(f"model {self.model.name} has the previous-pose term {prev[0]}, which needs static poses "
+                             "in order; a recording's samples have none: calibrate without it to apply the file")
         ctx = self.context(n, temp, t)
         X = self.x[None, :]
         out = np.empty((n, 3))
@@ -212,7 +222,8 @@ def read_calibration(path) -> CalibrationFile:
     if isinstance(version, bool) or version not in READ_VERSIONS:
         raise InputError(
             f"{path} has format_version {version!r}; this optcal reads versions "
-            f"{' and '.join(map(str, READ_VERSIONS))} (re-create the file with this version's optcal calibrate -o)"
+            f"{', '.join(map(str, READ_VERSIONS[:-1]))} and {READ_VERSIONS[-1]} "
+            "(re-create the file with this version's optcal calibrate -o)"
         )
     if version == 1:
         units = d.get("units")
@@ -227,7 +238,7 @@ def read_calibration(path) -> CalibrationFile:
     try:
         rec = CalibrationRecord.model_validate(d)
     except ValidationError as exc:
-        raise InputError(f"{path}: {error_line(exc, FORMAT_VERSION)}") from None
+        raise InputError(f"{path}: {error_line(exc, d.get('format_version', FORMAT_VERSION))}") from None
     if rec.gyroscope is not None:
         from .gyro.calfile import read_gyro_block
 

@@ -44,7 +44,7 @@ class CalibrationRecord(_Record):
     """Format version 2 (docs/design.md §9.3), in the order the reader checks it."""
 
     format: Literal["optcal-calibration"]
-    format_version: Literal[2]
+    format_version: Literal[2, 3]
     model: str
     terms: list[str]
     parameters: dict[str, Annotated[float, Field(allow_inf_nan=False)]]
@@ -59,6 +59,7 @@ class CalibrationRecord(_Record):
     forced: bool | None = None
     forced_reasons: list[str] | None = None
     gyroscope: dict | None = None  # an IMU file's gyroscope (optcal imu; optcal.gyro.calfile checks it)
+    user_terms: dict[str, str] | None = None  # version 3: {user-defined term: its formula}
     _model: Model = PrivateAttr()
 
     @model_validator(mode="after")
@@ -68,6 +69,7 @@ class CalibrationRecord(_Record):
         model = get_model("+".join(self.terms)) if self.terms else get_model(self.model)
         if self.model != model.name:
             raise _problem(f"model {self.model!r} does not match its terms {'+'.join(self.terms)}")
+        self._check_user_terms(model)
         missing = [n for n in model.names if n not in self.parameters]
         if missing:
             raise _problem(f"parameter(s) {', '.join(missing)} of model {model.name} are missing")
@@ -90,6 +92,25 @@ class CalibrationRecord(_Record):
                 raise _problem(f"model {model.name} needs context.{key}, missing here")
         self._model = model
         return self
+
+    def _check_user_terms(self, model: Model) -> None:
+        """Version 3 is the version of user-defined terms: it has them and ``user_terms`` states each one's formula
+        as optcal defines it from the name; version 2 has neither."""
+        if self.format_version == 2:
+            if model.user_terms or self.user_terms is not None:
+                which = ", ".join(model.user_terms) or "user_terms"
+                raise _problem(f"format_version 2 has no user-defined terms ({which}); set format_version 3 or "
+                               f"{_RECREATE}")
+            return
+        if not model.user_terms:
+            raise _problem(f"format_version 3 is for user-defined terms and model {model.name} has none; set "
+                           f"format_version 2 or {_RECREATE}")
+        want = model.user_formulas
+        if self.user_terms != want:
+            bad = sorted(t for t in set(want) | set(self.user_terms or {})
+                         if (self.user_terms or {}).get(t) != want.get(t))
+            raise _problem(f"user_terms disagree with the model's terms for {', '.join(bad)} (expected "
+                           f"{'; '.join(f'{t}: {want[t]}' for t in bad if t in want) or 'none'}); {_RECREATE}")
 
 
 # the fields every file must have besides format and format_version (docs/design.md §9.3 lists them)

@@ -17,7 +17,17 @@ from functools import cached_property
 import numpy as np
 
 from .errors import InputError
-from .terms import AXES, NAMED_MODELS, T_CELLS, TERM_ORDER, TERMS, UNIT_NAMES, Term  # noqa: F401 - re-exported
+from .terms import (  # noqa: F401 - re-exported
+    AXES,
+    NAMED_MODELS,
+    T_CELLS,
+    TERM_ORDER,
+    TERMS,
+    UNIT_NAMES,
+    Term,
+    previous_sign,
+    user_term_error,
+)
 
 
 class NumpyOps:
@@ -27,6 +37,9 @@ class NumpyOps:
     def neg_part(a):
         # min(a, 0); written with `where` on the real part so the complex step passes through.
         return np.where(np.real(a) < 0, a, 0.0)
+
+    # sgn of the previous position's component (a user-defined hysteresis term, optcal.terms.Feature)
+    previous_sign = staticmethod(previous_sign)
 
 
 @dataclass(frozen=True)
@@ -81,6 +94,29 @@ class Model:
         out = UNIT_NAMES.get(output_units, output_units)
         out = f"({out})" if "/" in out else out
         return {p: TERMS[t].param_unit.format(out=out) for t in self.terms for p in TERMS[t].params}
+
+    @property
+    def user_terms(self) -> tuple[str, ...]:
+        """The model's user-defined terms (:func:`optcal.terms.user_term`), in model order."""
+        return tuple(t for t in self.terms if TERMS[t].user)
+
+    @property
+    def user_formulas(self) -> dict[str, str]:
+        """{user-defined term: its formula} (:func:`optcal.terms.term_formula`; a calibration file's ``user_terms``)."""
+        return {t: TERMS[t].description for t in self.user_terms}
+
+    @cached_property
+    def _user(self) -> tuple:
+        """(column, output axis, parameter, feature, kind) of each parameter of a user-defined term."""
+        out = []
+        for t in self.user_terms:
+            term = TERMS[t]
+            names = iter(term.params)
+            for i in term.axes:
+                for kind in term.feature.kinds:
+                    name = next(names)
+                    out.append((self.names.index(name), i, name, term.feature, kind))
+        return tuple(out)
 
     def index(self, name: str) -> int:
         return self.names.index(name)
@@ -167,6 +203,9 @@ class Model:
                 lin = lin + A3[i] * (P[f"c_{a}{AXES[j]}"] * A3[j] + P[f"c_{a}{AXES[k]}"] * A3[k])
             if ctx is not None and ctx.dt is not None and f"d_{a}" in P:
                 lin = lin + P[f"d_{a}"] * ctx.dt
+            for _, axis, name, feature, kind in self._user:  # user-defined terms, inside K as the bias is
+                if axis == i and name in P:
+                    lin = lin + P[name] * feature.values(A3, ctx, kind, ops)
             n_i = P[f"K_{a}"] * lin
             if f"K2_{a}" in P:
                 n_i = n_i + P[f"K2_{a}"] * A3[i] ** 2
@@ -214,6 +253,7 @@ class Model:
             "S": tuple(np.array(c) for c in zip(*present)) if present else None,
             # c_ij multiplies A_i·A_j in axis i's output: C[i, j] = c_ij.
             "c": offdiag("c"),
+            "user": tuple((col, i, feature, kind) for col, i, _, feature, kind in self._user),
         }
 
     def _pack(self, X) -> dict:
@@ -236,6 +276,7 @@ class Model:
             pk["C"] = C
         else:
             pk["C"] = None
+        pk["user"], pk["X"] = L["user"], X
         return pk
 
     @staticmethod
@@ -256,6 +297,14 @@ class Model:
             lin = lin + A * (A @ pk["C"].transpose(0, 2, 1))
         if ctx is not None and ctx.dt is not None and pk["d"] is not None:
             lin = lin + pk["d"] * np.asarray(ctx.dt)[:, None]
+        if pk.get("user"):
+            # user-defined terms (optcal.terms.Feature): c·φ on their axis; φ may depend on the previous pose's
+            # A, so it is formed from the whole (S, n) component arrays
+            comps = (A[..., 0], A[..., 1], A[..., 2])
+            U = np.zeros(lin.shape, dtype=np.result_type(lin, pk["X"]))
+            for col, i, feature, kind in pk["user"]:
+                U[..., i] += pk["X"][:, col, None] * feature.values(comps, ctx, kind, NumpyOps)
+            lin = lin + U
         F = pk["K"] * lin
         if pk["K2"] is not None:
             F = F + pk["K2"] * (A * A)
@@ -339,7 +388,8 @@ class Model:
 
 def get_model(spec: str | Model) -> Model:
     """A model from a name (``diag6``, ``linear9``, ``nonlinear12``, ``seed15``) or a sum of terms
-    (``scale+bias+misalignment+cubic``). Terms are put in docs/design.md §3.1's order."""
+    (``scale+bias+misalignment+cubic``, ``linear9+ax.ay@z``). Terms are put in docs/design.md §3.1's order, and
+    user-defined terms (:func:`optcal.terms.user_term`) after them in the order of their names."""
     if isinstance(spec, Model):
         return spec
     spec = str(spec).strip()
@@ -352,14 +402,21 @@ def get_model(spec: str | Model) -> Model:
             parts.extend(NAMED_MODELS[p])
         elif p in TERMS:
             parts.append(p)
+        elif user_term_error(p):
+            raise InputError(f"term {p!r}: {user_term_error(p)} (user-defined terms: docs/discovery.md)")
         else:
             raise InputError(
                 f"unknown model or term {p!r}; use one of {', '.join(NAMED_MODELS)} "
-                f"or a sum of terms from {', '.join(TERMS)}"
+                f"or a sum of terms from {', '.join(TERMS)}, or a user-defined term such as ax.ay@z"
             )
-    parts = sorted(set(parts), key=TERM_ORDER.index)
+    parts = sorted(set(parts), key=lambda t: (0, TERM_ORDER.index(t), "") if t in TERM_ORDER else (1, 0, t))
     if "scale" not in parts:
         raise InputError(f"model {spec!r} has no 'scale' term; every model needs scale factors (add +scale)")
     if "misalignment" in parts and "misalignment6" in parts:
         raise InputError("use either 'misalignment' (3 angles) or 'misalignment6' (6 angles), not both")
+    names = [n for t in parts for n in TERMS[t].params]
+    twice = sorted({n for n in names if names.count(n) > 1})
+    if twice:
+        holders = [t for t in parts if set(TERMS[t].params) & set(twice)]
+        raise InputError(f"terms {' and '.join(holders)} share parameter(s) {', '.join(twice)}; keep one of them")
     return Model(tuple(parts))

@@ -213,9 +213,18 @@ def test_noise_floor_from_the_data_gives_the_verdict():
     # stop the search early: the verdict says what the χ² test sees
     early = discover(sim.data, candidates=["quadratic"])
     assert early.added == [] and early.verdict == REMAINS and early.chi2[2] < 1e-6
-    # without a noise level the floor is unknown, and the JSON says null
+    # without a noise level the 36-position scheme's six poses visited twice give the floor: their scatter, and the
+    # verdict is the lack-of-fit test against it (docs/discovery.md, "Floors")
+    replicated = discover(dataclasses.replace(sim.data, n_samples=None, std=None))
+    d = replicated.to_dict()
+    assert d["noise_floor_g"] is None and d["floor"]["kind"] == "replicates" and d["floor"]["pure_error_dof"] == 6
+    assert replicated.verdict == EXPLAINED and d["lack_of_fit"]["p_value"] > 0.01
+    # without either the floor is unknown, the JSON says null and the report says what to record
+    sim = simulate("linear9", truth, rng, scheme="random:36", noise_density=100e-6, dwell_s=10.0,
+                   effects={"cubic": effect("cubic", 6e-4)})
     unknown = discover(dataclasses.replace(sim.data, n_samples=None, std=None))
     assert unknown.to_dict()["noise_floor_g"] is None and unknown.verdict == "noise floor unknown"
+    assert unknown.floor.kind is None and "hold some poses twice" in unknown.summary()
 
 
 def test_report_dict_and_figure(tmp_path):

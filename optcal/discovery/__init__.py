@@ -2,8 +2,11 @@
 it, and show the gap shrink (docs/design.md §12; docs/discovery.md).
 
 The package spans two layers (CONTRIBUTING.md, "Layers"). Core: :mod:`.statistics` (regressors, the
-F-test and ΔBIC, the noise of each residual), :mod:`.results` (:class:`Step`, :class:`DiscoveryReport`) and
-:mod:`.text` (the plain-text report); the figure is :mod:`optcal.plots.discovery`. Application:
+F-test and ΔBIC, the noise of each residual), :mod:`.dictionary` (the generated features the term table lacks
+and their linearised screening), :mod:`.diagnostics` (the residuals against orientation, temperature, time,
+order and duration, at the floor), :mod:`.results` (:class:`Step`, :class:`DiscoveryReport`), :mod:`.text`
+(the plain-text report) and :mod:`.figures` (the diagnostics' figure); the steps' figure is
+:mod:`optcal.plots.discovery`. Application:
 :mod:`.workflow`, the search itself, which runs a solver (:func:`discover`, :func:`fit_model`,
 :func:`score`).
 

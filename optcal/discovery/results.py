@@ -29,7 +29,10 @@ from .statistics import (
 
 @dataclass
 class Step:
-    """One added term: its fitted parameters with standard errors, the gap before and after, the test."""
+    """One added term: its fitted parameters with standard errors, the gap before and after, the test. A step
+    of the dictionary's search (``source`` "dictionary") adds a user-defined term; ``equivalents`` are the
+    terms the norm cannot tell from it, ``k_tested`` the Bonferroni count of its round and ``atom_scores`` the
+    linearised tests of the round's best features."""
 
     term: str
     before: Fit
@@ -39,6 +42,22 @@ class Step:
     p_threshold: float
     stderr: dict[str, float]
     alternatives: list[str]
+    source: str = "list"
+    equivalents: list[str] = field(default_factory=list)
+    k_tested: float | None = None
+    atom_scores: list = field(default_factory=list)
+    replaces: str | None = None  # the list's term this step exchanged for its own
+    narrowed_to: str | None = None  # the single-output term a three-output one was reduced to later
+
+    @property
+    def formula(self) -> str:
+        """The term's formula: a user-defined term's (e.g. ``z output += c·A_x·A_y``), else its description."""
+        return TERMS[self.kept].description
+
+    @property
+    def kept(self) -> str:
+        """The term this step leaves in the model: its own, or the one output it was narrowed to later."""
+        return self.narrowed_to or self.term
 
     @property
     def parameters(self) -> dict[str, float]:
@@ -74,8 +93,15 @@ class Step:
 
     def to_dict(self) -> dict:
         c = self.chosen
+        m = self.before.problem.n_position_residuals
         return {
             "added": self.term,
+            "source": self.source,
+            "formula": self.formula,
+            "equivalents": self.equivalents,
+            "k_tested": self.k_tested,
+            "replaces": self.replaces,
+            "narrowed_to": self.narrowed_to,
             "parameters": self.parameters,
             "stderr": {n: num(s) for n, s in self.stderr.items()},
             "rms_before_g": self.before.rms, "rms_after_g": self.after.rms,
@@ -84,8 +110,26 @@ class Step:
             "delta_bic": num(c.delta_bic), "lr_statistic": num(c.lr_statistic),
             "alternatives": self.alternatives,
             "correlations": self.correlations(),
-            "candidates": [s.to_dict() for s in self.scores],
+            "candidates": ([s.to_dict() for s in self.scores] if self.source == "list"
+                           else [s.to_dict(m) for s in self.atom_scores]),
         }
+
+
+@dataclass
+class Removal:
+    """A term taken out again. ``kind`` "removed": once ``after`` was added it no longer earned its place
+    (p ≥ α); "replaced": the exchange that added ``after`` took it out; "narrowed": a term of the three outputs
+    reduced to ``after``, its one significant output (the others' p ≥ α together)."""
+
+    term: str
+    p_value: float
+    after: str
+    kind: str = "removed"
+
+    def to_dict(self) -> dict:
+        from .statistics import num
+
+        return {"term": self.term, "kind": self.kind, "p_value": num(self.p_value), "after": self.after}
 
 
 @dataclass
@@ -103,6 +147,22 @@ class DiscoveryReport:
     # the final fit judged against a recording's noise floor (optcal.analysis.GoodnessOfFit), when the noise
     # comes from the data's floor rather than a stated level
     floor_fit: object | None = None
+    # the list's final fit (before the dictionary), the floor (optcal.discovery.diagnostics.Floor) and the
+    # lack-of-fit test against replicates (F, q, pure-error dof, p) when that is the floor
+    listed: Fit | None = None
+    floor: object | None = None
+    lack_of_fit: tuple | None = None
+    # the residual diagnostics after the list's search and of the final model (diagnostics.Diagnostics)
+    diagnostics_listed: object | None = None
+    diagnostics: object | None = None
+    # the dictionary's search: what it was generated from, its last round (dictionary.AtomScore), the terms
+    # removed again, the dictionary's steps that did not close the gap (not in the final model) and that test
+    dictionary: dict | None = None
+    dictionary_last_round: list = field(default_factory=list)
+    removed: list[Removal] = field(default_factory=list)
+    partial: list[Step] = field(default_factory=list)
+    gap_p: float | None = None
+    closes_gap: bool | None = None
 
     @property
     def final_model(self) -> Model:
@@ -110,7 +170,13 @@ class DiscoveryReport:
 
     @property
     def added(self) -> list[str]:
-        return [s.term for s in self.steps]
+        """The added terms the final model holds, in the order they were added."""
+        return [s.kept for s in self.steps if s.kept in self.final.model.terms]
+
+    @property
+    def found(self) -> list[Step]:
+        """The dictionary's steps whose terms the final model holds: named, and closing the gap (or no floor)."""
+        return [s for s in self.steps if s.source == "dictionary" and s.kept in self.final.model.terms]
 
     @property
     def m(self) -> int:
@@ -142,11 +208,14 @@ class DiscoveryReport:
 
     @property
     def verdict(self) -> str:
-        """χ² test of the final residual against the noise floor at level α (needs the noise)."""
+        """χ² test of the final residual against the noise floor at level α (needs the noise), or the lack-of-fit
+        test against replicated poses when they are the floor."""
         if self.dof < 1:
             return NO_DOF
         chi = self.chi2
         if chi is None:
+            if self.lack_of_fit is not None:
+                return EXPLAINED if self.lack_of_fit[3] >= self.alpha else REMAINS
             return UNKNOWN
         return EXPLAINED if chi[2] >= self.alpha else REMAINS
 
@@ -178,6 +247,23 @@ class DiscoveryReport:
             "residuals_initial_g": [float(v) for v in self.initial.residuals],
             "residuals_final_g": [float(v) for v in f.residuals],
             "notes": self.notes,
+            "floor": None if self.floor is None else self.floor.to_dict(),
+            "lack_of_fit": None if self.lack_of_fit is None else dict(zip(("F", "q", "pure_error_dof", "p_value"),
+                                                                          map(num, self.lack_of_fit))),
+            "diagnostics_listed": None if self.diagnostics_listed is None else self.diagnostics_listed.to_dict(),
+            "diagnostics": None if self.diagnostics is None else self.diagnostics.to_dict(),
+            "dictionary": self.dictionary,
+            "found": [{"term": s.kept, "formula": s.formula, "equivalents": s.equivalents,
+                       "parameters": {n: float(f.x[f.model.index(n)]) for n in TERMS[s.kept].params}}
+                      for s in self.found],
+            "closes_gap": self.closes_gap,
+            "removed": [r.to_dict() for r in self.removed],
+            "partial": [{"term": s.term, "formula": s.formula, "rms_before_g": s.before.rms,
+                         "rms_after_g": s.after.rms, "p_value": num(s.chosen.p_value)} for s in self.partial],
+            "gap_p_value": num(self.gap_p),
+            "dictionary_last_round": [s.to_dict(len(f.problem.data)) for s in
+                                      sorted([s for s in self.dictionary_last_round if s.tested],
+                                             key=lambda s: s.p_value)[:10]],
         }
 
     def summary(self) -> str:
@@ -191,3 +277,10 @@ class DiscoveryReport:
         from ..plots.discovery import figure
 
         return figure(self, path)
+
+    def plot_diagnostics(self, path):
+        """Write the residual diagnostics' figure to ``path`` and return it
+        (:func:`optcal.discovery.figures.diagnostics_figure`)."""
+        from .figures import diagnostics_figure
+
+        return diagnostics_figure(self, path)

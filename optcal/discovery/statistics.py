@@ -31,7 +31,7 @@ import numpy as np
 
 from ..analysis import observability
 from ..errors import InputError
-from ..model import AXES, TERMS, Model
+from ..model import AXES, TERMS, Context, Model, NumpyOps
 from ..problem import CalibrationProblem
 
 CANDIDATES = ("quadratic", "cubic", "scale_asymmetry", "cross_coupling", "temperature_bias",
@@ -57,6 +57,15 @@ def regressors(term: str, A: np.ndarray, problem: CalibrationProblem) -> list[tu
     data, out = problem.data, []
     dtemp = None if data.temp is None else data.temp - np.mean(data.temp)
     dt = None if data.t is None else data.t - data.t[0]
+    if TERMS[term].user:  # c·φ on each of its outputs (optcal.terms.Feature)
+        t = TERMS[term]
+        ctx = Context.from_columns(temp=data.temp, t=data.t)
+        names = iter(t.params)
+        for i in t.axes:
+            for kind in t.feature.kinds:
+                values = t.feature.values((A[:, 0], A[:, 1], A[:, 2]), ctx, kind, NumpyOps)
+                out.append((next(names), t.feature.text(kind), i, np.broadcast_to(values, (len(A),))))
+        return out
     for k, p in enumerate(TERMS[term].params):
         if term == "cross_coupling" or term == "misalignment":
             i, j = "xyz".index(p[-2]), "xyz".index(p[-1])
@@ -178,7 +187,7 @@ def extend(current: Fit, term: str) -> Extension | Score:
     q_raw = model.n_params - current.model.n_params
     if m - (current.rank + q_raw) < 1:
         return Score(term, note=f"{m} residuals leave no degrees of freedom for {model.n_params} parameters")
-    problem = CalibrationProblem(model, data, g_local=current.problem.g_local)
+    problem = CalibrationProblem(model, data, g_local=current.problem.g_local, backend=current.problem.backend)
     x0 = model.from_dict(current.model.to_dict(current.x), model.default_vector(0.0))
     obs = observability(problem, x0)
     if obs.rank - current.rank < q_raw:

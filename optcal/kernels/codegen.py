@@ -49,10 +49,35 @@ def _slot_of() -> dict[str, int]:
     return {n: k for k, n in enumerate(slots())}
 
 
+# The parameters of user-defined terms (optcal.terms.user_term) are not in the table the kernel was generated
+# from: each gets a slot past the canonical ones the first time a model with it is packed, and the kernel adds
+# its feature to the outputs from a small table (optcal.kernels.evaluate, "user features"). The slots live as
+# long as the process; they are never written anywhere.
+_USER_SLOTS: dict[tuple, int] = {}
+_USER_SPECS: list[tuple] = []
+
+
 def slot_indices(model) -> np.ndarray:
-    """Where each of ``model``'s parameters sits in the canonical vector q."""
+    """Where each of ``model``'s parameters sits in the canonical vector q; a user-defined term's parameters in
+    the slots after them (:func:`user_spec` gives their feature)."""
     where = _slot_of()
-    return np.array([where[n] for n in model.names], np.int64)
+    user = {name: (axis, feature, kind) for _, axis, name, feature, kind in model._user}
+    out = []
+    for n in model.names:
+        if n in where:
+            out.append(where[n])
+            continue
+        key = (n, *user[n])
+        if key not in _USER_SLOTS:
+            _USER_SLOTS[key] = len(where) + len(_USER_SPECS)
+            _USER_SPECS.append(user[n])
+        out.append(_USER_SLOTS[key])
+    return np.array(out, np.int64)
+
+
+def user_spec(slot: int) -> tuple:
+    """(output axis, :class:`optcal.terms.Feature`, kind) of a user-defined term's parameter slot."""
+    return _USER_SPECS[slot - len(_slot_of())]
 
 
 # The forward map is also generated for a smaller set of terms, which the fixed-point inverse (the
@@ -65,9 +90,11 @@ VARIANTS: dict[str, tuple[str, ...]] = {
 
 
 def variant_of(model) -> int:
-    """Index in VARIANTS of the first forward map whose terms hold every parameter of ``model``."""
+    """Index in VARIANTS of the first forward map whose terms hold every parameter of ``model`` (a user-defined
+    term's are the kernel's user features, outside the generated maps)."""
+    names = {n for n in model.names if n in _slot_of()}
     for k, terms in enumerate(VARIANTS.values()):
-        if set(model.names) <= set(get_model("+".join(terms)).names):
+        if names <= set(get_model("+".join(terms)).names):
             return k
     raise AssertionError("the last variant holds every term")
 

@@ -9,7 +9,12 @@ adds what the problem does with them, one candidate per outer iteration:
 * the norm residuals e_j = ‖A_j‖ − g (2020 paper, Eq. 12), then the gauge rows G·(x − centre);
 * the reference residuals (N_j − F(A_ref,j)) / K0, in g;
 * the analytic Jacobian: for the norm cost, ∂e_j/∂x = −wᵀ ∂F/∂x with (∂F/∂A)ᵀ w = A_j/‖A_j‖ (implicit
-  function theorem); for the reference residuals, −∂F/∂x / K0.
+  function theorem); for the reference residuals, −∂F/∂x / K0;
+* user features: the parameters of user-defined terms (:func:`optcal.terms.user_term`) sit in slots after the
+  canonical ones (:func:`optcal.kernels.codegen.slot_indices`), and each adds K_i·c·w_j·A_x^e0·A_y^e1·A_z^e2
+  (·sgn of the previous pose's A_k) to output i, from a table of (slot, i, e0, e1, e2, k) rows and the data's
+  weights w_j (temperature, time, sinusoid) laid out by :func:`pack`. Models without them take the same
+  branch-free loops as before.
 
 Everything a call needs travels in a few flat buffers laid out by :func:`pack` (floats, integers, and a
 scratch buffer allocated once per view): numba checks the type of every argument on each call, and
@@ -24,10 +29,13 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
+from ..terms import PREV_DEADZONE_G
 from ._terms import NQ, forward_all, forward_dA, forward_dq, forward_seed, linear_part
 
-# The integer buffer: sizes and flags, then the slots of the model's parameters and the free indices.
-H_N, H_P, H_NF, H_NG, H_MODE, H_AFFINE, H_MAXIT, H_VARIANT, HEADER = range(9)
+# The integer buffer: sizes and flags, then the slots of the model's parameters, the free indices and the user
+# features' table (H_NU rows of USER_COLS); H_NQX is the length of q, the canonical slots and the user ones.
+H_N, H_P, H_NF, H_NG, H_MODE, H_AFFINE, H_MAXIT, H_VARIANT, H_NU, H_NQX, HEADER = range(11)
+USER_COLS = 6  # slot of the coefficient, output axis, e0, e1, e2, previous pose's axis (−1: none)
 NORM, REFERENCE = 0, 1
 # Rows of the per-position block: N (3 rows), the reference specific force (3), dT, dt.
 ROW_N, ROW_REF, ROW_DTEMP, ROW_DTIME, POS_ROWS = 0, 3, 6, 7, 8
@@ -62,10 +70,28 @@ def pack(*, N, ref, dtemp, dtime, K0, g, centre, gauge, slots, affine: bool, var
     head[[H_N, H_P, H_NF, H_NG]] = n, p, nf, ng
     head[H_MODE] = NORM if ref is None else REFERENCE
     head[H_AFFINE], head[H_MAXIT], head[H_VARIANT] = int(affine), max_iter, variant
-    ib = np.concatenate([head, np.asarray(slots, np.int64), np.asarray(free, np.int64)])
+    slots = np.asarray(slots, np.int64)
+    table, weights = _user_features(slots, n, dtemp, dtime)
+    head[H_NU], head[H_NQX] = len(table), max(NQ, int(slots.max(initial=-1)) + 1)
+    ib = np.concatenate([head, slots, np.asarray(free, np.int64), table.ravel()])
+    fb = np.concatenate([fb, weights.ravel()])
     m = (3 * n if ref is not None else n) + ng
-    work = np.empty(p + NQ + m + 4 * n + 1)
+    work = np.empty(p + head[H_NQX] + m + 4 * n + 1)
     return np.ascontiguousarray(fb), np.ascontiguousarray(ib), work
+
+
+def _user_features(slots, n, dtemp, dtime) -> tuple[np.ndarray, np.ndarray]:
+    """The user features' table (rows of USER_COLS integers) and weights (one row of n per feature)."""
+    from .codegen import user_spec
+
+    rows, weights = [], []
+    for s in slots[slots >= NQ]:
+        axis, feature, kind = user_spec(int(s))
+        rows.append([s, axis, *feature.exps, -1 if feature.prev is None else feature.prev])
+        weights.append(np.broadcast_to(feature.weight(dtemp, dtime, kind), (n,)))
+    if not rows:
+        return np.zeros((0, USER_COLS), np.int64), np.zeros((0, n))
+    return np.array(rows, np.int64), np.array(weights, float)
 
 
 @njit(**INLINE)
@@ -78,6 +104,72 @@ def _view(fb, ib):
             fb[o_par:o_view].reshape((2 + ng, p)), fb[o_view:o_view + 2 * nf].reshape((2, nf)))
 
 
+@njit(**INLINE)
+def _user_view(fb, ib):
+    """(table (nu, USER_COLS), weights (nu, n)) of the user features."""
+    n, p, nf, ng, nu = ib[H_N], ib[H_P], ib[H_NF], ib[H_NG], ib[H_NU]
+    o_ib = HEADER + p + nf
+    o_fb = N_SCALARS + POS_ROWS * n + (2 + ng) * p + 2 * nf
+    return ib[o_ib:o_ib + USER_COLS * nu].reshape((nu, USER_COLS)), fb[o_fb:o_fb + nu * n].reshape((nu, n))
+
+
+@njit(**INLINE)
+def _power(a, e):
+    v = 1.0
+    for _ in range(e):
+        v *= a
+    return v
+
+
+@njit(**INLINE)
+def _previous_sign(src, k, j):
+    """sgn of the previous position's component k of ``src`` (3+, n), 0 below the dead zone and for the first
+    (optcal.terms.previous_sign)."""
+    if k < 0:
+        return 1.0
+    if j == 0:
+        return 0.0
+    a = src[k, j - 1]
+    if abs(a) < PREV_DEADZONE_G:
+        return 0.0
+    return 1.0 if a > 0 else -1.0
+
+
+@njit(**INLINE)
+def _user_outputs(q, tab, w, j, a0, a1, a2, src):
+    """The user features' contribution (u0, u1, u2) to the outputs of position j."""
+    u0 = u1 = u2 = 0.0
+    for f in range(tab.shape[0]):
+        i = tab[f, 1]
+        v = (q[i] * q[tab[f, 0]] * w[f, j] * _power(a0, tab[f, 2]) * _power(a1, tab[f, 3]) * _power(a2, tab[f, 4])
+             * _previous_sign(src, tab[f, 5], j))
+        if i == 0:
+            u0 += v
+        elif i == 1:
+            u1 += v
+        else:
+            u2 += v
+    return u0, u1, u2
+
+
+@njit(**INLINE)
+def _user_derivatives(q, tab, w, j, a, src, dA, dq):
+    """Add the user features' ∂F/∂A to dA (9, row-major) and their ∂F/∂q to dq (3, NQX) at position j."""
+    for f in range(tab.shape[0]):
+        i, slot = tab[f, 1], tab[f, 0]
+        ws = w[f, j] * _previous_sign(src, tab[f, 5], j)
+        mono = _power(a[0], tab[f, 2]) * _power(a[1], tab[f, 3]) * _power(a[2], tab[f, 4])
+        dq[i, slot] = q[i] * ws * mono
+        dq[i, i] += q[slot] * ws * mono
+        for m in range(3):
+            e = tab[f, 2 + m]
+            if e > 0:
+                d = float(e)
+                for k in range(3):
+                    d *= _power(a[k], tab[f, 2 + k] - (1 if k == m else 0))
+                dA[3 * i + m] += q[i] * q[slot] * ws * d
+
+
 @njit(**JIT)
 def n_residuals(ib):
     n = ib[H_N]
@@ -86,10 +178,10 @@ def n_residuals(ib):
 
 @njit(**INLINE)
 def _scratch(work, ib):
-    """x (p), q (NQ), r (m), A and step sizes (4, n) in the scratch buffer."""
-    n, p, m = ib[H_N], ib[H_P], n_residuals(ib)
-    o = p + NQ + m
-    return work[:p], work[p:p + NQ], work[p + NQ:o], work[o:o + 4 * n].reshape((4, n))
+    """x (p), q (NQX), r (m), A and step sizes (4, n) in the scratch buffer."""
+    n, p, m, nq = ib[H_N], ib[H_P], n_residuals(ib), ib[H_NQX]
+    o = p + nq + m
+    return work[:p], work[p:p + nq], work[p + nq:o], work[o:o + 4 * n].reshape((4, n))
 
 
 @njit(**INLINE)
@@ -117,9 +209,10 @@ def _inverse3(m):
 
 
 @njit(**INLINE)
-def _invert_all(forward, q, pos, affine, tol, max_iter, A):
+def _invert_all(forward, q, pos, affine, tol, max_iter, A, tab, w):
     """Specific force A[0:3] (3, n) of every position from its outputs: Model.inverse's iteration,
-    sweeping all positions per step (a loop without branches, which the compiler vectorises)."""
+    sweeping all positions per step (a loop without branches, which the compiler vectorises; with user
+    features, a second loop that adds them, each position seeing the previous one's A of this sweep)."""
     lp = linear_part(q)
     mi, c = _inverse3(lp[:9]), lp[9:]
     N0, N1, N2, dT, dt = pos[ROW_N], pos[ROW_N + 1], pos[ROW_N + 2], pos[ROW_DTEMP], pos[ROW_DTIME]
@@ -133,8 +226,21 @@ def _invert_all(forward, q, pos, affine, tol, max_iter, A):
     if affine:
         return
     prev = np.inf
+    nu = tab.shape[0]
     for _ in range(max_iter):
-        for j in range(n):
+        if nu > 0:
+            for j in range(n):
+                f0, f1, f2 = forward(q, A0[j], A1[j], A2[j], dT[j], dt[j])
+                u0, u1, u2 = _user_outputs(q, tab, w, j, A0[j], A1[j], A2[j], A)
+                r0, r1, r2 = N0[j] - f0 - u0, N1[j] - f1 - u1, N2[j] - f2 - u2
+                d0 = mi[0] * r0 + mi[1] * r1 + mi[2] * r2
+                d1 = mi[3] * r0 + mi[4] * r1 + mi[5] * r2
+                d2 = mi[6] * r0 + mi[7] * r1 + mi[8] * r2
+                A0[j] += d0
+                A1[j] += d1
+                A2[j] += d2
+                step[j] = abs(d0) + abs(d1) + abs(d2)
+        for j in range(n if nu == 0 else 0):
             f0, f1, f2 = forward(q, A0[j], A1[j], A2[j], dT[j], dt[j])
             r0, r1, r2 = N0[j] - f0, N1[j] - f1, N2[j] - f2
             d0 = mi[0] * r0 + mi[1] * r1 + mi[2] * r2
@@ -162,16 +268,21 @@ def _residuals_of(forward, fb, ib, x, q, pos, par, r, A):
     """Residuals of the candidate x (canonical q) into r; returns Σ r²."""
     n = ib[H_N]
     s = 0.0
+    tab, w = _user_view(fb, ib)
     if ib[H_MODE] == REFERENCE:
         k0, k1, k2 = fb[0], fb[1], fb[2]
+        ref = pos[ROW_REF:ROW_REF + 3]
         for j in range(n):
             f0, f1, f2 = forward(q, pos[ROW_REF, j], pos[ROW_REF + 1, j], pos[ROW_REF + 2, j], pos[ROW_DTEMP, j],
                                  pos[ROW_DTIME, j])
+            if tab.shape[0] > 0:
+                u0, u1, u2 = _user_outputs(q, tab, w, j, ref[0, j], ref[1, j], ref[2, j], ref)
+                f0, f1, f2 = f0 + u0, f1 + u1, f2 + u2
             e0, e1, e2 = (pos[ROW_N, j] - f0) / k0, (pos[ROW_N + 1, j] - f1) / k1, (pos[ROW_N + 2, j] - f2) / k2
             r[3 * j], r[3 * j + 1], r[3 * j + 2] = e0, e1, e2
             s += e0 * e0 + e1 * e1 + e2 * e2
         return s
-    _invert_all(forward, q, pos, ib[H_AFFINE] != 0, fb[4], ib[H_MAXIT], A)
+    _invert_all(forward, q, pos, ib[H_AFFINE] != 0, fb[4], ib[H_MAXIT], A, tab, w)
     g = fb[3]
     for j in range(n):
         e = np.sqrt(A[0, j] * A[0, j] + A[1, j] * A[1, j] + A[2, j] * A[2, j]) - g
@@ -230,26 +341,41 @@ def jacobian(z, fb, ib, work, J):
     x, q, r, A = _scratch(work, ib)
     _full(z.reshape((1, z.size)), 0, free, par, view, x, q, slots)
     n, nf = ib[H_N], free.size
-    dq = np.zeros((3, NQ))
+    dq = np.zeros((3, ib[H_NQX]))
     dT, dt = pos[ROW_DTEMP], pos[ROW_DTIME]
+    tab, w = _user_view(fb, ib)
+    nu = tab.shape[0]
+    dA = np.zeros(9)
+    a = np.zeros(3)
     if ib[H_MODE] == REFERENCE:
+        ref = pos[ROW_REF:ROW_REF + 3]
         for j in range(n):
             forward_dq(q, pos[ROW_REF, j], pos[ROW_REF + 1, j], pos[ROW_REF + 2, j], dT[j], dt[j], dq)
+            if nu > 0:
+                a[0], a[1], a[2] = ref[0, j], ref[1, j], ref[2, j]
+                _user_derivatives(q, tab, w, j, a, ref, dA, dq)
             for i in range(3):
                 for c in range(nf):
                     J[3 * j + i, c] = -dq[i, slots[free[c]]] / fb[i] * view[1, c]
         return
-    _invert_all(forward_all, q, pos, ib[H_AFFINE] != 0, fb[4], ib[H_MAXIT], A)
+    _invert_all(forward_all, q, pos, ib[H_AFFINE] != 0, fb[4], ib[H_MAXIT], A, tab, w)
     for j in range(n):
         a0, a1, a2 = A[0, j], A[1, j], A[2, j]
         norm = np.sqrt(a0 * a0 + a1 * a1 + a2 * a2)
         # w solves (∂F/∂A)ᵀ w = A/‖A‖; then ∂e/∂x = −wᵀ ∂F/∂x.
-        fi = _inverse3(forward_dA(q, a0, a1, a2, dT[j], dt[j]))
+        m = forward_dA(q, a0, a1, a2, dT[j], dt[j])
+        forward_dq(q, a0, a1, a2, dT[j], dt[j], dq)
+        if nu > 0:
+            for k in range(9):
+                dA[k] = m[k]
+            a[0], a[1], a[2] = a0, a1, a2
+            _user_derivatives(q, tab, w, j, a, A, dA, dq)
+            m = (dA[0], dA[1], dA[2], dA[3], dA[4], dA[5], dA[6], dA[7], dA[8])
+        fi = _inverse3(m)
         u0, u1, u2 = a0 / norm, a1 / norm, a2 / norm
         w0 = fi[0] * u0 + fi[3] * u1 + fi[6] * u2
         w1 = fi[1] * u0 + fi[4] * u1 + fi[7] * u2
         w2 = fi[2] * u0 + fi[5] * u1 + fi[8] * u2
-        forward_dq(q, a0, a1, a2, dT[j], dt[j], dq)
         for c in range(nf):
             k = slots[free[c]]
             J[j, c] = -(w0 * dq[0, k] + w1 * dq[1, k] + w2 * dq[2, k]) * view[1, c]
