@@ -2,8 +2,9 @@
 to new raw data to give calibrated specific force.
 
 Content: ``format``, ``format_version`` (2, or 3 with user-defined terms), ``model``, ``terms``, ``parameters``
-{name: value}, ``stderr`` {name: value or null}, ``units`` {``raw``: the sensor's output units (what the data were in and what
-:meth:`CalibrationFile.apply` takes), ``calibrated``: "g" (what it gives), ``parameters``: {name: unit}},
+{name: value}, ``stderr`` {name: value or null}, ``units`` {``raw``: the sensor's output units (what the data were
+in and what :meth:`CalibrationFile.apply` takes), ``calibrated``: "g" (what it gives), ``parameters``: {name:
+unit}},
 ``g_local`` (in g), ``data`` {``n_positions``, ``rms_residual_g``, ``source``}, ``solver``, ``created``
 (ISO-8601 UTC), ``observability`` {rank, n_parameters, unobservable}, for models with temperature or drift
 terms, ``context`` {``T0``, ``t0``}: the reference temperature and time of the calibration data

@@ -3,8 +3,10 @@ each against the recording's own floor. Core: nothing here runs a solver.
 
 The remaining norm residuals are set against each thing a position carries:
 
-* **orientation**: real spherical harmonics Y_lm(â) of the measured direction, degrees 1–3 (fewer when the
-  residuals' degrees of freedom are few);
+* **orientation**: the monomials of the measured direction â up to degree 4 (per-axis polynomials; on the
+  unit sphere they span the same functions as the real spherical harmonics of degrees 0–4; degree 4 is how the
+  dictionary's third-order features look through the norm), to degree 3 or 2 when the residuals' degrees of
+  freedom are few;
 * **temperature**: â_i·θ^k (a bias of each axis as a polynomial in θ = (T − T̄)/scale, k = 1–3) and
   â_i·θ·A_i (scale factors changing with temperature);
 * **time**: â_i·τ^k (bias trends in τ = (t − t0)/scale, k = 1–3) and **periodicity**: the Lomb–Scargle
@@ -30,12 +32,16 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ..distributions import chi2_sf, f_sf
 from ..terms import previous_sign
-from .dictionary import model_basis, nice_scale, project_out
+from .dictionary import RANK_RTOL, model_basis, nice_scale, project_out
 
 REPLICATE_DEG = 2.0  # positions whose measured directions lie within this angle are replicates of one pose
+# Fewer degrees of freedom of pure error make no floor: its own scatter (χ² on so few) would decide the verdict
+MIN_REPLICATE_DOF = 4
 OVERSAMPLE = 10  # frequencies per independent one in the periodogram
-SH_DEGREES = (1, 2, 3)
+ORIENTATION_DEGREE = 4
+MIN_TEST_DOF = 10
 WHAT_TO_RECORD = ("record the poses from a raw recording (each position then carries n and its standard errors), "
                   "give --noise-ug, or hold some poses twice (within 2°) so that their scatter gives the floor")
 
@@ -75,11 +81,13 @@ class Floor:
 def replicate_groups(A: np.ndarray, max_deg: float = REPLICATE_DEG) -> list[np.ndarray]:
     """Groups of two or more positions whose directions lie within ``max_deg`` of each other (connected
     components of that relation; scipy.sparse.csgraph)."""
+    u = A / np.linalg.norm(A, axis=1, keepdims=True)
+    close = (u @ u.T) >= np.cos(np.radians(max_deg))
+    if close.sum() == len(u):  # only each position with itself: no replicates (and no scipy to import)
+        return []
     from scipy.sparse import csr_matrix
     from scipy.sparse.csgraph import connected_components
 
-    u = A / np.linalg.norm(A, axis=1, keepdims=True)
-    close = (u @ u.T) >= np.cos(np.radians(max_deg))
     _, label = connected_components(csr_matrix(close), directed=False)
     return [g for g in (np.flatnonzero(label == k) for k in range(label.max() + 1)) if len(g) > 1]
 
@@ -92,7 +100,7 @@ def floor_of(fit, sigma_j: np.ndarray | None, stated: bool) -> Floor:
     r = fit.residuals[:n]
     groups = replicate_groups(fit.specific_force)
     dof = sum(len(g) - 1 for g in groups)
-    if dof >= 2:
+    if dof >= MIN_REPLICATE_DOF:
         ss = float(sum(np.sum((r[g] - r[g].mean()) ** 2) for g in groups))
         if ss > 0:
             return Floor("replicates", pure_ss=ss, pure_dof=dof, groups=groups)
@@ -102,8 +110,6 @@ def floor_of(fit, sigma_j: np.ndarray | None, stated: bool) -> Floor:
 def lack_of_fit(fit, floor: Floor) -> tuple[float, int, int, float] | None:
     """The lack-of-fit F-test against replicates (Draper & Smith, Applied Regression Analysis, §2.1):
     F = ((RSS − SS_pe)/(dof − dof_pe)) / (SS_pe/dof_pe); (F, dof − dof_pe, dof_pe, p) or None."""
-    from scipy import stats
-
     if floor.kind != "replicates":
         return None
     n = fit.problem.n_position_residuals
@@ -113,7 +119,7 @@ def lack_of_fit(fit, floor: Floor) -> tuple[float, int, int, float] | None:
     if q < 1:
         return None
     f = max(float(r @ r) - floor.pure_ss, 0.0) / q / (floor.pure_ss / floor.pure_dof)
-    return f, q, floor.pure_dof, float(stats.f.sf(f, q, floor.pure_dof))
+    return f, q, floor.pure_dof, float(f_sf(f, q, floor.pure_dof))
 
 
 @dataclass
@@ -203,12 +209,12 @@ def test_columns(fit, floor: Floor, G: np.ndarray) -> tuple[int, float, str, int
     than noise; the second whether they explain more than any q directions would of a residual that is larger
     than the noise for another reason, which keeps a diagnostic specific when some other structure remains.
     Without a floor only the second applies."""
-    from scipy import stats
-
     r, Q, Gw = _weighted(fit, floor, G)
     Gp = project_out(Q, Gw)
     U, s, _ = np.linalg.svd(Gp, full_matrices=False)
-    keep = s > 1e-8 * max(float(np.max(np.linalg.norm(Gw, axis=0), initial=0.0)), np.finfo(float).tiny)
+    # directions the columns add beyond the model with less than RANK_RTOL of their size do not count (the
+    # dictionary's rule: such a leftover is the model's nonlinearity, lined up with the residual)
+    keep = s > RANK_RTOL * max(float(np.max(np.linalg.norm(Gw, axis=0), initial=0.0)), np.finfo(float).tiny)
     U = U[:, keep]
     q = int(keep.sum())
     r = project_out(Q, r[:, None])[:, 0]
@@ -220,29 +226,28 @@ def test_columns(fit, floor: Floor, G: np.ndarray) -> tuple[int, float, str, int
     if q == 0 or dof < 1:
         return q, float("nan"), "", dof, float("nan"), fitted
     f = (red / q) / (max(float(r @ r) - red, np.finfo(float).tiny) / dof)
-    p_resid = float(stats.f.sf(f, q, dof))
+    p_resid = float(f_sf(f, q, dof))
     if floor.sigma is not None:
-        return q, red, "chi2", None, max(float(stats.chi2.sf(red, q)), p_resid), fitted
+        return q, red, "chi2", None, max(float(chi2_sf(red, q)), p_resid), fitted
     if floor.kind == "replicates":
         fr = (red / q) / (floor.pure_ss / floor.pure_dof)
-        return q, fr, "F", floor.pure_dof, max(float(stats.f.sf(fr, q, floor.pure_dof)), p_resid), fitted
+        return q, fr, "F", floor.pure_dof, max(float(f_sf(fr, q, floor.pure_dof)), p_resid), fitted
     return q, f, "F", dof, p_resid, fitted
 
 
-def real_sph_harm(u: np.ndarray, degrees=SH_DEGREES) -> tuple[np.ndarray, list[str]]:
-    """Real spherical harmonics of the unit vectors ``u`` (n, 3) for each degree l in ``degrees`` (2l + 1 each;
-    scipy.special.sph_harm_y, with √2·Re and √2·Im for m ≠ 0)."""
-    from scipy.special import sph_harm_y
+def direction_polynomials(u: np.ndarray, degree: int) -> np.ndarray:
+    """The monomials u_x^a·u_y^b·u_z^c of the unit vectors ``u`` (n, 3) with 1 ≤ a + b + c ≤ ``degree``: on the
+    sphere their span is that of the spherical harmonics of degrees 0 to ``degree`` (the sphere's relation
+    |u|² = 1 makes some of them dependent, which the test's rank takes care of)."""
+    cols = []
+    for d in range(1, degree + 1):
+        for e in _exponents(d):
+            cols.append(np.prod(u ** np.array(e), axis=1))
+    return np.column_stack(cols)
 
-    theta = np.arccos(np.clip(u[:, 2], -1.0, 1.0))
-    phi = np.arctan2(u[:, 1], u[:, 0])
-    cols, names = [], []
-    for ell in degrees:
-        for m in range(-ell, ell + 1):
-            Y = sph_harm_y(ell, abs(m), theta, phi)
-            cols.append(Y.real if m == 0 else np.sqrt(2.0) * (Y.real if m > 0 else Y.imag))
-            names.append(f"Y{ell},{m}")
-    return np.column_stack(cols), names
+
+def _exponents(d: int) -> list[tuple[int, int, int]]:
+    return [(a, b, d - a - b) for a in range(d, -1, -1) for b in range(d - a, -1, -1)]
 
 
 def independent_frequencies(t: np.ndarray) -> tuple[float, float, int]:
@@ -326,11 +331,16 @@ def diagnose(fit, data, floor: Floor, alpha: float, ctx) -> Diagnostics:
             return
         items.append(Diagnostic(name, columns, q, stat, test, dof, p, x=x, fitted=fitted, extra=extra))
 
-    # orientation: as many spherical-harmonic degrees as leave half the residuals' degrees of freedom
-    degrees = [d for d in SH_DEGREES if sum(2 * e + 1 for e in SH_DEGREES if e <= d) <= max(room // 2, 3)]
-    Y, _ = real_sph_harm(u, degrees or (1,))
-    run("orientation", f"spherical harmonics of degree {', '.join(map(str, degrees or (1,)))} of the direction", Y,
-        np.degrees(np.arctan2(u[:, 1], u[:, 0])))
+    # orientation: the highest degree (4, what the dictionary's third-order features look like through the norm,
+    # down to 2) whose columns beyond the model leave the test MIN_TEST_DOF or a third of the residuals' degrees
+    # of freedom (a model with scale, bias and misalignment spans the degrees up to 2 already: the rank counts
+    # what is left)
+    for degree in range(ORIENTATION_DEGREE, 1, -1):
+        G = direction_polynomials(u, degree)
+        if room - test_columns(fit, floor, G)[0] >= max(MIN_TEST_DOF, room // 3):
+            break
+    run("orientation", f"polynomials of the direction to degree {degree} (spherical harmonics of degrees 1–{degree})",
+        G, np.degrees(np.arctan2(u[:, 1], u[:, 0])))
     if ctx.dtemp is not None and np.ptp(ctx.dtemp) > 0:
         th = ctx.dtemp / nice_scale(float(np.std(ctx.dtemp)))
         G = np.column_stack([u * th[:, None] ** k for k in (1, 2, 3)] + [u * A * th[:, None]])

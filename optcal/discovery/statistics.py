@@ -30,6 +30,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..analysis import observability
+from ..distributions import f_sf
 from ..errors import InputError
 from ..model import AXES, TERMS, Context, Model, NumpyOps
 from ..problem import CalibrationProblem
@@ -199,7 +200,6 @@ def extend(current: Fit, term: str) -> Extension | Score:
 def nested_test(current: Fit, ext: Extension, x: np.ndarray, nfev: int) -> Score:
     """The F-test (with the likelihood-ratio statistic and ΔBIC) of the extension refitted at ``x`` against
     ``current`` (the module docstring's equations)."""
-    from scipy import stats  # here, not at module level: importing optcal stays light
 
     r = ext.problem.residuals_full(x)[0]
     if not np.all(np.isfinite(r)):
@@ -210,7 +210,7 @@ def nested_test(current: Fit, ext: Extension, x: np.ndarray, nfev: int) -> Score
     rss0, rss1 = current.rss, max(fit.rss, np.finfo(float).tiny)
     dof = m - ext.rank
     f_stat = max(rss0 - rss1, 0.0) / q / (rss1 / dof)
-    return Score(ext.term, fit=fit, q=q, dof=dof, f_statistic=f_stat, p_value=float(stats.f.sf(f_stat, q, dof)),
+    return Score(ext.term, fit=fit, q=q, dof=dof, f_statistic=f_stat, p_value=float(f_sf(f_stat, q, dof)),
                  lr_statistic=m * np.log(rss0 / rss1), delta_bic=m * np.log(rss1 / rss0) + q * np.log(m))
 
 

@@ -18,7 +18,7 @@ import solvers
 
 from ..analysis import crlb, goodness_of_fit, observability
 from ..data import PositionsData
-from ..distributions import chi2_sf
+from ..distributions import chi2_sf, f_sf
 from ..errors import InputError
 from ..model import AXES, TERMS, Model, get_model
 from ..problem import CalibrationProblem
@@ -294,8 +294,6 @@ class _DictionarySearch:
         at α once ``newest`` is in: the linearised F-test of dropping its columns (:func:`_drop_increase`), the
         least significant one refitted without it exactly (stepwise regression's removal step: Efroymson 1960,
         with α to stay above the α/k to enter, so that no term cycles in and out)."""
-        from scipy import stats
-
         while True:
             n = current.problem.n_position_residuals
             rss, dof = current.rss, n - current.rank
@@ -306,7 +304,7 @@ class _DictionarySearch:
                 inc, q = _drop_increase(current, drop)
                 if q < 1 or dof < 1:
                     continue
-                p = float(stats.f.sf((inc / q) / (rss / dof), q, dof))
+                p = float(f_sf((inc / q) / (rss / dof), q, dof))
                 if p >= self.alpha and (worst is None or p > worst[1]):
                     worst = (term, p)
             if worst is None:
@@ -322,8 +320,6 @@ class _DictionarySearch:
         """A dictionary term on the three outputs reduced to one, when the other two outputs' coefficients are
         not significant together (p ≥ α, the linearised F-test of dropping them): SINDy's thresholding of small
         coefficients, at the error rate of the search."""
-        from scipy import stats
-
         for term in [t for t in added if TERMS[t].user and len(TERMS[t].axes) == 3 and t in current.model.terms]:
             n = current.problem.n_position_residuals
             dof = n - current.rank
@@ -338,7 +334,7 @@ class _DictionarySearch:
                 inc, q = _drop_increase(current, drop)
                 if q < 1 or dof < 1:
                     continue
-                p = float(stats.f.sf((inc / q) / (current.rss / dof), q, dof))
+                p = float(f_sf((inc / q) / (current.rss / dof), q, dof))
                 if p >= self.alpha and (best_axis is None or p > best_axis[1]):
                     best_axis = (i, p)
             if best_axis is None:
