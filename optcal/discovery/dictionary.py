@@ -65,6 +65,43 @@ class Atom:
     weight: float = 1.0
     kind: str = "regular"  # regular | sinusoid
 
+    @property
+    def list_part(self) -> str | None:
+        """The list's parameter this feature is on its one output (up to the scale factor or the scale of its
+        context), e.g. "cubic's K3_z": the feature then says the list's term is there on that output alone."""
+        return list_part(self.term)
+
+
+def list_part(term: str) -> str | None:
+    """The built-in term's parameter a one-output feature equals (see :attr:`Atom.list_part`), or None."""
+    t = TERMS[term]
+    f = t.feature
+    if len(t.axes) != 1:
+        return None
+    i = t.axes[0]
+    a = AXES[i]
+    unit = tuple(int(k == i) for k in range(3))
+    context = (f.temp, f.time, f.period, f.prev)
+    if all(c is None for c in context):
+        if f.exps == tuple(2 * u for u in unit):
+            return f"quadratic's K2_{a}"
+        if f.exps == tuple(3 * u for u in unit):
+            return f"cubic's K3_{a}"
+        if f.degree == 2 and f.exps[i] == 1:
+            return f"cross_coupling's c_{a}{AXES[next(k for k in range(3) if k != i and f.exps[k])]}"
+        return None
+    if f.temp is not None and f.temp[0] == 1 and f.exps == (0, 0, 0):
+        return f"temperature_bias's beta_{a}"
+    if f.temp is not None and f.temp[0] == 1 and f.exps == unit:
+        return f"temperature_scale's gamma_{a}"
+    if f.time is not None and f.time[0] == 1 and f.exps == (0, 0, 0):
+        return f"bias_drift's d_{a}"
+    return None
+
+
+# The three-output features that are a built-in term whole: the list has tested them already
+LIST_TERMS_WHOLE = {(("temp", 1), "xyz"): "temperature_bias", (("time", 1), "xyz"): "bias_drift"}
+
 
 @dataclass
 class AtomScore:
@@ -165,7 +202,7 @@ def generate(model: Model, data, periods=(), n_independent: int = 0) -> Dictiona
         temp_scale = nice_scale(float(np.std(data.temp)))
         for p in CONTEXT_POWERS:
             token = Feature((0, 0, 0), temp=(p, temp_scale)).token()
-            atoms += [Atom(f"{token}@{out}") for out in OUTPUTS]
+            atoms += [Atom(f"{token}@{out}") for out in OUTPUTS if (("temp", p), out) not in LIST_TERMS_WHOLE]
         # the temperature times one component: A_i·A_j·(T − T̄), scale and misalignment changing with temperature
         for seen in _monomials(2):
             rep, eq = _monomial_class(seen, {"temp": (1, temp_scale)})
@@ -177,7 +214,7 @@ def generate(model: Model, data, periods=(), n_independent: int = 0) -> Dictiona
         time_scale = nice_scale(float(np.std(dt)))
         for p in CONTEXT_POWERS:
             token = Feature((0, 0, 0), time=(p, time_scale)).token()
-            atoms += [Atom(f"{token}@{out}") for out in OUTPUTS]
+            atoms += [Atom(f"{token}@{out}") for out in OUTPUTS if (("time", p), out) not in LIST_TERMS_WHOLE]
         if periods and n_independent:
             share = n_independent / len(periods)  # the four output sets × n_independent, over the atoms
             for period in periods:

@@ -180,7 +180,8 @@ class DiscoveryReport:
 
     @property
     def m(self) -> int:
-        return self.final.problem.n_residuals
+        """The data's residuals (a gauge row holding an unobservable direction is a constraint, not data)."""
+        return self.final.problem.n_position_residuals
 
     @property
     def dof(self) -> int:
@@ -203,7 +204,7 @@ class DiscoveryReport:
             return None
         if self.floor_fit is not None and self.floor_fit.chi2 is not None:
             return float(self.floor_fit.chi2), self.dof, float(self.floor_fit.p_value)
-        c = float(np.sum((self.final.residuals / self.sigma_j) ** 2))
+        c = float(np.sum((self.final.residuals[:self.m] / self.sigma_j) ** 2))
         return c, self.dof, float(chi2_sf(c, self.dof))
 
     @property

@@ -184,7 +184,7 @@ def extend(current: Fit, term: str) -> Extension | Score:
     if missing:
         return Score(term, note=f"needs column(s) {', '.join(missing)} that the data lack")
     model = current.model.with_term(term)
-    m = current.problem.n_residuals
+    m = current.problem.n_position_residuals  # the data's residuals: a gauge row is a constraint, not data
     q_raw = model.n_params - current.model.n_params
     if m - (current.rank + q_raw) < 1:
         return Score(term, note=f"{m} residuals leave no degrees of freedom for {model.n_params} parameters")
@@ -205,7 +205,7 @@ def nested_test(current: Fit, ext: Extension, x: np.ndarray, nfev: int) -> Score
     if not np.all(np.isfinite(r)):
         return Score(ext.term, note="the refit failed (non-finite residuals)")
     fit = Fit(ext.model, ext.problem, x, r, ext.rank, nfev)
-    m = current.problem.n_residuals
+    m = current.problem.n_position_residuals
     q = ext.rank - current.rank
     rss0, rss1 = current.rss, max(fit.rss, np.finfo(float).tiny)
     dof = m - ext.rank
@@ -242,7 +242,7 @@ def residual_sigma(fit: Fit, noise_g: float | None) -> float:
     """The noise of a norm residual: ``noise_g`` if known, else the fit's residual SD (RSS over m − rank)."""
     if noise_g is not None:
         return noise_g
-    return float(np.sqrt(fit.rss / max(fit.problem.n_residuals - fit.rank, 1)))
+    return float(np.sqrt(fit.rss / max(fit.problem.n_position_residuals - fit.rank, 1)))
 
 
 def noise_per_position(fit: Fit, noise_g: float | None, notes: list[str]) -> np.ndarray | None:
@@ -251,7 +251,7 @@ def noise_per_position(fit: Fit, noise_g: float | None, notes: list[str]) -> np.
     as a recording's positions carry them, docs/noise.md; else sx, sy, sz over √n) referred to the input with
     the fitted scale factors and projected on the measured direction, σ_j² = Σ_i â_ji²·(se_ji / K_i)²; None
     when neither is known. A note names the estimator of a recording's floor."""
-    m = fit.problem.n_residuals
+    m = fit.problem.n_position_residuals
     if noise_g is not None:
         return np.full(m, float(noise_g))
     se = fit.problem.data.noise_of_mean()

@@ -2,13 +2,15 @@
 examples): the base fit, each step with its test and fitted parameters, the candidates of each round, the
 final model against the noise floor and the verdict (docs/design.md §12).
 
-The functions read a :class:`optcal.discovery.results.DiscoveryReport` by its attributes; they import
-nothing of discovery, so the report can call them without a cycle.
+The functions read a :class:`optcal.discovery.results.DiscoveryReport` by its attributes; of discovery they import
+only :func:`optcal.discovery.dictionary.list_part`, so the report can call them without a cycle.
 """
 
 from __future__ import annotations
 
 import numpy as np
+
+from .dictionary import list_part
 
 U = 1e6  # g → µg
 
@@ -68,6 +70,9 @@ def step_lines(k: int, s) -> list[str]:
         if s.equivalents:
             lines.append("    the norm of static positions cannot tell it from: " + ", ".join(
                 f"{t} ({TERMS[t].description})" for t in s.equivalents))
+        part = list_part(s.term)
+        if part:
+            lines.append(f"    it is the list's {part.replace(chr(39) + 's ', ' (')}) on this output alone")
     if s.alternatives:
         lines.append("    nearly as good (ΔBIC within 2: confounded on these data): " + ", ".join(s.alternatives))
     return lines
@@ -85,8 +90,9 @@ def dictionary_lines(report, k0: int) -> list[str]:
         parts.append(f"sinusoids of {', '.join(f'{p:g}' for p in d['periods_s'])} s (over "
                      f"{d['n_independent_frequencies']} independent frequencies)")
     parts.append("the previous pose's signs")
-    lines = [f"dictionary: {d['atoms']} features ({'; '.join(parts)}); a feature is added when p < α/k "
-             f"(k = {d['k']:.1f}) and ΔBIC < {report.bic_threshold:g}"]
+    rule = (f"a feature is added when p < α/k (k = {d['k']:.1f}) and ΔBIC < {report.bic_threshold:g}" if d["k"] > 0
+            else "none could be tested (too few degrees of freedom, or the model explains them already)")
+    lines = [f"dictionary: {d['atoms']} features ({'; '.join(parts)}); {rule}"]
     steps = [s for s in report.steps if s.source == "dictionary"] or report.partial
     for j, s in enumerate(steps, k0 + 1):
         lines += step_lines(j, s)
