@@ -8,11 +8,16 @@ point ever evaluated, so a solver stopped by its budget (or by an error) still r
 
 Subclasses implement ``_solve(problem, x0, rng, callback) -> dict`` with any of ``x, nit, status,
 message, success``; they evaluate populations with ``problem.cost_batch`` in one call per iteration.
+
+Every result says why the solve ended (``stop_reason``, :data:`STOP_REASONS`): its budget, the target cost,
+the solver's own termination, the stagnation rule (:class:`Stagnation`, for the solvers that take it), the
+user's callback, or an error.
 """
 
 from __future__ import annotations
 
 import importlib.util
+import math
 import time
 from collections.abc import Mapping
 from dataclasses import dataclass, field
@@ -79,6 +84,65 @@ def probability(v) -> bool:
     return 0.0 <= v <= 1.0
 
 
+# Why a solve ended (SolverResult.stop_reason): the evaluation budget, the time budget, the target cost, the
+# solver's own termination (its tolerances, pycma's criteria, its iteration count), the stagnation rule, the
+# user's callback, or an error (status -1).
+STOP_REASONS = ("budget", "time", "target", "own", "stagnation", "callback", "error")
+
+
+@dataclass(frozen=True)
+class Stagnation:
+    """The stagnation rule: a solve ends once its best cost has improved by no more than ``rtol`` of itself
+    over the last ``window`` evaluations, ``window`` being the share ``share`` of its evaluation budget (of
+    each stage's, inside ``staged:``). It is checked once per iteration (at the solver's callback), so a
+    solve ends at the first iteration boundary after the rule holds. Only solvers that set
+    :attr:`Solver.stops_on_stagnation` take it: those without a termination of their own that ends a run
+    once it has converged (docs/algorithms.md §1, "Stopping"). Without an evaluation limit it never fires.
+
+    The best cost at evaluation e − W is read from the problem's trace (every improvement, with the
+    evaluation count at which it happened), so the rule does not depend on how often the solver calls back.
+    """
+
+    share: float = 0.25
+    rtol: float = 1e-6
+
+    def __post_init__(self):
+        if not 0.0 < self.share <= 1.0:
+            raise InputError(f"stagnation share={self.share!r} must be in (0, 1]: the window's share of the budget")
+        if not self.rtol >= 0.0:
+            raise InputError(f"stagnation rtol={self.rtol!r} must be >= 0")
+
+    def window(self, max_evals: int | None) -> int | None:
+        """The window in evaluations for a solve of ``max_evals`` evaluations (None: no limit, no window)."""
+        return None if max_evals is None else max(1, math.ceil(self.share * max_evals))
+
+    def describe(self, window: int | None) -> str:
+        return (f"stagnation: the best cost improved by no more than {self.rtol:g} of itself over the last "
+                f"{window} evaluations")
+
+
+class _StagnationCheck:
+    """The rule on one problem's counter: the index of the last trace entry at or before evaluation
+    nfev − W moves forward only, so a check costs a few operations per iteration."""
+
+    def __init__(self, rule: Stagnation, counter):
+        self.rule, self.counter = rule, counter
+        self.W = rule.window(counter.budget.max_evals)
+        self.j = -1
+
+    def __call__(self) -> bool:
+        if self.W is None:
+            return False
+        c = self.counter
+        e = c.nfev - self.W
+        tr = c.trace
+        while self.j + 1 < len(tr) and tr[self.j + 1][0] <= e:
+            self.j += 1
+        if self.j < 0:  # no finite cost W evaluations ago: nothing to compare with
+            return False
+        return tr[self.j][1] - c.best_f <= self.rule.rtol * abs(c.best_f)
+
+
 @dataclass
 class SolverResult:
     """Outcome of one solve, with SciPy's field names."""
@@ -97,12 +161,13 @@ class SolverResult:
     x_full: np.ndarray | None = None
     solver: str = ""
     extra: dict = field(default_factory=dict)
+    stop_reason: str = ""  # one of STOP_REASONS
 
     def to_dict(self) -> dict:
         return {
             "x": [float(v) for v in self.x], "fun": float(self.fun), "success": bool(self.success),
             "status": int(self.status), "message": self.message, "nfev": int(self.nfev), "nit": int(self.nit),
-            "runtime_s": float(self.runtime_s), "solver": self.solver,
+            "runtime_s": float(self.runtime_s), "solver": self.solver, "stop_reason": self.stop_reason,
         }
 
 
@@ -142,6 +207,25 @@ class StopSolver(Exception):
     """Raised inside a solver when the user's callback asks to stop."""
 
 
+class Stagnated(StopSolver):
+    """Raised at a solver's callback when the stagnation rule holds: a stop, so that a wrapper ends its
+    inner solve and then itself, as it does for the user's callback."""
+
+
+def budget_reason(counter) -> str:
+    """Why a solve that ended without an exception of its own ended, from its counter: the budget that stopped
+    it (the evaluations, the time, the target cost), or else the solver's own termination ("own")."""
+    b, stopped = counter.budget, counter.stopped
+    if stopped:
+        return {"evaluation budget used up": "budget", "time budget used up": "time",
+                "target cost reached": "target"}.get(stopped, "budget")
+    if b.target is not None and counter.best_f <= b.target:
+        return "target"
+    if b.max_evals is not None and counter.nfev >= b.max_evals:
+        return "budget"
+    return "own"
+
+
 class Solver:
     """Base class: option validation, budget handling, timing and the result object."""
 
@@ -157,6 +241,13 @@ class Solver:
     # False for a deterministic method that draws nothing: its solve then builds no Generator (numpy.random's
     # import is a tenth of a raw calibration's start-up); the seed still makes every other solver reproducible
     uses_rng: ClassVar[bool] = True
+    # Whether a solve given a Stagnation rule ends by it: for methods without a termination of their own that
+    # ends a converged run (CMA-ES inside staged:'s stages, nevergrad's and mealpy's optimisers). False for the
+    # local methods (their tolerances end them) and for the searches whose best cost stays flat for a long
+    # stretch and then improves again (the swarms, NLopt's global methods, differential evolution:
+    # docs/performance.md, "Stopping at convergence"), where the rule would end runs that had not converged.
+    stops_on_stagnation: ClassVar[bool] = False
+    stagnation: Stagnation | None = None  # the rule of the solve in progress, for a wrapper's inner solves
 
     def __init__(self, **options):
         unknown = sorted(set(options) - set(self.options))
@@ -188,31 +279,42 @@ class Solver:
         }
 
     # -- the contract ------------------------------------------------------------------------
-    def solve(self, problem: CalibrationProblem, *, x0=None, budget=None, rng=None, callback=None) -> SolverResult:
+    def solve(self, problem: CalibrationProblem, *, x0=None, budget=None, rng=None, callback=None,
+              stagnation: Stagnation | None = None) -> SolverResult:
+        """Minimise ``problem``'s cost from ``x0`` within ``budget``; ``stagnation`` ends the solve by that rule
+        if this solver takes it (:attr:`stops_on_stagnation`; a wrapper passes it to its inner solves)."""
         if not self.is_available():
             raise InputError(self.unavailable_message())
         if self.uses_rng:
             rng = rng if isinstance(rng, np.random.Generator) else np.random.default_rng(rng)
         counter = problem.start(budget if budget is not None else self.default_budget)
         x_start = self.start_point(problem, x0)
+        rule = stagnation if self.stops_on_stagnation else None
+        check = _StagnationCheck(rule, counter) if rule is not None else None
+        self.stagnation = rule  # what a wrapper passes on to its inner solves
         t0 = time.perf_counter()
         out: dict = {}
-        status, message, success = 0, "", True
+        status, message, success, reason = 0, "", True, ""
         # The iterations completed so far, as the solver reports them through its callback: what `nit`
         # is when a budget or the user's callback ends the run before `_solve` can return its own count.
         done = [0]
+        fired: list[bool] = []
         try:
-            out = self._solve(problem, x_start, rng, self._wrap_callback(problem, callback, done)) or {}
+            out = self._solve(problem, x_start, rng, self._wrap_callback(problem, callback, done, check, fired)) or {}
             status = out.get("status", 0)
             message = out.get("message", "converged")
             success = out.get("success", True)
         except BudgetExhausted as exc:
             status, message, success = 1, str(exc), True
         except StopSolver:
-            status, message, success = 2, "stopped by callback", True
+            status, message, success, reason = 2, "stopped by callback", True, "callback"
         except (np.linalg.LinAlgError, FloatingPointError, ValueError, ArithmeticError) as exc:
-            status, message, success = -1, f"{type(exc).__name__}: {exc}", False
+            status, message, success, reason = -1, f"{type(exc).__name__}: {exc}", False, "error"
+        finally:
+            self.stagnation = None
         runtime = time.perf_counter() - t0
+        if fired:  # the rule ended the solve (inside a wrapper, through its inner solve's stop)
+            status, message, success, reason = 0, rule.describe(check.W), True, "stagnation"
         x_best, f_best = problem.best
         if x_best is None:
             x_best, f_best = np.asarray(x_start, float), np.nan
@@ -226,7 +328,7 @@ class Solver:
             message=message, nfev=counter.nfev, nit=int(out.get("nit", done[0])), runtime_s=runtime,
             trace=list(counter.trace), njev=counter.njev, trace_x=list(counter.trace_x),
             x_full=problem.to_full(x_best)[0], solver=self.name,
-            extra=out.get("extra", {}),
+            extra=out.get("extra", {}), stop_reason=reason or budget_reason(counter),
         )
 
     def start_point(self, problem: CalibrationProblem, x0) -> np.ndarray:
@@ -243,11 +345,14 @@ class Solver:
             raise InputError(f"x0 has {x0.size} values; the problem has {problem.n} parameters")
         return x0
 
-    def _wrap_callback(self, problem, callback, done: list | None = None):
+    def _wrap_callback(self, problem, callback, done: list | None = None, check=None, fired: list | None = None):
         done = [0] if done is None else done
 
         def cb(nit: int):
             done[0] = int(nit)
+            if check is not None and check():
+                fired.append(True)
+                raise Stagnated
             if callback is None:
                 return
             if callback(CallbackInfo(problem, nit)) is True:

@@ -82,6 +82,7 @@ class CMAES(Solver):
                                    choices=RESTART_STRATEGIES),
     }
     requires = ("cma",)
+    stops_on_stagnation = True
 
     def _solve(self, problem, x0, rng, callback):
         import cma

@@ -80,7 +80,7 @@ def sub_budget(parent: Counter, evals: int | None) -> Budget:
 
 
 def solve_within(inner: Solver, view: CalibrationProblem, parent: Counter, *, evals: int | None, x0, rng,
-                 callback, nit0: int = 0) -> SolverResult:
+                 callback, nit0: int = 0, stagnation=None) -> SolverResult:
     """Run ``inner.solve`` on ``view`` (a :func:`detached` view) as one part of an enclosing solve.
 
     Why not call ``inner.solve`` on a plain view: :meth:`Solver.solve` begins with ``problem.start``,
@@ -95,9 +95,11 @@ def solve_within(inner: Solver, view: CalibrationProblem, parent: Counter, *, ev
     stays in evaluation order. The enclosing budget therefore stays exact.
 
     ``callback`` is the enclosing solve's ``callback(nit)``; ``nit0`` is the iterations done before this
-    sub-run. A stop asked for by the callback is re-raised after the merge as :class:`StoppedWithin`
-    (a :class:`StopSolver` carrying the sub-run's partial result). The
-    returned result's ``nit`` is at least the last iteration count the inner solver reported.
+    sub-run; ``stagnation`` (:class:`solvers.base.Stagnation`) is the enclosing solve's rule, which the sub-run
+    applies to its own budget (its window a share of the sub-run's evaluations). A stop asked for by the
+    callback (or by the enclosing solve's stagnation rule) is re-raised after the merge as
+    :class:`StoppedWithin` (a :class:`StopSolver` carrying the sub-run's partial result). The returned
+    result's ``nit`` is at least the last iteration count the inner solver reported.
     """
     merge = _Merge(parent, view.counter)
     stop, last = [], [0]
@@ -113,7 +115,7 @@ def solve_within(inner: Solver, view: CalibrationProblem, parent: Counter, *, ev
         return None
 
     try:
-        res = inner.solve(view, x0=x0, budget=sub_budget(parent, evals), rng=rng, callback=cb)
+        res = inner.solve(view, x0=x0, budget=sub_budget(parent, evals), rng=rng, callback=cb, stagnation=stagnation)
     finally:
         merge()
     if stop:
@@ -166,6 +168,8 @@ class Staged(Solver):
         super().__init__(**options)
         self.inner = inner
         self.name = f"staged:{inner.name}"
+        # The stagnation rule ends each stage of an inner solver that takes it, and the whole run
+        self.stops_on_stagnation = inner.stops_on_stagnation
         # 'equal' shares the inner solver's default total; 'inner' bounds each stage instead of the total.
         self.default_budget = inner.default_budget if self.config["split"] == "equal" else None
 
@@ -214,7 +218,7 @@ class Staged(Solver):
                 view = detached(problem.restrict(idx, at=current))
                 evals = self._stage_evals(counter, n_total - (cycle - 1) * len(stages) - k)
                 res = solve_within(self.inner, view, counter, evals=evals, x0=view.from_full(current), rng=rng,
-                                   callback=callback, nit0=state["nit"])
+                                   callback=callback, nit0=state["nit"], stagnation=self.stagnation)
                 state["nit"] += res.nit
                 if counter.best_x is not None:
                     current = counter.best_x.copy()

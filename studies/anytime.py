@@ -355,11 +355,12 @@ def collect(rows: list[dict], order: list[str] | None = None) -> Anytime:
         A = np.column_stack([A, np.asarray(secs, float) if timed else np.full(len(A), np.nan)])
         if timed:
             top_s = max(top_s, float(A[-1, 3]), float(r.get("runtime_s") or 0.0))
-        if r.get("at_target") and r.get("max_evals"):
-            # Stopped at the final target (studies.trial.FINAL_GAP): its record is flat from there to its
-            # budget, as COCO counts a run that stops at the last target. Its last grid point (the first
-            # at or after the stop) stands as it is, as it would in the run that went on, and the ECDFs'
-            # right end stays its budget, where a trial that ran its budget out puts it.
+        if (r.get("at_target") or r.get("stop_reason") == "stagnation") and r.get("max_evals"):
+            # Stopped at the final target (studies.trial.FINAL_GAP) or by the stagnation rule
+            # (studies.trial.STAGNATION): its record is flat from there to its budget, as COCO counts a run
+            # that stops at the last target. Its last grid point (the first at or after the stop) stands as
+            # it is, as it would in the run that went on, and the ECDFs' right end stays its budget, where a
+            # trial that ran its budget out puts it.
             top = max(top, float(r["max_evals"]))
         elif r.get("nfev"):  # the grid's last point may lie past the last evaluation
             A[:, 0] = np.minimum(A[:, 0], r["nfev"])

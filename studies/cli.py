@@ -30,7 +30,8 @@ def run(args) -> int:
     print(f"study {spec.name}: {len(spec.solvers)} solver configurations × {len(spec.models)} model(s) × "
           f"{len(spec.schemes)} scheme(s) × {spec.runs} runs = {total} trials -> {folder}", file=sys.stderr)
     s = run_study(spec, folder, executor=args.executor, workers=args.workers, scheduler=args.scheduler,
-                  progress=None if not args.no_progress else False, limit=args.limit)
+                  progress=None if not args.no_progress else False, limit=args.limit,
+                  live_report=not args.no_report)
     print(f"study {spec.name}: ran {s.ran} trials ({s.failed} failed), skipped {s.skipped} already stored, "
           f"in {s.wall_s:.1f} s with {s.executor}" + (f" ×{s.workers}" if s.executor != "serial" else ""))
     if not args.no_report:

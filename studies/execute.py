@@ -204,6 +204,42 @@ class RunSummary:
     lost: int = 0  # trials whose worker died: not stored, retried when the study is run again
 
 
+class LiveReport:
+    """``report.md`` while a study runs (:func:`studies.report.write_progress`): the headline tables of the
+    trials finished so far, written once a Monte-Carlo run's worth of trials has finished (as many as the
+    spec has solvers × models × schemes: the trials go out run by run) and then every :attr:`EVERY_S`
+    seconds, so that a user sees results in the study's first minutes. The coordinator keeps of each row
+    only the columns the headline reads."""
+
+    EVERY_S = 60.0
+
+    def __init__(self, folder: Path, spec: dict, stored: list[dict], expected: int, first: int):
+        from .report import HEADLINE_COLUMNS
+
+        self.folder, self.spec, self.expected, self.first = folder, spec, expected, first
+        self.columns = HEADLINE_COLUMNS
+        self.rows = [self._slim(r) for r in stored]
+        self.t0 = time.perf_counter()
+        self.last: float | None = None
+        self.written = 0
+
+    def _slim(self, row: dict) -> dict:
+        return {k: row.get(k) for k in self.columns}
+
+    def add(self, row: dict) -> None:
+        self.rows.append(self._slim(row))
+        now = time.perf_counter()
+        if (self.last is None and len(self.rows) >= self.first) or (
+                self.last is not None and now - self.last >= self.EVERY_S):
+            self.write(now)
+
+    def write(self, now: float) -> None:
+        from .report import write_progress
+
+        write_progress(self.folder, self.spec, self.rows, self.expected, now - self.t0)
+        self.last, self.written = time.perf_counter(), self.written + 1
+
+
 class ProgressLines:
     """Progress as plain lines, for output that is not a terminal (a CI log, a file): trials done, the rate
     and the time left, every :attr:`EVERY_S` seconds, every :attr:`EVERY_SHARE` of the trials (but not more
@@ -296,12 +332,14 @@ def spec_json(spec: Spec) -> str:
 
 
 def run_study(spec: Spec, folder: str | Path, *, executor: str | None = None, workers: int | None = None,
-              scheduler: str | None = None, progress: bool | None = None, limit: int | None = None) -> RunSummary:
+              scheduler: str | None = None, progress: bool | None = None, limit: int | None = None,
+              live_report: bool = False) -> RunSummary:
     """Run every trial of ``spec`` not yet in ``folder``'s store; return a summary of this session.
 
     ``progress=None`` shows the bar on a terminal and progress lines otherwise (a CI log). ``limit`` runs at
-    most that many pending trials
-    (for tests and partial runs).
+    most that many pending trials (for tests and partial runs). ``live_report``: keep ``report.md`` showing
+    the headline tables of the trials finished so far while the study runs (:class:`LiveReport`; the caller
+    writes the full report at the end).
     """
     ex = executor or spec.executor["kind"]
     if ex not in EXECUTORS:
@@ -323,6 +361,11 @@ def run_study(spec: Spec, folder: str | Path, *, executor: str | None = None, wo
         ran = failed = 0
         busy = 0.0  # the trials' own wall time: the workers' useful share of the session
         lost: list[Lost] = []
+        live = None
+        if live_report and pending:
+            per_run = len(spec.solvers) * len(spec.models) * len(spec.schemes)
+            live = LiveReport(Path(folder), store.spec, store.rows() if done else [], len(all_trials),
+                              len(done) + min(per_run, len(pending)))
         bar = _progress(len(pending), progress, spec.name)
         try:
             if pending and ex != "serial":
@@ -338,6 +381,8 @@ def run_study(spec: Spec, folder: str | Path, *, executor: str | None = None, wo
                         bar.set_postfix(failed=failed, lost=len(lost), refresh=False)
                         continue
                     store.write(row)
+                    if live is not None:
+                        live.add(row)
                     busy += row.get("wall_s") or 0.0
                     ran += 1
                     failed += row["status"] == "failed"

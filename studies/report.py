@@ -231,6 +231,11 @@ def headline(folder: str | Path, top: int = 8) -> str:
     """The ``top`` solvers of each model × scheme (the report's ranking: :func:`_rank`), as markdown tables."""
     with Store.open_existing(folder) as store:
         spec, rows = store.spec, store.rows()
+    return "\n".join(headline_lines(spec, rows, top))
+
+
+def headline_lines(spec: dict, rows: list[dict], top: int = 8) -> list[str]:
+    """:func:`headline`'s tables from ``rows`` (any subset of a study's rows: the study so far)."""
     out = []
     for (model, scheme), cg in cells(finished_groups(rows, [s["label"] for s in spec["solvers"]])).items():
         ranked = _rank(cg)
@@ -243,7 +248,31 @@ def headline(folder: str | Path, top: int = 8) -> str:
                        + ([fmt(g.summary()["ver_mean_ug"], ".2f")] if acc else [])
                        + [fmt(g.summary()["runtime_median_s"], ".3g")]
                        for g in ranked[:top]])
-    return "\n".join(out)
+    return out
+
+
+# The columns of a row the headline reads (what a running study keeps of each finished trial for it).
+HEADLINE_COLUMNS = (
+    "trial_id", "model", "scheme", "solver", "solver_name", "run", "reference", "reference_error_arcsec", "status",
+    "message", "success", "converged", "fun", "nfev", "runtime_s", "names", "err", "err_proj", "crlb", "crlb_presets",
+    "observable", "ver_mean_ug", "ver_sd_ug", "ver_truth_mean_ug", "nav_max_nmi", "nav_mean_nmi")
+
+
+def write_progress(folder: str | Path, spec: dict, rows: list[dict], expected: int, elapsed_s: float) -> Path:
+    """``report.md`` while a study runs: how far it is and the headline tables of the trials finished so far
+    (rows cut to :data:`HEADLINE_COLUMNS`); the full report replaces it when the study ends."""
+    failed = sum(r["status"] != "ok" for r in rows)
+    runs = len({(r["model"], r["scheme"], r["run"]) for r in rows})
+    L = [f"# Study `{spec['name']}`: in progress", "",
+         f"{len(rows)} of {expected} trials finished ({failed} failed; {runs} model × scheme × run data sets "
+         f"begun), {elapsed_s:.0f} s into this session. The tables below rank what has finished so far; this "
+         "page is rewritten while the study runs and replaced by the full report when it ends (a stopped study "
+         "resumes where it stopped when run again).", ""]
+    L += headline_lines(spec, rows)
+    path = Path(folder) / "report.md"
+    with atomic_write(path, overwrite=True) as fh:
+        fh.write("\n".join(L) + "\n")
+    return path
 
 
 def overview(cs) -> list[str]:
@@ -314,7 +343,9 @@ def provenance(sessions: list[dict]) -> dict:
 def settings(spec: dict, rows: list[dict]) -> list[dict]:
     """Per solver configuration: its registry name, every option as it ran (defaults filled in), its budget,
     and the median iterations and evaluations its trials used (the iteration count a solver derives from the
-    budget, as run), with the share of trials the final target stopped (studies.trial.FINAL_GAP)."""
+    budget, as run), with the share of trials the final target stopped (studies.trial.FINAL_GAP) and the share
+    of trials each reason ended (``stop_reasons``: solvers.base.STOP_REASONS, e.g. the stagnation rule,
+    studies.trial.STAGNATION)."""
     import solvers
 
     out = []
@@ -330,11 +361,14 @@ def settings(spec: dict, rows: list[dict]) -> list[dict]:
         nit = [r["nit"] for r in mine if r.get("nit") is not None and not (r.get("at_target") and not r["nit"])]
         nfev = [r["nfev"] for r in mine if r.get("nfev") is not None]
         stopped = [r.get("at_target") for r in mine if r.get("at_target") is not None]
+        reasons = [r["stop_reason"] for r in mine if r.get("stop_reason")]
         out.append({"solver": label, "name": c["name"], "options": config, "budget": c.get("budget", {}),
                     "reference": bool(c.get("reference")),
                     "iterations_median": float(np.median(nit)) if nit else None,
                     "evaluations_median": float(np.median(nfev)) if nfev else None,
-                    "stopped_at_target": float(np.mean(stopped)) if stopped else None})
+                    "stopped_at_target": float(np.mean(stopped)) if stopped else None,
+                    "stop_reasons": {k: reasons.count(k) / len(reasons) for k in sorted(set(reasons),
+                                                                                   key=STOP_ORDER.index)}})
     return out
 
 
@@ -342,19 +376,44 @@ def _options_text(o: dict) -> str:
     return ", ".join(f"{k}={v:g}" if isinstance(v, float) else f"{k}={v}" for k, v in o.items()) or "–"
 
 
+# The order of the stop reasons in the tables (solvers.base.STOP_REASONS), and how the tables name them.
+STOP_ORDER = ("target", "own", "stagnation", "budget", "time", "callback", "error")
+STOP_TEXT = {"target": "final target", "own": "own criteria", "stagnation": "stagnation", "budget": "budget",
+             "time": "time budget", "callback": "callback", "error": "error"}
+
+
+def stop_text(reasons: dict) -> str:
+    """``{"budget": 0.6, "stagnation": 0.4}`` as "budget 60 %, stagnation 40 %" (most frequent first)."""
+    parts = sorted(reasons.items(), key=lambda kv: (-kv[1], STOP_ORDER.index(kv[0])))
+    return ", ".join(f"{STOP_TEXT[k]} {100 * v:.0f} %" for k, v in parts) or "–"
+
+
 def settings_section(st: list[dict]) -> list[str]:
+    rule = _stagnation()
     L = ["## Solver settings", "",
          "Every option as the trials ran it (defaults filled in), the budget, and the median iterations and "
          "evaluations per calibration; *stopped at target*: share of trials that stopped once their cost was "
          f"within {_final_gap():g} of the data's optimum (COCO's final target; the anytime record is flat beyond "
-         "it, so no table changes).", ""]
-    L += md_table(["solver", "options", "budget", "iterations (median)", "evaluations (median)", "stopped at target"],
+         "it, so no table changes); *ended by*: why the trials ended, as shares: the *final target*, the solver's "
+         "*own criteria* (its tolerances, pycma's criteria, its iteration count), the *budget*, or "
+         + (f"the *stagnation* rule (solvers that take it: the best cost improved by no more than {rule.rtol:g} of "
+            f"itself over the last {100 * rule.share:g} % of the evaluation budget, of each stage's inside staged:)."
+            if rule is not None else "the stagnation rule (off in this study's code).") + "", ""]
+    L += md_table(["solver", "options", "budget", "iterations (median)", "evaluations (median)", "stopped at target",
+                   "ended by"],
                   [[f"`{x['solver']}`", _options_text(x["options"]),
                     ", ".join(f"{k} {v:,}" if isinstance(v, int) else f"{k} {v}" for k, v in x["budget"].items())
                     or "solver's default",
                     fmt(x["iterations_median"], ",.0f"), fmt(x["evaluations_median"], ",.0f"),
-                    "–" if x["stopped_at_target"] is None else f"{100 * x['stopped_at_target']:.0f} %"] for x in st])
+                    "–" if x["stopped_at_target"] is None else f"{100 * x['stopped_at_target']:.0f} %",
+                    stop_text(x.get("stop_reasons") or {})] for x in st])
     return L
+
+
+def _stagnation():
+    from .trial import STAGNATION
+
+    return STAGNATION
 
 
 def _final_gap() -> float:
@@ -435,7 +494,7 @@ def write_report(folder: str | Path, workers: int | None = None) -> Path:
     has_nav = any(r.get("nav_max_nmi") is not None for r in rows)
     with render:
         cis = {id(g): anytime.group_ci(g, spec["seed"]) for g in gs}
-        L = preamble(spec, rows, spec_hash, presets, _final_gap())
+        L = preamble(spec, rows, spec_hash, presets, _final_gap(), _stagnation())
         if len(cs) > 1:
             L += _overview_section(cs, presets)
         paired_lines, paired_recs = paired_section(cs, presets)
@@ -472,7 +531,9 @@ def write_report(folder: str | Path, workers: int | None = None) -> Path:
            "study": {"name": spec["name"], "spec_hash": spec_hash, "runs": spec["runs"], "seed": spec["seed"],
                      "trials": len(rows), "expected": expected, "failed": sum(r["status"] != "ok" for r in rows),
                      "wall_s": wall, "report_s": t_rep, "ranked_on": "accuracy_presets" if presets else "accuracy",
-                     "final_gap": _final_gap()},
+                     "final_gap": _final_gap(),
+                     "stagnation": None if _stagnation() is None else {"share": _stagnation().share,
+                                                                       "rtol": _stagnation().rtol}},
            "provenance": prov, "records": summary, "paired": paired_recs, "settings": st}
     # strict JSON: a value that could not be computed (no presets, no navigation) is null, not NaN
     files = {"report.md": "\n".join(L), "summary.json": json.dumps(_json_safe(doc), indent=1, allow_nan=False),

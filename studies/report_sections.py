@@ -119,7 +119,8 @@ def ranked_on(presets: bool) -> str:
             else "RMSE/CRLB (the data's bound)")
 
 
-def preamble(spec: dict, rows: list[dict], spec_hash: str, presets: bool, final_gap: float) -> list[str]:
+def preamble(spec: dict, rows: list[dict], spec_hash: str, presets: bool, final_gap: float,
+             stagnation=None) -> list[str]:
     """The report's head: the study, its trials and settings, a placeholder line "@@WALL@@" for the wall
     time (known only at the end), and how to read the tables."""
     expected = spec["runs"] * len(spec["models"]) * len(spec["schemes"]) * len(spec["solvers"])
@@ -177,7 +178,11 @@ def preamble(spec: dict, rows: list[dict], spec_hash: str, presets: bool, final_
         "*Runtime*: solver time per calibration. *Evaluations*: evaluations of the cost over the whole data set "
         "per calibration; a Jacobian counts as one (so a Levenberg-Marquardt fit's few evaluations are residual "
         "vectors and Jacobians together), and a trial stops once its cost is within "
-        f"{final_gap:g} of its data's optimum, so a fast method uses far fewer than its budget. "
+        f"{final_gap:g} of its data's optimum, so a fast method uses far fewer than its budget"
+        + (f"; a trial whose solver takes the stagnation rule (CMA-ES, in staged:'s stages too, and mealpy's "
+           f"optimisers) also ends once its best cost has improved by no more than {stagnation.rtol:g} of itself "
+           f"over the last {100 * stagnation.share:g} % of its budget (*ended by* in the solver settings). "
+           if stagnation is not None else ". ") +
         "*Navigation*: position error after the hours of static navigation, in nautical miles (nmi). "
         f"*value [lo, hi]* after the share at the noise floor, RMSE/CRLB and the median runtime: "
         f"{100 * anytime.LEVEL:.0f} % percentile "

@@ -29,6 +29,8 @@ SCALAR = [
     ("ver_truth_mean_ug", "REAL"), ("nav_max_nmi", "REAL"), ("nav_mean_nmi", "REAL"), ("f_opt", "REAL"),
     # the evaluation budget, the final-target cost (trial.FINAL_GAP) and whether reaching it stopped the trial
     ("max_evals", "INTEGER"), ("target_f", "REAL"), ("at_target", "INTEGER"),
+    # why the solve ended (solvers.base.STOP_REASONS: budget, target, own, stagnation, ...); nfev: evaluations used
+    ("stop_reason", "TEXT"),
 ]
 # anytime: [evaluations, best cost, accuracy] on the trace's grid (studies.trial.anytime_on_grid); anytime_s: the
 # solver time (s) at each of its points (studies.scoring.seconds_on_grid)

@@ -36,6 +36,7 @@ from optcal.model import get_model
 from optcal.presets import PAPER_TRUTH, draw_truth, manufacturer_presets, manufacturer_sd
 from optcal.problem import CalibrationProblem, Counter
 from optcal.simulate import simulate
+from solvers.base import Stagnation
 
 from .scoring import accuracy_of as accuracy_of  # re-exported: the names studies.trial has always had
 from .scoring import anytime_on_grid, crlb_with_presets, seconds_on_grid
@@ -53,6 +54,15 @@ CONVERGED_QUANTILE = 0.999  # χ² quantile of the final cost that counts as "re
 # optimum (f_opt/σ² is about the degrees of freedom, 12-24 here), far below the accuracy's printed digits.
 # Before this, staged CMA-ES spent most of its 14,600 evaluations a calibration after it had converged.
 FINAL_GAP: float | None = 1e-8  # None: no early stop (the tests' reference runs)
+# The stagnation rule (solvers.base.Stagnation): a trial whose solver takes it (Solver.stops_on_stagnation: CMA-ES,
+# inside staged:'s stages too, and mealpy's optimisers) ends once its best cost has improved by no more than
+# 1e-5 of itself over the last tenth of its evaluation budget (of each stage's budget inside staged:). 1e-5 of
+# the cost is Δχ² ≈ 1e-4 at the noise floor (f/σ² is about the degrees of freedom, 12-24 here): no accuracy
+# digit moves, and every cost target of the anytime analyses (gaps down to 1e-3) that a run meets it meets
+# before such a stretch. The solvers whose best cost stays flat for long stretches and then improves again
+# (the swarms, nevergrad's TwoPointsDE, NLopt's global methods, differential evolution) do not take it:
+# docs/performance.md, "Stopping at convergence", gives the measurement. None: no rule.
+STAGNATION: Stagnation | None = Stagnation(share=0.1, rtol=1e-5)
 NAV_POINTS = 61
 
 
@@ -100,11 +110,14 @@ def trial_id(model: str, scheme: str, label: str, run: int) -> str:
 
 
 def trials(spec: Spec) -> list[Trial]:
-    """The study's trials in a fixed order: model, scheme, run, solver."""
+    """The study's trials in a fixed order: run, model, scheme, solver. Run-first, so that every model ×
+    scheme of the report has results from the first minutes of a study on (the headline table written while
+    it runs); the solvers of one run, model and scheme stay together, sharing their World. Each trial carries
+    its own seeds: the order changes no result."""
     out = []
-    for model in spec.models:
-        for scheme in spec.schemes:
-            for run in range(spec.runs):
+    for run in range(spec.runs):
+        for model in spec.models:
+            for scheme in spec.schemes:
                 for cfg in spec.solvers:
                     out.append(Trial(
                         trial_id(model, scheme, cfg.label, run), run, model, scheme, cfg, spec.seed, spec.truth,
@@ -332,8 +345,10 @@ def run_trial(t: Trial) -> dict:
         budget = trial_budget(cfg, solver, None if cfg.reference else w.f_opt)
         row["max_evals"] = (budget or {}).get("max_evals", solver.default_budget)
         row["target_f"] = final_target(None if cfg.reference else w.f_opt)
-        res = solver.solve(problem, budget=budget, rng=rng)
+        # a turntable fit (reference) minimises another cost: it runs as configured
+        res = solver.solve(problem, budget=budget, rng=rng, stagnation=None if cfg.reference else STAGNATION)
         row["at_target"] = int(problem.counter.stopped == "target cost reached")
+        row["stop_reason"] = res.stop_reason
         x_est = np.asarray(res.x_full, float)
         if not np.all(np.isfinite(x_est)) or not np.isfinite(res.fun):
             raise FloatingPointError(f"solver returned a non-finite result ({res.message})")

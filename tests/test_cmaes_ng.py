@@ -197,6 +197,6 @@ def test_solvers_listing_names_the_ng_family(capsys):
 
 def test_solvers_json_lists_the_family_with_its_options(capsys):
     assert main(["solvers", "--json"]) == 0
-    fam = json.loads(capsys.readouterr().out)["families"]
-    assert [f["prefix"] for f in fam] == ["ng"]
-    assert fam[0]["options"]["batch"]["default"] == 0 and fam[0]["available"] is True
+    fam = {f["prefix"]: f for f in json.loads(capsys.readouterr().out)["families"]}
+    assert sorted(fam) == ["mealpy", "ng"]  # mealpy's family: tests/test_mealpy.py
+    assert fam["ng"]["options"]["batch"]["default"] == 0 and fam["ng"]["available"] is True

@@ -1,8 +1,10 @@
 """Conformance suite: every registered solver against the Solver contract (docs/design.md §10).
 
 Parametrised over ``solvers.names()`` (built-in modules, ``register_variant`` names and entry-point
-plugins alike) plus two wrapper compositions and two members of the ``ng:`` family (nevergrad's NGOpt and
-TwoPointsDE), so a new solver gets every test here by registering.
+plugins alike) plus two wrapper compositions, two members of the ``ng:`` family (nevergrad's NGOpt and
+TwoPointsDE) and a sample of the ``mealpy:`` family (grey wolf, whale, Harris hawks: population-wide moves
+evaluated in batches; SHADE: a differential evolution; PSO: an optimiser that makes its members itself), so a
+new solver gets every test here by registering.
 A solver whose ``is_available()`` is False is skipped with its own message.
 
 The setting: a well-posed 24-position ``nonlinear12`` problem (truth drawn with a fixed seed, 10 µg noise
@@ -57,7 +59,8 @@ CALLBACK_BUDGET = 2001
 TOL = {"local": 1e-9, "metaheuristic": 0.5, "global": 0.5, "convex": 1e-3, "staged": 0.5}
 WRAPPED = {"staged:scipy-lm": {}, "mcs:scipy-lm": {"runs": 3}}
 # Members of family prefixes (names in another library), which solvers.names() does not list one by one.
-FAMILY_MEMBERS = {"ng:NGOpt": {}, "ng:TwoPointsDE": {}}
+FAMILY_MEMBERS = {"ng:NGOpt": {}, "ng:TwoPointsDE": {}, "mealpy:GWO": {}, "mealpy:WOA": {}, "mealpy:HHO": {},
+                  "mealpy:SHADE": {}, "mealpy:PSO": {}}
 LINEAR = ("scale", "bias", "misalignment")
 
 NAMES = sorted(set(solvers.names()) | set(WRAPPED) | set(FAMILY_MEMBERS))

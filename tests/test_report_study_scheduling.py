@@ -50,8 +50,8 @@ def test_the_last_two_runs_go_one_by_one_longest_first_after_chunks_of_consecuti
     tasks = trials(load("compare").quick())  # 41 configurations × 2 models × 2 schemes × 10 runs
     cs = schedule(tasks, 2)
     assert sorted(t.id for c in cs for t in c) == sorted(t.id for t in tasks)  # every trial once
-    head, tail = tasks[:-82], tasks[-82:]  # the last two runs: seed15, 36 positions, runs 8 and 9
-    assert {(t.model, t.scheme, t.run) for t in tail} == {("seed15", "36", 8), ("seed15", "36", 9)}
+    head, tail = tasks[:-82], tasks[-82:]  # the last two data sets (trials go run by run): run 9, seed15, 24 and 36
+    assert {(t.model, t.scheme, t.run) for t in tail} == {("seed15", "24", 9), ("seed15", "36", 9)}
     assert cs[:-82] == chunks(head, 2)
     single = [c[0] for c in cs[-82:]]
     assert all(len(c) == 1 for c in cs[-82:])

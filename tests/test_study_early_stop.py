@@ -69,10 +69,13 @@ def both(tmp_path_factory):
     spec = load(d / "s.toml")
     with pytest.MonkeyPatch.context() as mp:
         mp.setattr(trial, "FINAL_GAP", None)
+        mp.setattr(trial, "STAGNATION", None)  # the stop at the final target alone (tests/test_study_stagnation.py)
         trial._WORLDS.clear()
         full = _rows(spec, d / "full")
     trial._WORLDS.clear()
-    return full, _rows(spec, d / "stop")
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setattr(trial, "STAGNATION", None)
+        return full, _rows(spec, d / "stop")
 
 
 def test_accuracy_columns_are_unchanged_trial_by_trial(both):
