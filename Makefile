@@ -26,11 +26,12 @@ run-quick: $(STAMP)
 	$(VENV)/bin/optcal study run compare --quick --executor processes --workers $$(nproc 2>/dev/null || echo 2) \
 		--out out/compare-quick
 
-# ruff, then the layer contracts of pyproject.toml (CONTRIBUTING.md, "Layers"), then the tests.
+# ruff, then the layer contracts of pyproject.toml (CONTRIBUTING.md, "Layers"), then the tests on every core
+# (pytest-xdist; a worker that finishes early takes work from the other).
 test: $(STAMP)
 	$(PY) -m ruff check optcal solvers studies tests
 	$(VENV)/bin/lint-imports --no-cache
-	$(PY) -m pytest
+	$(PY) -m pytest -n auto --dist worksteal
 
 bench: $(STAMP)
 	$(PY) -m pytest tests/benchmarks --benchmark-enable --benchmark-only --benchmark-autosave
