@@ -114,6 +114,28 @@ def test_big_endian_cdr_reads_as_little_endian(tmp_path):
     assert all(raw[1] == 0 for raw in _messages(tmp_path / "out")["/imu"])
 
 
+@pytest.mark.parametrize("storage", ("ros1", "mcap"))
+def test_a_topic_of_another_definition_is_refused(tmp_path, storage):
+    """A topic recorded as sensor_msgs/msg/Imu with a definition whose digest is not the standard one (an MD5 sum,
+    ROS 1; a type hash, ROS 2) is refused, naming it."""
+    from rosbags.rosbag1 import Writer as Writer1
+    from rosbags.rosbag2 import StoragePlugin
+    from rosbags.rosbag2 import Writer as Writer2
+
+    t_ns, acc, gyro = _data(20)
+    ts = R.typestore(storage)
+    path = tmp_path / ("b.bag" if storage == "ros1" else "b")
+    msgdef = ts.generate_msgdef(R.IMU, ros_version=1 if storage == "ros1" else 2)[0]
+    writer = Writer1(path) if storage == "ros1" else Writer2(path, version=9, storage_plugin=StoragePlugin.MCAP)
+    with writer:
+        c = (writer.add_connection("/imu", R.IMU, msgdef=msgdef, md5sum="0" * 32) if storage == "ros1" else
+             writer.add_connection("/imu", R.IMU, msgdef=msgdef, rihs01="RIHS01_" + "0" * 64))
+        for s, a, g in zip(t_ns, acc, gyro):
+            writer.write(c, int(s), R.serialise(ts, storage, R.imu_message(ts, storage, int(s), a, g), R.IMU))
+    with pytest.raises(InputError, match=r"topic /imu's sensor_msgs/msg/Imu is not the standard definition"):
+        read_recording(path)
+
+
 def test_header_stamps_unset_are_replaced_by_the_bags(tmp_path):
     t_ns, acc, gyro = _data(300)
     ts = R.typestore("mcap")
@@ -373,6 +395,7 @@ def bad(tmp_path_factory):
     cut.write_bytes(files["ok"].read_bytes()[: files["ok"].stat().st_size // 2])
     files["cut"] = cut
     mcap = R.imu_bag(d / "m", "mcap", t_ns, acc, gyro)
+    files["mcap"] = mcap
     cutm = d / "cut.mcap"
     cutm.write_bytes(_bare(mcap, "mcap").read_bytes()[:5000])
     files["cut_mcap"] = cutm
@@ -429,7 +452,9 @@ def test_apply_refuses_what_it_cannot_write(bad, tmp_path, imu_file, capsys):
              "has that topic already"),
             (["apply", imu_file, bad["ok"], "-o", tmp_path / "x.csv", "--output-topic", "/new"],
              "drop --output-topic"),
-            (["apply", imu_file, bad["ok"], "-o", tmp_path / "x.bag", "--output-topic", "new"], "starting with /")):
+            (["apply", imu_file, bad["ok"], "-o", tmp_path / "x.bag", "--output-topic", "new"], "starting with /"),
+            (["apply", imu_file, bad["ok"], "-o", tmp_path / "x.mcap"], "would change the bag's storage (ROS 1 bag)"),
+            (["apply", imu_file, bad["mcap"], "-o", tmp_path / "x.db3"], "name it .mcap or a folder")):
         code, out, err = run_cli(argv, capsys)
         assert code == 2 and len(err.strip().splitlines()) == 1 and fragment in err, err
     assert list(tmp_path.iterdir()) == []

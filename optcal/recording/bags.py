@@ -569,7 +569,13 @@ def write_calibrated(src, dst, *, topic: str | None, t0_ns: int,
 
     src, dst = Path(src), Path(dst)
     storage = storage_of(src)
-    one_file = storage != "ros1" and dst.suffix.lower() in (".mcap", ".db3")
+    suffix = dst.suffix.lower()
+    want = {"ros1": (".bag",), "mcap": (".mcap", ""), "sqlite3": (".db3", "")}[storage]
+    if suffix not in want and (suffix in (".bag", ".mcap", ".db3") or storage == "ros1"):
+        named = want[0] + (" or a folder without a suffix" if len(want) > 1 else "")
+        raise InputError(f"the output {dst} would change the bag's storage ({FORMAT[storage]}), which apply keeps: "
+                         f"name it {named}, or .csv for a table")
+    one_file = storage != "ros1" and suffix in (".mcap", ".db3")
     reader = _reader(src, storage)
     try:
         topics = topics_of(reader)
