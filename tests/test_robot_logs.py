@@ -277,6 +277,15 @@ def test_imu_gives_the_csv_twins_parameters(twins, fmt, capsys):
     assert abs(g["parameters"]["K_x"] - x[0]) < 4 * g["stderr"]["K_x"]
 
 
+def test_discover_reads_a_log_as_the_twin(twins, capsys):
+    path, twin = twins[0]["ulog"]
+    code, log, err = run_cli(["discover", path, "--raw", "--base", "linear9", "--json"], capsys)
+    assert code == 0, err
+    code, csv, err = run_cli(["discover", twin, "--raw", "--units", "m/s2", "--base", "linear9", "--json"], capsys)
+    assert code == 0, err
+    assert json.loads(log) == json.loads(csv)
+
+
 def test_noise_and_the_python_api_read_logs_as_the_twin(twins, capsys):
     path, twin = twins[0]["mcap"]
     code, log, err = run_cli(["noise", path, "--interval", "0:3", "--gyro-units", "rad/s", "--json"], capsys)
