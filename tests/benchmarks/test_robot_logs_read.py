@@ -13,6 +13,7 @@ rosbags' own message-by-message reading for comparison (the bulk paths of optcal
 
 from __future__ import annotations
 
+import shutil
 import time
 
 import numpy as np
@@ -60,9 +61,10 @@ def hour_bag(request, tmp_path_factory):
     ts = R.typestore(storage)
     odom = R.serialise(ts, storage, R.vector_message(ts, storage, 0, [1.0, 2.0, 3.0]), R.VECTOR)
     other = [(s, odom) for s in t_ns[::10].tolist()]  # 20 Hz of another topic between the IMU's messages
-    path = R.write_bag(tmp_path_factory.mktemp(storage) / "hour", storage, {"/imu": (R.IMU, imu),
-                                                                           "/odom": (R.VECTOR, other)})
-    return storage, path, acc, gyro
+    folder = tmp_path_factory.mktemp(storage)
+    path = R.write_bag(folder / "hour", storage, {"/imu": (R.IMU, imu), "/odom": (R.VECTOR, other)})
+    yield storage, path, acc, gyro
+    shutil.rmtree(folder)  # 270 MB: not left for pytest's kept temporary folders
 
 
 def test_bench_read_an_hour_of_imu_messages(benchmark, hour_bag):
