@@ -359,6 +359,19 @@ def test_apply_writes_a_calibrated_bag_of_the_same_storage(tmp_path, storage, im
     np.testing.assert_allclose(table[:, 1:4], rec.N, rtol=1e-9)
 
 
+def test_apply_to_a_ulog_writes_a_table(twins, imu_file, tmp_path, capsys):
+    from optcal.calfile import read_calibration
+
+    path, _ = twins[0]["ulog"]
+    out = tmp_path / "flight.csv"
+    code, text, err = run_cli(["apply", imu_file, path, "-o", out, "--output-units", "m/s2"], capsys)
+    assert code == 0, err
+    rec = read_recording(path)
+    table = np.loadtxt(out, delimiter=",", skiprows=1)
+    np.testing.assert_allclose(table[:, 1:4], read_calibration(imu_file).apply(rec.N, t=rec.t) * G0, rtol=1e-9)
+    assert open(out).readline().strip() == "t,ax,ay,az,wx,wy,wz"
+
+
 def _messages(path):
     """Topic → serialised messages in the bag's order (rosbags' reader)."""
     from rosbags.rosbag1 import Reader as Reader1
