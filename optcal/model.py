@@ -25,7 +25,7 @@ from .terms import (  # noqa: F401 - re-exported
     TERMS,
     UNIT_NAMES,
     Term,
-    previous_sign,
+    previous_signs,
     user_term_error,
 )
 
@@ -38,8 +38,8 @@ class NumpyOps:
         # min(a, 0); written with `where` on the real part so the complex step passes through.
         return np.where(np.real(a) < 0, a, 0.0)
 
-    # sgn of the previous position's component (a user-defined hysteresis term, optcal.terms.Feature)
-    previous_sign = staticmethod(previous_sign)
+    # sgn of the previous pose's specific force (a user-defined hysteresis term, optcal.terms.Feature)
+    previous_signs = staticmethod(previous_signs)
 
 
 @dataclass(frozen=True)

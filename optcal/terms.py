@@ -151,6 +151,7 @@ T_CELLS = {(0, 1): "S_xz", (0, 2): "S_xy", (1, 0): "S_yz", (1, 2): "S_yx", (2, 0
 #   time2s500@xyz     bias_i += c_i·((t − t0)/500 s)²     (time<power>s<scale in s>; @xyz: each axis its own c)
 #   osc600@x          bias_x += a·sin(2π(t − t0)/600 s) + b·cos(...)   (osc<period in s>; two parameters)
 #   prevax@x          bias_x += c·sgn(A_x of the previous pose), 0 when that pose loads x by under 0.25 g
+#                     (a pose: consecutive positions within 2° of each other, e.g. an interval cut in two)
 #   temp1s5.ay@x      x output += c·((T − T̄)/5 °C)·A_y
 #
 # Numbers in names write their decimal point as 'p' (osc2p5: a period of 2.5 s), since '.' joins the factors.
@@ -159,6 +160,7 @@ T_CELLS = {(0, 1): "S_xz", (0, 2): "S_xy", (1, 0): "S_yz", (1, 2): "S_yx", (2, 0
 # for these: docs/design.md §6.2); the coefficient in physical units is c/scale^power (:meth:`Feature.physical`).
 
 PREV_DEADZONE_G = 0.25  # a previous pose loading an axis by less than this (g) leaves no sign on it
+SAME_POSE_DEG = 2.0  # consecutive positions whose directions lie within this angle are one pose
 _NUM = r"(\d+(?:p\d+)?)"
 _FACTOR = re.compile(rf"^(?:a(?P<ax>[xyz])(?P<ap>[23]?)|temp(?P<tp>[123])s{_NUM}|time(?P<sp>[123])s(?P<ss>\d+(?:p\d+)?)"
                      rf"|osc(?P<per>\d+(?:p\d+)?)|preva(?P<prev>[xyz]))$")
@@ -178,16 +180,25 @@ def _number(text: str) -> float:
     return float(text.replace("p", "."))
 
 
-def previous_sign(a):
-    """sgn of the previous position's component ``a`` (positions along the last axis; the real part of a
-    complex step), 0 where that pose loaded the axis by less than :data:`PREV_DEADZONE_G` and for the first."""
+def previous_signs(A):
+    """sgn of the previous pose's specific force on each axis, (3, ..., n) for components ``A = (A_x, A_y, A_z)``
+    with the positions along their last axis (real parts: a complex step passes through). A pose is a run of
+    consecutive positions within :data:`SAME_POSE_DEG` of each other (an interval cut in parts, a pose held
+    twice in a row), so the previous pose of each is the run before its own; 0 on an axis that pose loaded by
+    less than :data:`PREV_DEADZONE_G`, and 0 for the first pose."""
     import numpy as np
 
-    re_ = np.real(a)
-    s = np.where(np.abs(re_) >= PREV_DEADZONE_G, np.sign(re_), 0.0)
-    out = np.zeros(s.shape)
-    out[..., 1:] = s[..., :-1]
-    return out
+    a = np.stack([np.real(np.asarray(c)) for c in A])
+    n = a.shape[-1]
+    u = a / np.linalg.norm(a, axis=0, keepdims=True)
+    cos = np.sum(u[..., 1:] * u[..., :-1], axis=0)
+    index = np.broadcast_to(np.arange(n), cos.shape[:-1] + (n,))
+    new = np.concatenate([np.ones(cos.shape[:-1] + (1,), bool), cos < np.cos(np.radians(SAME_POSE_DEG))], axis=-1)
+    start = np.maximum.accumulate(np.where(new, index, 0), axis=-1)  # where each position's pose begins
+    before = np.maximum(start - 1, 0)
+    prev = np.take_along_axis(a, np.broadcast_to(before, a.shape), axis=-1)
+    s = np.where(np.abs(prev) >= PREV_DEADZONE_G, np.sign(prev), 0.0)
+    return np.where(start > 0, s, 0.0)
 
 
 @dataclass(frozen=True)
@@ -263,7 +274,7 @@ class Feature:
     def values(self, A, ctx, kind: str = "", ops=None):
         """φ at specific force components ``A = (A_x, A_y, A_z)`` (arrays over positions, or an evaluator's
         symbols) and context ``ctx`` (its ``dtemp`` and ``dt``). The previous pose's sign needs the positions
-        in order as NumPy arrays (``ops.previous_sign``)."""
+        in order as NumPy arrays (``ops.previous_signs``: :func:`previous_signs`)."""
         v = 1.0
         for k, e in enumerate(self.exps):
             for _ in range(e):
@@ -276,13 +287,13 @@ class Feature:
                 raise InputError(f"term {self.token()} needs the data's column {column}; add it or drop the term")
             v = v * self.weight(ctx.dtemp, ctx.dt, kind)
         if self.prev is not None:
-            sign = getattr(ops, "previous_sign", None)
+            sign = getattr(ops, "previous_signs", None)
             if sign is None:
                 from .errors import InputError
 
                 raise InputError(f"term {self.token()} needs the previous pose, which this evaluator cannot form "
                                  "(it has no order of positions); fit it with lm, scipy-lm or another NumPy solver")
-            v = v * sign(A[self.prev])
+            v = v * sign(A)[self.prev]
         return v
 
     # -- text -------------------------------------------------------------------------------------------

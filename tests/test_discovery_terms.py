@@ -17,7 +17,7 @@ from optcal.errors import InputError
 from optcal.model import TERMS, Context, NumpyOps, get_model
 from optcal.presets import draw_truth
 from optcal.problem import CalibrationProblem
-from optcal.terms import previous_sign
+from optcal.terms import previous_signs
 
 ALL = "linear9+ax.ay@z+prevax@x+osc600@xyz+temp2s5@x+ay.temp1s5@x+ax.az2@z+time3s500@y"
 
@@ -94,9 +94,13 @@ def test_the_dictionary_evaluates_what_the_terms_define():
                 assert np.allclose(phi[:, col], v, rtol=1e-13, atol=1e-15), atom.term
                 col += 1
     assert col == phi.shape[1]
-    # the previous pose: its sign on each axis, none below a quarter of g and none for the first pose
-    s = previous_sign(np.array([0.9, -0.1, -0.6, 0.3]))
-    assert s.tolist() == [0.0, 1.0, 0.0, -1.0]
+    # the previous pose: its sign on each axis, none below a quarter of g and none for the first pose; positions
+    # within 2° in a row are one pose (the third is the second's pose held on: its previous pose is the first)
+    A = np.array([[0.9, 0.0, 0.436], [-0.1, 0.6, -0.794], [-0.1, 0.601, -0.793], [0.3, -0.9, 0.316]])
+    A /= np.linalg.norm(A, axis=1, keepdims=True)
+    s = previous_signs(A.T)
+    assert s[0].tolist() == [0.0, 1.0, 1.0, 0.0] and s[1].tolist() == [0.0, 0.0, 0.0, 1.0]
+    assert s[2].tolist() == [0.0, 1.0, 1.0, -1.0]
 
 
 def test_the_calibration_file_keeps_a_user_term(tmp_path, capsys):

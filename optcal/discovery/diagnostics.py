@@ -33,10 +33,10 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..distributions import chi2_sf, f_sf
-from ..terms import previous_sign
+from ..terms import SAME_POSE_DEG, previous_signs
 from .dictionary import RANK_RTOL, model_basis, nice_scale, project_out
 
-REPLICATE_DEG = 2.0  # positions whose measured directions lie within this angle are replicates of one pose
+REPLICATE_DEG = SAME_POSE_DEG  # positions whose directions lie within this angle are replicates of one pose
 # Fewer degrees of freedom of pure error make no floor: its own scatter (χ² on so few) would decide the verdict
 MIN_REPLICATE_DOF = 4
 OVERSAMPLE = 10  # frequencies per independent one in the periodogram
@@ -357,7 +357,7 @@ def diagnose(fit, data, floor: Floor, alpha: float, ctx) -> Diagnostics:
         why = "no time column" if ctx.dt is None else "the time does not change"
         run("time trend", "", None, None, note=why)
         run("periodicity", "", None, None, note=why)
-    signs = previous_sign(A.T).T  # (n, 3)
+    signs = previous_signs(A.T).T  # (n, 3)
     run("order", "â_i·sgn(A_k of the previous pose)",
         np.column_stack([u[:, [i]] * signs for i in range(3)]), np.arange(n))
     d = None if data.n_samples is None else np.asarray(data.n_samples, float)

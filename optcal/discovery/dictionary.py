@@ -37,7 +37,7 @@ import numpy as np
 from ..distributions import f_sf
 from ..gauge import RTOL
 from ..model import AXES, TERMS, Context, Model
-from ..terms import OUTPUTS, Feature, previous_sign
+from ..terms import OUTPUTS, Feature, previous_signs
 
 MONOMIAL_ORDERS = (2, 3)  # products and powers of the axes on an output (the "up to order 3")
 CONTEXT_POWERS = (1, 2, 3)  # powers of the temperature and time offsets
@@ -272,7 +272,7 @@ def feature_values(atoms: list[Atom], A: np.ndarray, ctx: Context) -> tuple[np.n
         phi = phi * np.where(osc, np.where(L["sin"], np.sin(arg), np.cos(arg)), 1.0)
     prev = L["prev"] >= 0
     if prev.any():
-        signs = previous_sign(A.T)  # (3, n)
+        signs = previous_signs(A.T)  # (3, n)
         phi = phi * np.where(prev, signs[np.maximum(L["prev"], 0)].T, 1.0)
     return phi.reshape(n, -1), L
 

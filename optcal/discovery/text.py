@@ -53,9 +53,11 @@ def step_lines(k: int, s) -> list[str]:
 
     c = s.chosen
     what = f" ({TERMS[s.term].description})" if s.source == "dictionary" else ""
-    lines = [f"step {k}: add {s.term}{what}: RMS {s.before.rms * U:.3f} → {s.after.rms * U:.3f} µg, "
+    verb = f"replace {s.replaces} by" if s.replaces else "add"
+    against = f" (the test against the model without {s.replaces}:" if s.replaces else ","
+    lines = [f"step {k}: {verb} {s.term}{what}: RMS {s.before.rms * U:.3f} → {s.after.rms * U:.3f} µg{against} "
              f"F({c.q},{c.dof}) = {c.f_statistic:.4g}, p = {c.p_value:.3g} (threshold "
-             f"{s.p_threshold:.3g}), ΔBIC = {c.delta_bic:.2f}, LR = {c.lr_statistic:.2f}"]
+             f"{s.p_threshold:.3g}), ΔBIC = {c.delta_bic:.2f}, LR = {c.lr_statistic:.2f}" + (")" if s.replaces else "")]
     units = s.after.model.units(s.after.problem.data.units)
     for n, v in s.parameters.items():
         se = s.stderr[n]
@@ -86,8 +88,10 @@ def dictionary_lines(report, k0: int) -> list[str]:
         parts.append(f"powers of (T − T̄)/{d['temp_scale_C']:g} °C")
     if d["time_scale_s"]:
         parts.append(f"powers of (t − t0)/{d['time_scale_s']:g} s")
-    if d["periods_s"]:
-        parts.append(f"sinusoids of {', '.join(f'{p:g}' for p in d['periods_s'])} s (over "
+    rounds = [r for r in d.get("periods_by_round_s", [d["periods_s"]]) if r]
+    if rounds:
+        each = "; then ".join(", ".join(f"{p:g}" for p in r) + " s" for r in rounds)
+        parts.append(f"sinusoids at the periodogram's peaks, round by round: {each} (over "
                      f"{d['n_independent_frequencies']} independent frequencies)")
     parts.append("the previous pose's signs")
     rule = (f"a feature is added when p < α/k (k = {d['k']:.1f}) and ΔBIC < {report.bic_threshold:g}" if d["k"] > 0
@@ -98,9 +102,8 @@ def dictionary_lines(report, k0: int) -> list[str]:
         lines += step_lines(j, s)
     for r in report.removed:
         if r.kind == "replaced":
-            lines.append(f"replaced {r.term} by {r.after} (an exchange: the model with {r.after} instead is better by "
-                         "BIC)")
-        elif r.kind == "narrowed":
+            continue  # said by the step that replaced it
+        if r.kind == "narrowed":
             lines.append(f"narrowed {r.term} to {r.after} (the other outputs: p = {r.p_value:.3g} together, ≥ α)")
         else:
             lines.append(f"removed {r.term}: p = {r.p_value:.3g} once {r.after} is in (≥ α = {report.alpha:g})")

@@ -192,6 +192,7 @@ class _DictionarySearch:
         self.partial: list[Step] = []
         self.last_round: list = []
         self.last: Dictionary | None = None
+        self.periods: list[tuple[float, ...]] = []  # each round's candidate periods
         self.k = 0.0
         self.closes_gap: bool | None = None
         self.gap_p: float | None = None
@@ -232,6 +233,7 @@ class _DictionarySearch:
             else:
                 d, Q, scores, self.k, threshold = self._round(current)
                 self.last = d
+                self.periods.append(d.periods)
                 pick = best(scores)
                 if pick is None or not (pick.p_value < threshold and pick.delta_bic < self.bic):
                     self.last_round = scores
@@ -357,6 +359,7 @@ class _DictionarySearch:
                 "temp_scale_C": None if d is None else d.temp_scale,
                 "time_scale_s": None if d is None else d.time_scale,
                 "periods_s": [] if d is None else list(d.periods),
+                "periods_by_round_s": [list(p) for p in self.periods],
                 "n_independent_frequencies": 0 if d is None else d.n_independent_frequencies,
                 "notes": [] if d is None else d.notes}
 

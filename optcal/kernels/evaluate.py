@@ -29,7 +29,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from ..terms import PREV_DEADZONE_G
+from ..terms import PREV_DEADZONE_G, SAME_POSE_DEG
 from ._terms import NQ, forward_all, forward_dA, forward_dq, forward_seed, linear_part
 
 # The integer buffer: sizes and flags, then the slots of the model's parameters, the free indices and the user
@@ -121,15 +121,27 @@ def _power(a, e):
     return v
 
 
+COS_SAME_POSE = float(np.cos(np.radians(SAME_POSE_DEG)))
+
+
 @njit(**INLINE)
 def _previous_sign(src, k, j):
-    """sgn of the previous position's component k of ``src`` (3+, n), 0 below the dead zone and for the first
-    (optcal.terms.previous_sign)."""
+    """sgn of component k of the previous pose's specific force in ``src`` (3+, n): the position before the run
+    of positions within SAME_POSE_DEG of each other that holds j; 0 below the dead zone and for the first pose
+    (optcal.terms.previous_signs)."""
     if k < 0:
         return 1.0
-    if j == 0:
+    i = j
+    while i > 0:
+        a0, a1, a2 = src[0, i], src[1, i], src[2, i]
+        b0, b1, b2 = src[0, i - 1], src[1, i - 1], src[2, i - 1]
+        c = (a0 * b0 + a1 * b1 + a2 * b2) / np.sqrt((a0 * a0 + a1 * a1 + a2 * a2) * (b0 * b0 + b1 * b1 + b2 * b2))
+        if c < COS_SAME_POSE:
+            break
+        i -= 1
+    if i == 0:
         return 0.0
-    a = src[k, j - 1]
+    a = src[k, i - 1]
     if abs(a) < PREV_DEADZONE_G:
         return 0.0
     return 1.0 if a > 0 else -1.0
