@@ -261,14 +261,15 @@ def test_calibrate_raw_gives_the_csv_twins_parameters(twins, fmt, capsys):
 
 @pytest.mark.parametrize("fmt", FORMATS)
 def test_imu_gives_the_csv_twins_parameters(twins, fmt, capsys):
-    """optcal imu on the log (its gyroscope found with its accelerometer, no --gyro-columns) and on the twin: both
+    """optcal imu on the log (its gyroscope found with its accelerometer, in the rad/s the log defines: neither
+    --gyro-columns nor --gyro-units) and on the twin (the gyroscope's columns those its header names): both
     sensors' parameters to 1e-9, the gyroscope's near the truth."""
     path, twin = twins[0][fmt]
     x = twins[1]
-    code, log, err = run_cli(["imu", path, "--gyro-units", "rad/s", "--model", "linear9", "--json"], capsys)
+    code, log, err = run_cli(["imu", path, "--model", "linear9", "--json"], capsys)
     assert code == 0, err
-    code, csv, err = run_cli(["imu", twin, "--units", "m/s2", "--gyro-columns", "gx,gy,gz", "--gyro-units", "rad/s",
-                              "--model", "linear9", "--json"], capsys)
+    code, csv, err = run_cli(["imu", twin, "--units", "m/s2", "--gyro-units", "rad/s", "--model", "linear9", "--json"],
+                             capsys)
     assert code == 0, err
     a, b = json.loads(log), json.loads(csv)
     for sensor in ("accelerometer", "gyroscope"):

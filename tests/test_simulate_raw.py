@@ -45,6 +45,22 @@ def test_calibrate_finds_the_simulated_sensor(recording, capsys):
         assert abs(P[f"b_{ax}"] - sim.acc_offset[i]) < 3 * se[f"b_{ax}"]
 
 
+def test_imu_takes_the_gyroscope_the_header_names(recording, capsys):
+    """optcal imu on the recording without --gyro-columns (its header names gx, gy, gz): both sensors fitted, the
+    gyroscope's scale factors within 4 standard errors of the simulator's (°/s of output per °/s, ×180/π per
+    rad/s); without --gyro-units, one line naming them."""
+    code, out, err = run_cli(["imu", recording, "--units", "g", "--gyro-units", "deg/s", "--model", "linear9",
+                              "--json"], capsys)
+    assert code == 0, err
+    g = json.loads(out)["gyroscope"]
+    sim = handheld_imu(np.random.default_rng(1), n_poses=24, p_reseat_still=0.0)
+    for i, ax in enumerate("xyz"):
+        assert abs(g["parameters"][f"K_{ax}"] - sim.gyro_scale[i] * 180 / np.pi) < 4 * g["stderr"][f"K_{ax}"]
+    code, out, err = run_cli(["imu", recording, "--units", "g"], capsys)
+    assert code == 2 and err.strip().splitlines() == [
+        "optcal imu: error: give the gyroscope's units with --gyro-units counts, deg/s, rad/s or volts"]
+
+
 @pytest.mark.parametrize("argv,words", [
     (["--raw", "--noise-ug", "5"], "--noise-ug is for positions"),
     (["--raw", "--poses", "3"], "--poses 3: give 6 to 1000 poses"),

@@ -18,14 +18,15 @@ HELP = "calibrate an IMU's accelerometer and gyroscope from one recording of res
 
 
 def add_arguments(p):
-    p.add_argument("data", metavar="DATA", help="raw recording with the accelerometer's columns (and the gyroscope's, "
-                   "named by --gyro-columns, unless --gyro gives them in a second file)")
+    p.add_argument("data", metavar="DATA", help="raw recording with the accelerometer's columns and the gyroscope's "
+                   "(named by its header, or by --gyro-columns), unless --gyro gives them in a second file")
     p.add_argument("--gyro", metavar="FILE", help="the gyroscope's samples in a second file with the same times "
                    "(t, gx, gy, gz per row, or as --gyro-columns names them)")
     p.add_argument("--gyro-columns", metavar="SPEC", help="the gyroscope's columns by name or 0-based index: gx,gy,gz "
-                   "in DATA, or t,gx,gy,gz in --gyro (default for --gyro: its first four columns)")
-    p.add_argument("--gyro-units", required=True, choices=("counts", "deg/s", "rad/s", "volts"),
-                   help="the gyroscope's output units")
+                   "in DATA (default: those its header names, e.g. gx or gyr_x), or t,gx,gy,gz in --gyro (default "
+                   "for --gyro: its first four columns)")
+    p.add_argument("--gyro-units", choices=("counts", "deg/s", "rad/s", "volts"),
+                   help="the gyroscope's output units (a ROS bag's or a ULog's are rad/s: the default there)")
     p.add_argument("--gyro-scale", type=float, metavar="PER_RAD_S", help="nominal gyroscope scale, output units per "
                    "rad/s (default: exact for deg/s and rad/s; for counts and volts found from the motions)")
     p.add_argument("--gyro-bias", choices=("rests", "fit"), default="rests", help="the gyroscope's bias: from the "
@@ -62,6 +63,12 @@ def run(args) -> int:
     from ..imu import calibrate_imu, check_imu_options
 
     check_seed(args.seed)
+    if args.gyro_units is None:
+        from ..recording.robotlogs import log_kind
+
+        if args.gyro is not None or log_kind(args.data) is None:
+            raise InputError("give the gyroscope's units with --gyro-units counts, deg/s, rad/s or volts")
+        args.gyro_units = "rad/s"  # sensor_msgs/Imu and PX4's sensor_gyro define them
     if args.budget is not None and args.budget < 1:
         raise InputError(f"--budget {args.budget} must be a number of evaluations of 1 or more")
     check_imu_options(gyro_scale=args.gyro_scale, gyro_bias=args.gyro_bias, g_sensitivity=args.g_sensitivity)

@@ -46,9 +46,10 @@ def read_gyro(data, acc, *, gyro=None, gyro_columns=None, units: str, rate: floa
     """The gyroscope's samples as a :class:`~optcal.recording.Recording` (its ``N`` holds them), read from the
     file ``gyro`` (times and three rates; ``gyro_columns`` names the four, "t,gx,gy,gz", or its first four
     columns are taken) or from the accelerometer's file ``data``, whose recording ``acc`` is, in the columns
-    ``gyro_columns`` ("gx,gy,gz" or a list) beside its time column. ``units``: the gyroscope's (counts, deg/s,
-    rad/s, volts). A ROS bag's or a ULog's gyroscope was read with its accelerometer: it is ``acc``'s
-    (:func:`log_gyro`)."""
+    ``gyro_columns`` ("gx,gy,gz" or a list) beside its time column, by default those its header names as the
+    gyroscope's (gx, gyr_x, GyroX, ...: the columns ``optcal calibrate`` judges stillness on). ``units``: the
+    gyroscope's (counts, deg/s, rad/s, volts). A ROS bag's or a ULog's gyroscope was read with its
+    accelerometer: it is ``acc``'s (:func:`log_gyro`)."""
     from ..recording.reading import read_recording
 
     if gyro is None and acc.reading.get("topic") is not None:
@@ -59,6 +60,8 @@ def read_gyro(data, acc, *, gyro=None, gyro_columns=None, units: str, rate: floa
         spec = None if cols is None else f"t={cols[0]},ax={cols[1]},ay={cols[2]},az={cols[3]}"
         return read_recording(gyro, spec, rate, label, time_unit=time_unit)
     cols = _columns(gyro_columns, 3)
+    if cols is None and all(k in acc.columns for k in ("gx", "gy", "gz")):
+        cols = [str(acc.columns[k]) for k in ("gx", "gy", "gz")]  # the header names them, as calibrate reads them
     if cols is None:
         raise InputError("name the gyroscope's columns in DATA with `gyro_columns` gx,gy,gz, or give them in a "
                          "second file with `gyro`")
