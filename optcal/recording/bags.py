@@ -19,8 +19,8 @@ length and one ``frame_id`` length, which a topic's are, are one reshaped array.
 rosbags has located them: a ROS 1 bag's and an MCAP file's index gives each message's place in its chunk, and
 each chunk is decompressed once (:func:`_ros1_rows`, :func:`_mcap_rows`); otherwise (SQLite, an MCAP file
 without index) from rosbags' reader, a batch at a time. A topic whose recorded definition differs from the
-standard one (its MD5 sum, ROS 1, or type hash, ROS 2) or whose messages have another length is refused. One
-hour of 200 Hz messages reads in 0.45 s (MCAP) to 1.5 s (SQLite) (tests/benchmarks/test_robot_logs_read.py).
+standard one (its MD5 sum, ROS 1, or type hash, ROS 2) or whose messages have another length is refused. The
+speed against rosbags' own deserialiser: docs/real_data.md (tests/benchmarks/test_robot_logs_read.py).
 
 **Out.** :func:`write_calibrated` copies a bag into a new one of the same storage with the IMU's messages
 calibrated: their bytes with the accelerometer's (and gyroscope's) three float64 replaced, everything else
