@@ -8,7 +8,7 @@ folder beside the clone), with the diagnostics' figure of one.
                      [--seeds 20] [--null-seeds 200] [--figures docs/figures]
 
 With no section named, all four. Prints Markdown tables and reports; writes discovery_dictionary_example.png,
-discovery_dictionary_steps.png and discovery_real_shen_gesture.png into --figures.
+discovery_dictionary_steps.png and discovery_real_hassan_bao_49.png into --figures.
 """
 
 from __future__ import annotations
@@ -56,7 +56,7 @@ CORPUS = {
     "sdr_rev2 long": ("sdr_rev2/IMU_Rev2_Data_Long.txt.gz", ["--raw", "--units", "m/s2", "--columns", "0,1,2,3"]),
     "sdr_rev2 short": ("sdr_rev2/IMU_Rev2_Data_Short.txt.gz", ["--raw", "--units", "m/s2", "--columns", "0,1,2,3"]),
 }
-FIGURE_OF = "shen_gesture"
+FIGURE_OF = "Hassan & Bao 49"
 
 
 def effects(seeds: int) -> None:
@@ -151,19 +151,23 @@ def corpus(figures: Path) -> None:
               f"{', '.join(sig) or '—'} |")
     rel, args = CORPUS[FIGURE_OF]
     code, out, _ = _discover(root / rel, args, "linear9",
-                             ["--diagnostics", str(figures / "discovery_real_shen_gesture.png"), "--force"])
+                             ["--diagnostics", str(figures / "discovery_real_hassan_bao_49.png"), "--force"])
     print(f"\n### {FIGURE_OF}, base linear9\n")
     print(out)
 
 
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("sections", nargs="*", choices=["effects", "null", "example", "corpus"],
-                    default=["effects", "null", "example", "corpus"])
+    ap.add_argument("sections", nargs="*", metavar="SECTION", help="effects, null, example, corpus (default: all)")
     ap.add_argument("--seeds", type=int, default=20)
     ap.add_argument("--null-seeds", type=int, default=200)
     ap.add_argument("--figures", type=Path, default=ROOT / "docs" / "figures")
     args = ap.parse_args(argv)
+    sections = ("effects", "null", "example", "corpus")
+    bad = sorted(set(args.sections) - set(sections))
+    if bad:
+        ap.error(f"unknown section(s) {', '.join(bad)}; choose from {', '.join(sections)}")
+    args.sections = args.sections or list(sections)
     np.seterr(all="ignore")
     if "effects" in args.sections:
         effects(args.seeds)

@@ -92,7 +92,10 @@ def _periodogram_panel(ax, diag) -> None:
     d = diag.get("periodicity")
     if d is not None and "period_s" in d.extra:
         ax.axvline(d.extra["period_s"], color="k", ls="--", lw=0.7, label=f"peak {d.extra['period_s']:.4g} s")
+    from matplotlib.ticker import NullFormatter
+
     ax.set_xscale("log")
+    ax.xaxis.set_minor_formatter(NullFormatter())  # the minor ticks' labels of a short decade overlap
     ax.set(xlabel="period (s)", ylabel="normalised power")
     ax.set_title(f"Lomb–Scargle after the list ({pg['n_independent']} indep. frequencies)", fontsize=9)
     ax.legend(fontsize=6.5)

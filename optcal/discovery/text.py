@@ -134,10 +134,15 @@ def ending(report) -> list[str]:
             s = report.partial[-1]
             floor = report.floor.rms_g if report.floor is not None else None
             near = (f"; the nearest, {s.term} ({s.formula}), brings the RMS {report.listed.rms * U:.3f} → "
-                    f"{s.after.rms * U:.3f} µg" + (f" against a floor of {floor * U:.3f} µg" if floor else "")
-                    + (f" (p = {report.gap_p:.2g})" if report.gap_p is not None else ""))
+                    f"{s.after.rms * U:.3f} µg" + (f" (the floor's RMS {floor * U:.3f} µg)" if floor else "")
+                    + (f", but the test at the floor still gives p = {report.gap_p:.2g}"
+                       if report.gap_p is not None else ""))
         out.append(f"structure remains: {where} is significant; no term of the list or the dictionary closes "
                    f"the gap{near}")
+    elif diag is not None and diag.significant:
+        where = ", ".join(f"{d.name} p = {d.p_value:.2g}" for d in diag.significant)
+        out.append(f"structure remains below the omnibus test: {where} is significant, although the residual as a "
+                   "whole passes; no term of the list or the dictionary explains it")
     if report.floor is not None and report.floor.kind is None:
         out.append("floor unknown: " + report.floor.describe().split(": ", 1)[1])
     return out
