@@ -583,21 +583,28 @@ def _rest_level(G: np.ndarray, t: np.ndarray, seg: np.ndarray, rest: np.ndarray)
         quiet = np.argsort(d)[: max(1, len(d) // 5)]
         return np.broadcast_to(np.median(G[quiet], axis=0), (len(t), 3))
     half = (r[:, 0] + r[:, 1]) // 2
-    first = _group_stat(G, np.column_stack([r[:, 0], half]), np.nanmedian)
-    second = _group_stat(G, np.column_stack([half, r[:, 1]]), np.nanmedian)
+    first = _group_median(G, np.column_stack([r[:, 0], half]))
+    second = _group_median(G, np.column_stack([half, r[:, 1]]))
     knots = np.column_stack([r[:, 0], r[:, 1] - 1]).ravel().astype(float)
     values = np.stack([first, second], axis=1).reshape(-1, 3)
     return np.column_stack([np.interp(t, knots, values[:, i]) for i in range(3)])
 
 
-def _group_stat(x: np.ndarray, r: np.ndarray, fn) -> np.ndarray:
-    """``fn`` (a NaN-aware reduction along axis 1, e.g. ``np.nanmedian``) of ``x`` over each range of ``r``
-    (k, 2), all ranges in one call: the ranges are padded with NaN to the longest."""
+def _group_median(x: np.ndarray, r: np.ndarray) -> np.ndarray:
+    """The median of ``x`` (n, 3) over each range of ``r`` (k, 2; non-empty, not overlapping), per column, all
+    ranges in one sort: the rows of every range, keyed by range then value, sorted once; a range's median is
+    the middle of its run."""
     lens = r[:, 1] - r[:, 0]
-    j = np.arange(int(lens.max()))
-    pos = np.minimum(r[:, :1] + j, len(x) - 1)
-    pad = (j < lens[:, None]).reshape(lens.shape + (len(j),) + (1,) * (x.ndim - 1))
-    return fn(np.where(pad, x[pos], np.nan), axis=1)
+    which = np.repeat(np.arange(len(r)), lens)
+    rows = np.arange(int(lens.sum())) - np.repeat(np.cumsum(lens) - lens, lens) + np.repeat(r[:, 0], lens)
+    first = np.cumsum(lens) - lens
+    lo, hi = first + (lens - 1) // 2, first + lens // 2
+    out = np.empty((len(r), x.shape[1]))
+    for j in range(x.shape[1]):  # three columns
+        v = x[rows, j]
+        s = v[np.lexsort((v, which))]
+        out[:, j] = (s[lo] + s[hi]) / 2
+    return out
 
 
 def gyro_turning(W: np.ndarray, b: int, seg: np.ndarray, rest: np.ndarray, rate: float):
