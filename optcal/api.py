@@ -34,7 +34,7 @@ def _positions(data, units: str | None, raw: bool, g_local: float, model, readin
     positions (§9.2)."""
     import numpy as np
 
-    from .data import PositionsData, check_units, read_positions
+    from .data import PositionsData, check_units
 
     if isinstance(data, PositionsData):
         if units is not None and units != data.units:
@@ -55,12 +55,9 @@ def _positions(data, units: str | None, raw: bool, g_local: float, model, readin
             return positions_from_raw(path, units=units or "g", model=model, g_local=g_local, **reading)
         if reading:
             raise InputError(f"{', '.join(sorted(reading))} read a raw recording; pass raw=True with them")
-        try:
-            positions = read_positions(path, units=units or "g")
-        except InputError as exc:
-            raise InputError(f"{exc} (a raw recording? pass raw=True)") from None
-        check_units(positions, units or "g")
-        return positions
+        from .recording.positions import read_positions_file
+
+        return read_positions_file(path, units=units or "g")
     if raw or reading:
         raise InputError("raw=True and the recording options apply to a file path")
     try:

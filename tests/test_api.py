@@ -154,7 +154,7 @@ def test_calibrate_reads_a_path_given_as_text(session, tmp_path):
 
 @pytest.mark.parametrize("call, message", [
     (lambda: optcal.calibrate("no/such/file.csv"), "does not exist or is not a file"),
-    (lambda: optcal.calibrate(_mpu(), units="counts"), "pass raw=True"),  # these two read the file
+    (lambda: optcal.calibrate(_mpu(), units="counts"), "pass `raw`"),  # these two read the file
     (lambda: optcal.calibrate(_mpu(), units="counts", rate=100), "pass raw=True with them"),
     (lambda: optcal.calibrate(MPU, raw=True, units="counts", colums="ax,ay,az"), "unknown keyword(s) colums"),
     (lambda: optcal.calibrate(np.ones((24, 2))), "three output columns"),

@@ -158,19 +158,7 @@ def load_positions(args, path) -> PositionsData:
     data, so that following one advice never meets the other."""
     if getattr(args, "raw", False):
         return load_raw_positions(args, path)
-    from pathlib import Path
+    from ..recording.positions import read_positions_file
 
-    from ..data import check_units, read_positions
-    from ..recording.positions import mat_positions
-    from ..recording.reading import raw_file_reason
-    from ..recording.sniff import is_mat
-
-    found = raw_file_reason(Path(path)) if Path(path).exists() else None
-    if found:
-        reason, timed = found
-        raise InputError(f"{path} looks like a raw recording, not a positions file ({reason}); pass --raw"
-                         + ("" if timed or getattr(args, "rate", None) else " with --rate HZ (it has no time column)"))
     with flag_names():
-        data = mat_positions(path, units=args.units) if is_mat(Path(path)) else read_positions(path, units=args.units)
-    check_units(data, args.units)
-    return data
+        return read_positions_file(path, units=args.units)

@@ -137,3 +137,23 @@ def mat_positions(path, units: str = "g") -> PositionsData:
         raise InputError(f"{path} holds a {table.shape[0]} × {table.shape[1]} matrix; a positions MAT file holds "
                          "one n × 3 matrix of mean outputs ax, ay, az")
     return PositionsData(N=table, units=units, extra={"source": str(path)})
+
+
+def read_positions_file(path, units: str = "g") -> PositionsData:
+    """A positions file (a CSV or a MATLAB file of one mean per pose, docs/design.md §9.1), read the same way by
+    ``optcal calibrate`` and :func:`optcal.calibrate`: a raw recording given as positions is named as one, by the
+    one decision of :func:`optcal.recording.sniff.table_kind`, with the option that reads it (and the sample rate
+    when it has no time column)."""
+    from ..data import check_units, read_positions
+    from .reading import raw_file_reason
+    from .sniff import is_mat
+
+    path = Path(path)
+    found = raw_file_reason(path) if path.exists() else None
+    if found:
+        reason, timed = found
+        raise InputError(f"{path} looks like a raw recording, not a positions file ({reason}); pass `raw`"
+                         + ("" if timed else " with `rate` HZ (it has no time column)"))
+    data = mat_positions(path, units=units) if is_mat(path) else read_positions(path, units=units)
+    check_units(data, units)
+    return data
