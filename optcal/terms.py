@@ -259,16 +259,21 @@ class Feature:
 
     # -- values ---------------------------------------------------------------------------------------
     def weight(self, dtemp, dt, kind: str = ""):
-        """The data's part of φ (temperature, time; 1.0 without either): arrays over positions."""
+        """The data's part of φ (temperature, time; 1.0 without either): arrays over positions, or a symbolic
+        evaluator's expressions (CasADi's, whose sin and cos are methods of the expression)."""
         import numpy as np
+
+        def values(v):
+            return v if hasattr(v, "sin") and not isinstance(v, np.ndarray) else np.asarray(v, float)
 
         w = 1.0
         if self.temp is not None:
-            w = (np.asarray(dtemp, float) / self.temp[1]) ** self.temp[0]
+            w = (values(dtemp) / self.temp[1]) ** self.temp[0]
         if self.time is not None:
-            w = (np.asarray(dt, float) / self.time[1]) ** self.time[0]
+            w = (values(dt) / self.time[1]) ** self.time[0]
         if self.period is not None:
-            w = (np.sin if kind == "sin" else np.cos)(2.0 * np.pi * np.asarray(dt, float) / self.period)
+            arg = 2.0 * np.pi * values(dt) / self.period
+            w = getattr(np, kind)(arg) if isinstance(arg, np.ndarray) else getattr(arg, kind)()
         return w
 
     def values(self, A, ctx, kind: str = "", ops=None):

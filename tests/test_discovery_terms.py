@@ -234,3 +234,21 @@ def test_cli_options_of_the_dictionary(tmp_path, capsys):
         assert main(["discover", str(pos), *argv]) == 2
         err = capsys.readouterr().err
         assert err.count("\n") == 1 and match in err
+
+
+def test_casadi_evaluates_user_terms():
+    """The CasADi solver calls the term table's components on its symbols: the same fit as lm on a model with a
+    product, a sinusoid and a temperature power; a previous-pose term, which needs the positions' order, is
+    refused with its reason."""
+    pytest.importorskip("casadi")
+    from optcal.fit import calibrate
+
+    rng = np.random.default_rng(2)
+    sim = simulate("linear9", draw_truth("linear9", rng), rng, scheme="random:40", noise_g=1e-5, temp=(20.0, 40.0),
+                   times=True, effects={"ax.ay@z": {"c_ax.ay@z": 3e-4}, "osc600@x": {"c_sin600@x": 4e-5}})
+    model = "linear9+ax.ay@z+osc600@x+temp2s5@x"
+    a = calibrate(sim.data, model, solver="lm")
+    b = calibrate(sim.data, model, solver="casadi-ipopt")
+    assert np.abs(a.x - b.x).max() < 1e-8 and a.model.index("c_ax.ay@z") == 9
+    c = calibrate(sim.data, "linear9+prevax@x", solver="casadi-ipopt")
+    assert "needs the previous pose" in c.result.message

@@ -4,10 +4,10 @@ effect-free one), the false-discovery rate on effect-free data, the simulated ex
 ``optcal discover`` on every recording of the real corpus (tests/corpus.py: ``OPTCAL_CORPUS``, else the shared
 folder beside the clone), with the diagnostics' figure of one.
 
-    .venv/bin/python docs/scripts/discovery_dictionary.py [effects] [null] [example] [corpus]
+    .venv/bin/python docs/scripts/discovery_dictionary.py [effects] [null] [diagnostics] [example] [corpus]
                      [--seeds 20] [--null-seeds 200] [--figures docs/figures]
 
-With no section named, all four. Prints Markdown tables and reports; writes discovery_dictionary_example.png,
+With no section named, all five. Prints Markdown tables and reports; writes discovery_dictionary_example.png,
 discovery_dictionary_steps.png and discovery_real_hassan_bao_49.png into --figures.
 """
 
@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+import dataclasses
 import io
 import json
 import statistics
@@ -103,6 +104,36 @@ def null(seeds: int) -> None:
           f"reported as not closing the gap in {partial}")
 
 
+def diagnostics(seeds: int) -> None:
+    """The diagnostics' two tests: on the product effect of the tests (seed 0) each diagnostic's p against the
+    floor and against the residual left; on effect-free data with 30 µg of white noise beyond the stated 10 µg
+    (and at the true floor, 31.6 µg), how often each diagnostic's p falls below 0.01."""
+    from optcal.discovery.diagnostics import diagnose, floor_of
+    from optcal.discovery.dictionary import feature_context
+
+    _, data = hidden("ax.ay@z", 0)
+    rep = discover(data, noise_g=NOISE)
+    print("\nax.ay@z, seed 0, after the list: p against the floor / against the residual left / the larger")
+    for d in rep.diagnostics_listed.items:
+        if d.tested:
+            print(f"    {d.name:12s} {d.extra['p_floor']:.2g} / {d.extra['p_residual']:.2g} / {d.p_value:.2g}")
+    names, low = None, {"stated 10 µg": [], "true 31.6 µg": []}
+    for seed in range(seeds):
+        _, data = hidden(None, seed)
+        rng = np.random.default_rng(100 + seed)
+        data = dataclasses.replace(data, N=data.N + 30e-6 * rng.standard_normal(data.N.shape))
+        fit = fit_model(get_model("linear9"), data, 1.0)
+        for label, sigma in (("stated 10 µg", NOISE), ("true 31.6 µg", np.hypot(NOISE, 30e-6))):
+            dg = diagnose(fit, data, floor_of(fit, np.full(len(data), sigma), True), 0.01, feature_context(data))
+            tested = [d for d in dg.items if d.tested]
+            names = [d.name for d in tested]
+            low[label].append([d.p_value < 0.01 for d in tested])
+    print(f"\n{seeds} seeds, 40 random poses, 30 µg of white noise beyond 10 µg: share of p < 0.01")
+    for label, rows in low.items():
+        share = np.mean(rows, axis=0)
+        print(f"    floor {label}: " + ", ".join(f"{n} {v:.1%}" for n, v in zip(names, share)))
+
+
 def example(figures: Path) -> None:
     """The oscillating bias of the tests (seed 1): its report, the diagnostics' and the steps' figures."""
     _, data = hidden("osc600@x", 1)
@@ -158,12 +189,13 @@ def corpus(figures: Path) -> None:
 
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("sections", nargs="*", metavar="SECTION", help="effects, null, example, corpus (default: all)")
+    ap.add_argument("sections", nargs="*", metavar="SECTION",
+                    help="effects, null, diagnostics, example, corpus (default: all)")
     ap.add_argument("--seeds", type=int, default=20)
     ap.add_argument("--null-seeds", type=int, default=200)
     ap.add_argument("--figures", type=Path, default=ROOT / "docs" / "figures")
     args = ap.parse_args(argv)
-    sections = ("effects", "null", "example", "corpus")
+    sections = ("effects", "null", "diagnostics", "example", "corpus")
     bad = sorted(set(args.sections) - set(sections))
     if bad:
         ap.error(f"unknown section(s) {', '.join(bad)}; choose from {', '.join(sections)}")
@@ -173,6 +205,8 @@ def main(argv=None):
         effects(args.seeds)
     if "null" in args.sections:
         null(args.null_seeds)
+    if "diagnostics" in args.sections:
+        diagnostics(args.null_seeds)
     if "example" in args.sections:
         example(args.figures)
     if "corpus" in args.sections:

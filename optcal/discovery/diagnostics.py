@@ -21,7 +21,7 @@ Each set of columns is made orthogonal to the fitted model's Jacobian (what the 
 reduction of the residual sum of squares tested at the floor (:class:`Floor`): with known noise σ_j, the
 reduction of χ² = Σ(e_j/σ_j)² is χ²(q) under a correct model; with replicates (poses held twice), the
 F-test against their pure-error scatter; and in every case also against the residual scatter that remains, so
-that a large misfit of another kind does not make every diagnostic significant (:func:`test_columns`); without
+that a large misfit of another kind does not make every diagnostic significant (:func:`column_test`); without
 a floor only the latter, and the report says what to record. A diagnostic is significant below α/k, k the
 diagnostics tested.
 """
@@ -153,7 +153,7 @@ class Diagnostic:
         else:
             d["note"] = self.note
         for k, v in self.extra.items():
-            if k in ("period_s", "false_alarm", "n_independent", "series", "p_single"):
+            if k in ("period_s", "false_alarm", "n_independent", "series", "p_single", "p_floor", "p_residual"):
                 d[k] = num(v) if isinstance(v, float) else v
         return d
 
@@ -201,14 +201,28 @@ def _weighted(fit, floor: Floor, G: np.ndarray):
     return r / s, U[:, :fit.rank], G / s[:, None]
 
 
-def test_columns(fit, floor: Floor, G: np.ndarray) -> tuple[int, float, str, int | None, float, np.ndarray]:
-    """(q, statistic, test, dof, p, fitted part in g) of the residuals regressed on ``G`` (n, c) orthogonal to
-    the model (module docstring). The p-value is the larger of two: the reduction against the floor (χ²(q) with
-    known σ_j, or the F-test against the replicates' pure error) and against the residual scatter that remains
-    (the F-test of q columns on n − p − q degrees of freedom). The first asks whether the columns explain more
-    than noise; the second whether they explain more than any q directions would of a residual that is larger
-    than the noise for another reason, which keeps a diagnostic specific when some other structure remains.
-    Without a floor only the second applies."""
+@dataclass
+class ColumnTest:
+    """The residuals regressed on a set of columns (:func:`column_test`)."""
+
+    q: int  # the columns' rank beyond the model
+    statistic: float  # χ² reduction (known σ_j) or F
+    test: str  # "chi2" | "F" | "" (nothing to test)
+    dof: int | None  # the F-test's denominator degrees of freedom
+    p: float  # the larger of p_floor and p_residual (p_residual alone without a floor)
+    p_floor: float | None  # against the floor
+    p_residual: float  # against the residual scatter that remains
+    fitted: np.ndarray  # the residuals' part the columns explain, g
+
+
+def column_test(fit, floor: Floor, G: np.ndarray) -> ColumnTest:
+    """The residuals of ``fit`` regressed on ``G`` (n, c) orthogonal to the model (module docstring). The p-value
+    is the larger of two: the reduction against the floor (χ²(q) with known σ_j, or the F-test against the
+    replicates' pure error) and against the residual scatter that remains (the F-test of q columns on
+    n − p − q degrees of freedom). The first asks whether the columns explain more than noise; the second
+    whether they explain more than any q directions would of a residual that is larger than the noise for
+    another reason, which keeps a diagnostic specific when some other structure remains. Without a floor only
+    the second applies."""
     r, Q, Gw = _weighted(fit, floor, G)
     Gp = project_out(Q, Gw)
     U, s, _ = np.linalg.svd(Gp, full_matrices=False)
@@ -221,18 +235,19 @@ def test_columns(fit, floor: Floor, G: np.ndarray) -> tuple[int, float, str, int
     part = U @ (U.T @ r)
     red = float(part @ part)
     fitted = part if floor.sigma is None else part * floor.sigma
-    n = len(r)
-    dof = n - fit.rank - q
+    dof = len(r) - fit.rank - q
     if q == 0 or dof < 1:
-        return q, float("nan"), "", dof, float("nan"), fitted
+        return ColumnTest(q, float("nan"), "", dof, float("nan"), None, float("nan"), fitted)
     f = (red / q) / (max(float(r @ r) - red, np.finfo(float).tiny) / dof)
     p_resid = float(f_sf(f, q, dof))
     if floor.sigma is not None:
-        return q, red, "chi2", None, max(float(chi2_sf(red, q)), p_resid), fitted
+        p_floor = float(chi2_sf(red, q))
+        return ColumnTest(q, red, "chi2", None, max(p_floor, p_resid), p_floor, p_resid, fitted)
     if floor.kind == "replicates":
         fr = (red / q) / (floor.pure_ss / floor.pure_dof)
-        return q, fr, "F", floor.pure_dof, max(float(f_sf(fr, q, floor.pure_dof)), p_resid), fitted
-    return q, f, "F", dof, p_resid, fitted
+        p_floor = float(f_sf(fr, q, floor.pure_dof))
+        return ColumnTest(q, fr, "F", floor.pure_dof, max(p_floor, p_resid), p_floor, p_resid, fitted)
+    return ColumnTest(q, f, "F", dof, p_resid, None, p_resid, fitted)
 
 
 def direction_polynomials(u: np.ndarray, degree: int) -> np.ndarray:
@@ -324,12 +339,13 @@ def diagnose(fit, data, floor: Floor, alpha: float, ctx) -> Diagnostics:
         if G is None:
             items.append(Diagnostic(name, columns, note=extra.pop("note"), extra=extra))
             return
-        q, stat, test, dof, p, fitted = test_columns(fit, floor, G)
-        if q == 0 or not np.isfinite(p):
-            why = "the model explains these columns already" if q == 0 else "no degrees of freedom left"
+        t = column_test(fit, floor, G)
+        if t.q == 0 or not np.isfinite(t.p):
+            why = "the model explains these columns already" if t.q == 0 else "no degrees of freedom left"
             items.append(Diagnostic(name, columns, note=why, x=x, extra=extra))
             return
-        items.append(Diagnostic(name, columns, q, stat, test, dof, p, x=x, fitted=fitted, extra=extra))
+        extra.update(p_floor=t.p_floor, p_residual=t.p_residual)
+        items.append(Diagnostic(name, columns, t.q, t.statistic, t.test, t.dof, t.p, x=x, fitted=t.fitted, extra=extra))
 
     # orientation: the highest degree (4, what the dictionary's third-order features look like through the norm,
     # down to 2) whose columns beyond the model leave the test MIN_TEST_DOF or a third of the residuals' degrees
@@ -337,7 +353,7 @@ def diagnose(fit, data, floor: Floor, alpha: float, ctx) -> Diagnostics:
     # what is left)
     for degree in range(ORIENTATION_DEGREE, 1, -1):
         G = direction_polynomials(u, degree)
-        if room - test_columns(fit, floor, G)[0] >= max(MIN_TEST_DOF, room // 3):
+        if room - column_test(fit, floor, G).q >= max(MIN_TEST_DOF, room // 3):
             break
     run("orientation", f"polynomials of the direction to degree {degree} (spherical harmonics of degrees 1–{degree})",
         G, np.degrees(np.arctan2(u[:, 1], u[:, 0])))
@@ -377,26 +393,31 @@ def diagnose(fit, data, floor: Floor, alpha: float, ctx) -> Diagnostics:
 def _periodicity(fit, data, floor: Floor, u: np.ndarray, items: list) -> None:
     """The periodicity diagnostic: each periodogram's peak tested as a sinusoid (on the residual, or on one
     axis' bias), the best p-value turned into a false-alarm probability over the frequencies searched."""
-    t = np.asarray(data.t, float)
-    pg = periodograms(fit, t, floor)
+    times = np.asarray(data.t, float)
+    pg = periodograms(fit, times, floor)
     if pg is None:
         items.append(Diagnostic("periodicity", "", note="too few distinct times"))
         return
-    dt = t - t[0]
+    dt = times - times[0]
     best = None
     for name, f in zip(pg["series"], pg["peaks_hz"]):
         s, c = np.sin(2 * np.pi * f * dt), np.cos(2 * np.pi * f * dt)
-        scale = np.ones(len(t)) if name == "residual" else u[:, "xyz".index(name[0])]
-        q, stat, test, dof, p, fitted = test_columns(fit, floor, np.column_stack([scale * s, scale * c]))
-        if q and np.isfinite(p) and (best is None or p < best[4]):
-            best = (name, f, q, stat, p, test, dof, fitted)
+        scale = np.ones(len(times)) if name == "residual" else u[:, "xyz".index(name[0])]
+        t = column_test(fit, floor, np.column_stack([scale * s, scale * c]))
+        if t.q and np.isfinite(t.p) and (best is None or t.p < best[1].p):
+            best = (name, t, f)
     M = 4 * pg["n_independent"]
     if best is None:
         items.append(Diagnostic("periodicity", "", note="the model explains the sinusoids already"))
         return
-    name, f, q, stat, p, test, dof, fitted = best
-    fap = float(-np.expm1(M * np.log1p(-min(p, 1 - 1e-16))))
-    items.append(Diagnostic("periodicity", "Lomb–Scargle periodograms of the residual and each axis' share", q,
-                            stat, test, dof, fap, x=t, fitted=fitted,
-                            extra={"period_s": 1.0 / f, "false_alarm": fap, "p_single": p, "series": name,
-                                   "n_independent": pg["n_independent"], "periodogram": pg}))
+    name, test, f = best
+
+    def alarm(p):
+        return None if p is None else float(-np.expm1(M * np.log1p(-min(p, 1 - 1e-16))))
+
+    fap = alarm(test.p)
+    items.append(Diagnostic("periodicity", "Lomb–Scargle periodograms of the residual and each axis' share", test.q,
+                            test.statistic, test.test, test.dof, fap, x=times, fitted=test.fitted,
+                            extra={"period_s": 1.0 / f, "false_alarm": fap, "p_single": test.p, "series": name,
+                                   "n_independent": pg["n_independent"], "periodogram": pg,
+                                   "p_floor": alarm(test.p_floor), "p_residual": alarm(test.p_residual)}))
