@@ -1,7 +1,9 @@
 """The stagnation rule on the headline study: its configurations that take the rule, with and without it.
 
 Runs the compare spec's configurations whose solver takes the rule (studies.trial.STAGNATION; in the compare
-spec: cmaes and staged:cmaes) twice into two folders, once with the rule and once without, and prints per
+spec: cmaes and staged:cmaes), and those named with --also with the rule forced on (the swarms, nevergrad's:
+what the rule would do to the solvers that do not take it), twice into two folders, once with the rule and
+once without, and prints per
 configuration and model × scheme: RMSE/CRLB and RMSE/CRLB with presets with their 95 % bootstrap intervals
 (without the rule), the same with it, the evaluations and the solver time summed over the trials, the
 reasons the trials ended, and the (run, cost target) pairs met without the rule that are missed with it. The
@@ -9,6 +11,7 @@ other configurations take no rule and run exactly as without it (tests/test_stud
 rows are the whole difference the rule makes to the study.
 
     python docs/scripts/stagnation_compare.py [--runs 50] [--out out/stagnation]
+    python docs/scripts/stagnation_compare.py --runs 10 --only --also afsa,oafsa,nafsa,pso,ng:TwoPointsDE
 
 docs/performance.md, "Stopping at convergence", shows its output.
 """
@@ -36,6 +39,28 @@ def takers(spec) -> tuple:
     return tuple(c for c in spec.solvers if solvers.get(c.name, **c.options).stops_on_stagnation)
 
 
+def forced(spec, labels: list[str]) -> tuple:
+    """The configurations ``labels`` with the rule forced on: nevergrad's and mealpy's by their option
+    ``stop_on_stagnation``, the others by setting their (innermost) solver class's ``stops_on_stagnation``
+    in this process (the runs are serial, in this process)."""
+    out = []
+    for c in spec.solvers:
+        if c.label not in labels:
+            continue
+        if c.name.startswith(("ng:", "mealpy:")):
+            out.append(replace(c, options={**c.options, "stop_on_stagnation": True}))
+            continue
+        s = solvers.get(c.name, **c.options)
+        while getattr(s, "inner", None) is not None:
+            s = s.inner
+        type(s).stops_on_stagnation = True
+        out.append(c)
+    unknown = sorted(set(labels) - {c.label for c in out})
+    if unknown:
+        raise SystemExit(f"--also: not configurations of the compare spec: {', '.join(unknown)}")
+    return tuple(out)
+
+
 def run(spec, folder: Path, rule) -> tuple[list[dict], float]:
     """The spec's trials in this process (worker processes would read the module's own rule), with ``rule``."""
     trial.STAGNATION = rule
@@ -49,14 +74,20 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--runs", type=int, default=50)
     ap.add_argument("--out", default="out/stagnation")
+    ap.add_argument("--also", default="", help="comma-separated labels of the compare spec to run with the rule "
+                                               "forced on")
+    ap.add_argument("--only", action="store_true", help="only the --also configurations")
     args = ap.parse_args()
     base = load("compare").with_runs(args.runs)
-    spec = replace(base, solvers=takers(base))
+    labels = [x for x in args.also.split(",") if x]
+    take = tuple(c for c in takers(base) if c.label not in labels)  # before any class is forced
+    also = forced(base, labels)
+    spec = replace(base, solvers=also + (() if args.only else take))
     rule = trial.STAGNATION
     without, t_without = run(spec, Path(args.out) / "without", None)
     with_rule, t_with = run(spec, Path(args.out) / "with", rule)
     trial.STAGNATION = rule
-    print(f"{len(spec.solvers)} configurations taking the rule ({', '.join(c.label for c in spec.solvers)}), "
+    print(f"{len(spec.solvers)} configurations with the rule ({', '.join(c.label for c in spec.solvers)}), "
           f"{args.runs} runs; rule: share {rule.share:g}, rtol {rule.rtol:g}; wall {t_without:.0f} s without, "
           f"{t_with:.0f} s with (one process)\n")
     print("| configuration | model, scheme | RMSE/CRLB without [95 % CI] | with | with presets without [95 % CI] "
