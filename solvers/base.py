@@ -21,12 +21,64 @@ import math
 import time
 from collections.abc import Mapping
 from dataclasses import dataclass, field
-from typing import Any, ClassVar
+from typing import Any, ClassVar, Protocol, runtime_checkable
 
 import numpy as np
 
 from optcal.errors import BudgetExhausted, InputError
 from optcal.problem import CalibrationProblem
+
+
+@runtime_checkable
+class Problem(Protocol):
+    """What every solver may use of the problem it minimises (as pymoo's ``Problem``): the calibration's
+    :class:`optcal.problem.CalibrationProblem`, the gyroscope's :class:`optcal.gyro.problem.GyroProblem` and
+    the planner's :class:`optcal.plan.problem.DesignProblem` all provide it (tests/test_conformance.py).
+
+    - ``n``: the number of free coordinates; ``x0`` (n,): the start point when the caller gives none.
+    - ``centre``, ``halfwidth``: (n,) the search box, ``centre ± halfwidth`` in the solver's coordinates (the
+      unit box around 0 for a normalised problem); a start point is taken inside it.
+    - ``cost(x)``: the cost of one point (n,); ``cost_batch(X)``: the costs (S,) of a population (S, n) in one
+      call, the way a swarm evaluates its members.
+    - ``start(budget)``: a new solve: the evaluation budget (an int, or an :class:`optcal.budget.Budget` with a
+      time limit and a target cost) that the problem itself enforces, raising
+      :class:`optcal.errors.BudgetExhausted` past it; returns the ``counter`` (evaluations, the trace of
+      improvements).
+    - ``best``: (x, cost) of the best point evaluated since ``start``.
+    - ``to_full(X)``, ``from_full(x_full)``: between the solver's coordinates and the full parameter vector in
+      the model's units (what traces and results record).
+    """
+
+    n: int
+    x0: np.ndarray
+    centre: np.ndarray
+    halfwidth: np.ndarray
+    counter: Any
+
+    def cost(self, x) -> float: ...
+
+    def cost_batch(self, X) -> np.ndarray: ...
+
+    def start(self, budget=None) -> Any: ...
+
+    @property
+    def best(self) -> tuple[np.ndarray | None, float]: ...
+
+    def to_full(self, X) -> np.ndarray: ...
+
+    def from_full(self, x_full) -> np.ndarray: ...
+
+
+@runtime_checkable
+class LeastSquaresProblem(Problem, Protocol):
+    """A :class:`Problem` whose cost is a sum of squared residuals, for the least-squares solvers: the
+    residuals (m,) at a point, their Jacobian (m, n) and the cost's gradient (n,)."""
+
+    def residuals(self, x) -> np.ndarray: ...
+
+    def jacobian(self, x) -> np.ndarray: ...
+
+    def gradient(self, x) -> np.ndarray: ...
 
 
 @dataclass(frozen=True)
@@ -145,7 +197,22 @@ class _StagnationCheck:
 
 @dataclass
 class SolverResult:
-    """Outcome of one solve, with SciPy's field names."""
+    """Outcome of one solve, with :class:`scipy.optimize.OptimizeResult`'s field names where it has them.
+
+    - ``x`` (n,): the best point evaluated, in the solver's coordinates; ``fun``: its cost (NaN when no finite
+      cost was evaluated).
+    - ``success``: the solve ended normally (its budget, its target, its own termination, the stagnation
+      rule or the user's callback) with a finite cost; False after an error or without a finite cost.
+    - ``status``: the solver's own code where it has one (SciPy's ``least_squares``, NLopt's), else 0; 1 when
+      the budget ended the run, 2 when the callback stopped it, -1 on a numerical error or no finite cost.
+    - ``message``: why, in words; ``stop_reason``: why, as one of :data:`STOP_REASONS`.
+    - ``nfev``: cost evaluations (a population of S counts S); ``njev``: Jacobian evaluations; ``nit``:
+      iterations, as the solver counts them.
+    - ``runtime_s``: wall time of the solve, s.
+    - ``trace``: (evaluations, best cost, seconds) at every improvement; ``trace_x``: the best full parameter
+      vector at each of them; ``x_full``: the best point as the full parameter vector (model units).
+    - ``solver``: the registered name; ``extra``: what a solver adds (a wrapper's stages, pycma's stop dict).
+    """
 
     x: np.ndarray
     fun: float
@@ -180,7 +247,7 @@ class CallbackInfo(Mapping):
     __slots__ = ("_problem", "_x_full", "_fun", "_nit", "_nfev")
     KEYS = ("x", "fun", "nit", "nfev")
 
-    def __init__(self, problem: CalibrationProblem, nit: int):
+    def __init__(self, problem: Problem, nit: int):
         c = problem.counter
         # best_x is replaced, never changed in place, when the best improves: holding it is a snapshot
         self._problem, self._x_full, self._fun, self._nit, self._nfev = problem, c.best_x, c.best_f, nit, c.nfev
@@ -279,7 +346,7 @@ class Solver:
         }
 
     # -- the contract ------------------------------------------------------------------------
-    def solve(self, problem: CalibrationProblem, *, x0=None, budget=None, rng=None, callback=None,
+    def solve(self, problem: Problem, *, x0=None, budget=None, rng=None, callback=None,
               stagnation: Stagnation | None = None) -> SolverResult:
         """Minimise ``problem``'s cost from ``x0`` within ``budget``; ``stagnation`` ends the solve by that rule
         if this solver takes it (:attr:`stops_on_stagnation`; a wrapper passes it to its inner solves)."""
@@ -331,11 +398,12 @@ class Solver:
             extra=out.get("extra", {}), stop_reason=reason or budget_reason(counter),
         )
 
-    def start_point(self, problem: CalibrationProblem, x0) -> np.ndarray:
+    def start_point(self, problem: Problem, x0) -> np.ndarray:
         """``x0`` if given (in the problem's coordinates), else the problem's presets or linear fit."""
         if x0 is None:
-            # The convex ellipsoid fit initialises every local method when neither x0 nor presets are given.
-            if problem.presets is None and self.family == "local":
+            # The convex ellipsoid fit initialises every local method on a calibration problem given neither x0
+            # nor presets (other problems have their own x0)
+            if isinstance(problem, CalibrationProblem) and problem.presets is None and self.family == "local":
                 from ._ellipsoid_fit import ellipsoid_start
 
                 return ellipsoid_start(problem)
@@ -360,5 +428,5 @@ class Solver:
 
         return cb
 
-    def _solve(self, problem: CalibrationProblem, x0: np.ndarray, rng: np.random.Generator, callback) -> dict:
+    def _solve(self, problem: Problem, x0: np.ndarray, rng: np.random.Generator, callback) -> dict:
         raise NotImplementedError

@@ -357,3 +357,32 @@ def test_reports_failure_when_every_cost_is_nan(name):
     assert res.success is False
     assert res.message and not np.isfinite(res.fun)
     assert res.nfev <= NAN_BUDGET
+
+
+def test_every_problem_a_solver_meets_is_the_protocols():
+    """solvers.base.Problem is what every solver may use (docs/design.md §10): the accelerometer's, the
+    gyroscope's and the planner's problems provide it, the two least-squares ones LeastSquaresProblem too; an
+    object missing a member is not one."""
+    from optcal.gyro import GyroProblem, draw_truth, get_gyro_model, simulate_imu
+    from optcal.plan.design import make_criterion
+    from optcal.plan.problem import DesignProblem
+    from solvers.base import LeastSquaresProblem, Problem
+
+    rng = np.random.default_rng(0)
+    model = get_gyro_model(False)
+    sim = simulate_imu(model, draw_truth(model, rng, 4000.0), rng=rng)
+    gyro = GyroProblem(sim.data, scale=4000.0)
+    design = DesignProblem(make_criterion("linear9"), 12)
+    calib = full_problem()
+    for p in (calib, gyro, design):
+        assert isinstance(p, Problem), type(p).__name__
+    assert isinstance(calib, LeastSquaresProblem) and isinstance(gyro, LeastSquaresProblem)
+    assert not isinstance(design, LeastSquaresProblem)  # no residuals' Jacobian: the search methods only
+
+    class NoBatch:
+        n, x0, centre, halfwidth, counter = 1, np.zeros(1), np.zeros(1), np.ones(1), None
+
+        def cost(self, x):
+            return 0.0
+
+    assert not isinstance(NoBatch(), Problem)
