@@ -52,7 +52,25 @@ def get_solver(name: str, **options):
 
 @dataclass
 class Calibration:
-    """A fitted calibration: parameters, standard errors and diagnostics."""
+    """A fitted calibration: parameters, standard errors and diagnostics (what :func:`calibrate` and
+    :func:`optcal.calibrate` return; :func:`optcal.calfile.write_calibration` writes it).
+
+    - ``model``: the :class:`~optcal.model.Model` fitted (its parameter names, units and terms).
+    - ``x`` (p,): the parameters in the model's order and units (docs/design.md §3); ``parameters``: the same
+      as {name: value}.
+    - ``stderr`` (p,): each parameter's Cramér-Rao standard error at ``x`` (Birge-scaled when the residuals
+      exceed the noise; inf for an unobservable direction), same units.
+    - ``observability``: the rank of the fit's Jacobian and the unobservable directions, by name.
+    - ``fit``: the goodness of fit (:class:`~optcal.analysis.GoodnessOfFit`): residual RMS (g), cost, degrees of
+      freedom, the noise it was judged against (g) and where that came from, χ² and its p-value.
+    - ``problem``: the :class:`~optcal.problem.CalibrationProblem` fitted (data, presets, local gravity).
+    - ``solver``: the registered solver's name; ``result``: its :class:`solvers.base.SolverResult`.
+    - ``notes``: what the user should know about these numbers, one line each.
+    - ``diagnostics``: per-position residuals, leverages and outliers (§7.5); ``positions``: them as rows.
+    - ``loss``, ``f_scale_g``: the robust loss and its scale in g (``linear``, None: plain least squares).
+    - ``forced``: the reasons a ``force_weak`` fit would have been refused for (empty: not forced).
+    - ``requested_model``: the default model when the data determined only a smaller one (the fallback).
+    """
 
     model: Model
     x: np.ndarray
