@@ -120,21 +120,9 @@ def calibrate(data, model=None, *, solver: str = "lm", units: str | None = None,
 def _positions_for(data, model, units, raw: bool, g_local: float, reading: dict) -> PositionsData:
     """A raw recording's intervals are found for the model asked for; for the default, for nonlinear12, or, when
     the recording has too few intervals for it, for the next model of the fallback chain."""
-    return _first_found(lambda name: _positions(data, units, raw, g_local, name, reading), model, raw)
+    from .determination import first_found
 
-
-def _first_found(find, model, raw: bool = True):
-    """``find(name)`` for ``model``; for the default (None), for each model of the fallback chain in turn until
-    one has intervals enough (a raw recording's detection may find too few for nonlinear12)."""
-    from .determination import FALLBACK
-
-    for k, name in enumerate((model,) if model is not None else FALLBACK):
-        try:
-            return find(name)
-        except InputError:
-            if model is not None or not raw or k == len(FALLBACK) - 1:
-                raise
-    raise AssertionError("unreachable")  # pragma: no cover
+    return first_found(lambda name: _positions(data, units, raw, g_local, name, reading), model, raw)
 
 
 GYRO_UNITS = ("counts", "deg/s", "rad/s", "volts")
@@ -170,6 +158,7 @@ def calibrate_imu(data, gyro=None, *, gyro_units: str, gyro_columns=None, gyro_s
     if gyro is not None and not _is_path(gyro):
         raise InputError(f"gyro must be the path of the gyroscope's file, got {type(gyro).__name__}")
     check_imu_options(gyro_scale=gyro_scale, gyro_bias=gyro_bias, g_sensitivity=g_sensitivity)
+    from .determination import first_found
     from .recording.reading import read_recording
     from .recording.workflow import positions_from_raw_recording
 
@@ -181,7 +170,7 @@ def calibrate_imu(data, gyro=None, *, gyro_units: str, gyro_columns=None, gyro_s
                          refuse_positions=True, topic=read["topic"])
     rates = read_gyro(os.fspath(data), acc, gyro=None if gyro is None else os.fspath(gyro), gyro_columns=gyro_columns,
                       units=gyro_units, rate=read["rate"], time_unit=read["time_unit"])
-    positions = _first_found(lambda name: positions_from_raw_recording(acc, gyro=rates, model=name, g_local=g_local,
+    positions = first_found(lambda name: positions_from_raw_recording(acc, gyro=rates, model=name, g_local=g_local,
                                                                         **reading), model)
     return fit_imu(positions, rates, model=model, solver=solver, options=options, g_local=g_local, seed=seed,
                    budget=budget, gyro_units=gyro_units, gyro_scale=gyro_scale, gyro_bias=gyro_bias,

@@ -24,6 +24,7 @@ import numpy as np
 
 from .analysis import GoodnessOfFit, Observability
 from .data import PositionsData
+from .errors import InputError
 from .gravity import G0
 from .model import Model, get_model
 from .problem import CalibrationProblem
@@ -54,6 +55,22 @@ NONLINEAR_MAX = 0.05
 # The fallback chain of the default model: each drops the last term of the one before (docs/design.md §3.3).
 DEFAULT_MODEL = "nonlinear12"
 FALLBACK = ("nonlinear12", "linear9", "diag6")
+
+
+def first_found(find, model=None, raw: bool = True):
+    """``find(name)`` for ``model``; for the default (None), for each model of :data:`FALLBACK` in turn until one
+    is found: a raw recording's detection may find too few intervals for nonlinear12, and then looks again for
+    linear9, then diag6, whose fit says so (docs/design.md §7.5). The last model's error is the one raised;
+    positions that are not a raw recording (``raw`` False) are read once, for the first model. The one fallback
+    loop of ``optcal calibrate`` and :func:`optcal.calibrate`."""
+    names = (model,) if model is not None else FALLBACK
+    for k, name in enumerate(names):
+        try:
+            return find(name)
+        except InputError:
+            if not raw or k == len(names) - 1:
+                raise
+    raise AssertionError("unreachable")  # pragma: no cover - the loop returns or raises
 # The nominal scale factor (output units per g) of units with a physical zero and gain (docs/design.md §2).
 NOMINAL_SCALE = {"g": 1.0, "mg": 1000.0, "m/s2": G0}
 

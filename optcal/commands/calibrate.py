@@ -59,19 +59,15 @@ def add_arguments(p):
 
 
 def _default_positions(args):
-    """Positions for the default model. A raw recording's intervals are found for nonlinear12 as before; when
-    it has too few for that, for the next model of the fallback chain (linear9, then diag6), whose fit
-    then says so (docs/design.md §7.5). The last model's error is the one raised."""
-    from ..determination import FALLBACK
+    """Positions for the default model: a raw recording's intervals found for the richest model of the fallback
+    chain that has enough of them (:func:`optcal.determination.first_found`)."""
+    from ..determination import first_found
 
-    for k, name in enumerate(FALLBACK):
+    def find(name):
         args.model = name
-        try:
-            return load_positions(args, args.data)
-        except InputError:
-            if not getattr(args, "raw", False) or k == len(FALLBACK) - 1:
-                raise
-    raise AssertionError("unreachable")  # the loop returns or raises
+        return load_positions(args, args.data)
+
+    return first_found(find, None, getattr(args, "raw", False))
 
 
 def run(args) -> int:
