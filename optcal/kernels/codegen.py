@@ -90,9 +90,12 @@ VARIANTS: dict[str, tuple[str, ...]] = {
 
 
 def variant_of(model) -> int:
-    """Index in VARIANTS of the first forward map whose terms hold every parameter of ``model`` (a user-defined
-    term's are the kernel's user features, outside the generated maps)."""
-    names = {n for n in model.names if n in _slot_of()}
+    """Index in VARIANTS of the first forward map whose terms hold every parameter of ``model``; a model with
+    user-defined terms (the kernel's user features, outside the generated maps) takes the last, so that the
+    kernel is compiled for them with one forward map only."""
+    if model.user_terms:
+        return len(VARIANTS) - 1
+    names = set(model.names)
     for k, terms in enumerate(VARIANTS.values()):
         if names <= set(get_model("+".join(terms)).names):
             return k

@@ -147,7 +147,7 @@ def _previous_sign(src, k, j):
     return 1.0 if a > 0 else -1.0
 
 
-@njit(**INLINE)
+@njit(**JIT)
 def _user_outputs(q, tab, w, j, a0, a1, a2, src):
     """The user features' contribution (u0, u1, u2) to the outputs of position j."""
     u0 = u1 = u2 = 0.0
@@ -221,10 +221,9 @@ def _inverse3(m):
 
 
 @njit(**INLINE)
-def _invert_all(forward, q, pos, affine, tol, max_iter, A, tab, w):
+def _invert_all(forward, q, pos, affine, tol, max_iter, A):
     """Specific force A[0:3] (3, n) of every position from its outputs: Model.inverse's iteration,
-    sweeping all positions per step (a loop without branches, which the compiler vectorises; with user
-    features, a second loop that adds them, each position seeing the previous one's A of this sweep)."""
+    sweeping all positions per step (a loop without branches, which the compiler vectorises)."""
     lp = linear_part(q)
     mi, c = _inverse3(lp[:9]), lp[9:]
     N0, N1, N2, dT, dt = pos[ROW_N], pos[ROW_N + 1], pos[ROW_N + 2], pos[ROW_DTEMP], pos[ROW_DTIME]
@@ -238,21 +237,8 @@ def _invert_all(forward, q, pos, affine, tol, max_iter, A, tab, w):
     if affine:
         return
     prev = np.inf
-    nu = tab.shape[0]
     for _ in range(max_iter):
-        if nu > 0:
-            for j in range(n):
-                f0, f1, f2 = forward(q, A0[j], A1[j], A2[j], dT[j], dt[j])
-                u0, u1, u2 = _user_outputs(q, tab, w, j, A0[j], A1[j], A2[j], A)
-                r0, r1, r2 = N0[j] - f0 - u0, N1[j] - f1 - u1, N2[j] - f2 - u2
-                d0 = mi[0] * r0 + mi[1] * r1 + mi[2] * r2
-                d1 = mi[3] * r0 + mi[4] * r1 + mi[5] * r2
-                d2 = mi[6] * r0 + mi[7] * r1 + mi[8] * r2
-                A0[j] += d0
-                A1[j] += d1
-                A2[j] += d2
-                step[j] = abs(d0) + abs(d1) + abs(d2)
-        for j in range(n if nu == 0 else 0):
+        for j in range(n):
             f0, f1, f2 = forward(q, A0[j], A1[j], A2[j], dT[j], dt[j])
             r0, r1, r2 = N0[j] - f0, N1[j] - f1, N2[j] - f2
             d0 = mi[0] * r0 + mi[1] * r1 + mi[2] * r2
@@ -275,26 +261,69 @@ def _invert_all(forward, q, pos, affine, tol, max_iter, A, tab, w):
         prev = size
 
 
+@njit(**JIT)
+def _invert_all_user(q, pos, tol, max_iter, A, tab, w):
+    """:func:`_invert_all` with the user features added to each position's outputs; each position sees the
+    previous positions' A of this sweep (their previous pose's sign). With the whole table's forward map (a model
+    with user features takes it: codegen.variant_of). Compiled once and called, not inlined: the entry points
+    that hold it compile faster, and models with user features are the rarer ones."""
+    lp = linear_part(q)
+    mi, c = _inverse3(lp[:9]), lp[9:]
+    N0, N1, N2, dT, dt = pos[ROW_N], pos[ROW_N + 1], pos[ROW_N + 2], pos[ROW_DTEMP], pos[ROW_DTIME]
+    A0, A1, A2, step = A[0], A[1], A[2], A[3]
+    n = N0.size
+    for j in range(n):
+        r0, r1, r2 = N0[j] - c[0], N1[j] - c[1], N2[j] - c[2]
+        A0[j] = mi[0] * r0 + mi[1] * r1 + mi[2] * r2
+        A1[j] = mi[3] * r0 + mi[4] * r1 + mi[5] * r2
+        A2[j] = mi[6] * r0 + mi[7] * r1 + mi[8] * r2
+    prev = np.inf
+    for _ in range(max_iter):
+        for j in range(n):
+            f0, f1, f2 = forward_all(q, A0[j], A1[j], A2[j], dT[j], dt[j])
+            u0, u1, u2 = _user_outputs(q, tab, w, j, A0[j], A1[j], A2[j], A)
+            r0, r1, r2 = N0[j] - f0 - u0, N1[j] - f1 - u1, N2[j] - f2 - u2
+            d0 = mi[0] * r0 + mi[1] * r1 + mi[2] * r2
+            d1 = mi[3] * r0 + mi[4] * r1 + mi[5] * r2
+            d2 = mi[6] * r0 + mi[7] * r1 + mi[8] * r2
+            A0[j] += d0
+            A1[j] += d1
+            A2[j] += d2
+            step[j] = abs(d0) + abs(d1) + abs(d2)
+        size = 0.0
+        for j in range(n):
+            size = max(size, step[j])
+        if not size == size:
+            break
+        rho = min(size / prev, 0.5) if prev > 0 else 0.0
+        if size <= tol or (prev < np.inf and size * rho / (1.0 - rho) <= tol):
+            break
+        prev = size
+
+
 @njit(**INLINE)
 def _residuals_of(forward, fb, ib, x, q, pos, par, r, A):
     """Residuals of the candidate x (canonical q) into r; returns Σ r²."""
     n = ib[H_N]
     s = 0.0
-    tab, w = _user_view(fb, ib)
     if ib[H_MODE] == REFERENCE:
         k0, k1, k2 = fb[0], fb[1], fb[2]
-        ref = pos[ROW_REF:ROW_REF + 3]
         for j in range(n):
             f0, f1, f2 = forward(q, pos[ROW_REF, j], pos[ROW_REF + 1, j], pos[ROW_REF + 2, j], pos[ROW_DTEMP, j],
                                  pos[ROW_DTIME, j])
-            if tab.shape[0] > 0:
-                u0, u1, u2 = _user_outputs(q, tab, w, j, ref[0, j], ref[1, j], ref[2, j], ref)
-                f0, f1, f2 = f0 + u0, f1 + u1, f2 + u2
             e0, e1, e2 = (pos[ROW_N, j] - f0) / k0, (pos[ROW_N + 1, j] - f1) / k1, (pos[ROW_N + 2, j] - f2) / k2
             r[3 * j], r[3 * j + 1], r[3 * j + 2] = e0, e1, e2
             s += e0 * e0 + e1 * e1 + e2 * e2
         return s
-    _invert_all(forward, q, pos, ib[H_AFFINE] != 0, fb[4], ib[H_MAXIT], A, tab, w)
+    _invert_all(forward, q, pos, ib[H_AFFINE] != 0, fb[4], ib[H_MAXIT], A)
+    return s + _norm_residuals(fb, ib, x, par, r, A)
+
+
+@njit(**INLINE)
+def _norm_residuals(fb, ib, x, par, r, A):
+    """The norm residuals ‖A_j‖ − g and the gauge rows into r; returns their Σ r²."""
+    n = ib[H_N]
+    s = 0.0
     g = fb[3]
     for j in range(n):
         e = np.sqrt(A[0, j] * A[0, j] + A[1, j] * A[1, j] + A[2, j] * A[2, j]) - g
@@ -310,6 +339,29 @@ def _residuals_of(forward, fb, ib, x, q, pos, par, r, A):
 
 
 @njit(**JIT)
+def _residuals_of_user(fb, ib, x, q, pos, par, r, A, tab, w):
+    """:func:`_residuals_of` of a model with user features (the whole table's forward map), a function of its own:
+    numba caches machine code only when no compiled function is passed to a function that is not inlined, and this
+    one is compiled once rather than inlined into every entry point."""
+    n = ib[H_N]
+    s = 0.0
+    if ib[H_MODE] == REFERENCE:
+        k0, k1, k2 = fb[0], fb[1], fb[2]
+        ref = pos[ROW_REF:ROW_REF + 3]
+        for j in range(n):
+            f0, f1, f2 = forward_all(q, ref[0, j], ref[1, j], ref[2, j], pos[ROW_DTEMP, j], pos[ROW_DTIME, j])
+            u0, u1, u2 = _user_outputs(q, tab, w, j, ref[0, j], ref[1, j], ref[2, j], ref)
+            e0 = (pos[ROW_N, j] - f0 - u0) / k0
+            e1 = (pos[ROW_N + 1, j] - f1 - u1) / k1
+            e2 = (pos[ROW_N + 2, j] - f2 - u2) / k2
+            r[3 * j], r[3 * j + 1], r[3 * j + 2] = e0, e1, e2
+            s += e0 * e0 + e1 * e1 + e2 * e2
+        return s
+    _invert_all_user(q, pos, fb[4], ib[H_MAXIT], A, tab, w)
+    return s + _norm_residuals(fb, ib, x, par, r, A)
+
+
+@njit(**JIT)
 def cost_one(z, fb, ib, work):
     """Σ r² of one candidate z in the view's coordinates (NaN when it is not finite)."""
     f = work[work.size - 1:]
@@ -322,6 +374,8 @@ def evaluate_batch(Z, fb, ib, work, f, R, keep_residuals):
     """Costs of the candidates Z (S, nf) into f (S,), and their residuals into R (S, m) when asked.
 
     Returns the row of the lowest finite cost (−1 when none is finite)."""
+    if ib[H_NU] > 0:
+        return _batch_user(Z, fb, ib, work, f, R, keep_residuals)
     if ib[H_VARIANT] == 0:
         return _batch(forward_seed, Z, fb, ib, work, f, R, keep_residuals)
     return _batch(forward_all, Z, fb, ib, work, f, R, keep_residuals)
@@ -335,15 +389,36 @@ def _batch(forward, Z, fb, ib, work, f, R, keep_residuals):
     for s in range(Z.shape[0]):
         _full(Z, s, free, par, view, x, q, slots)
         c = _residuals_of(forward, fb, ib, x, q, pos, par, r, A)
-        if np.isfinite(c):
-            f[s] = c
-            if c < best_f:
-                best, best_f = s, c
-        else:
-            f[s] = np.nan
-        if keep_residuals:
-            R[s, :] = r
+        best, best_f = _keep(c, s, f, R, r, keep_residuals, best, best_f)
     return best
+
+
+@njit(**JIT)
+def _batch_user(Z, fb, ib, work, f, R, keep_residuals):
+    """:func:`_batch` of a model with user features (:func:`_residuals_of_user`)."""
+    slots, free, pos, par, view = _view(fb, ib)
+    x, q, r, A = _scratch(work, ib)
+    tab, w = _user_view(fb, ib)
+    best, best_f = -1, np.inf
+    for s in range(Z.shape[0]):
+        _full(Z, s, free, par, view, x, q, slots)
+        c = _residuals_of_user(fb, ib, x, q, pos, par, r, A, tab, w)
+        best, best_f = _keep(c, s, f, R, r, keep_residuals, best, best_f)
+    return best
+
+
+@njit(**INLINE)
+def _keep(c, s, f, R, r, keep_residuals, best, best_f):
+    """Candidate s's cost c into f (NaN when not finite) and its residuals into R; the best row so far."""
+    if np.isfinite(c):
+        f[s] = c
+        if c < best_f:
+            best, best_f = s, c
+    else:
+        f[s] = np.nan
+    if keep_residuals:
+        R[s, :] = r
+    return best, best_f
 
 
 @njit(**JIT)
@@ -370,7 +445,10 @@ def jacobian(z, fb, ib, work, J):
                 for c in range(nf):
                     J[3 * j + i, c] = -dq[i, slots[free[c]]] / fb[i] * view[1, c]
         return
-    _invert_all(forward_all, q, pos, ib[H_AFFINE] != 0, fb[4], ib[H_MAXIT], A, tab, w)
+    if nu == 0:
+        _invert_all(forward_all, q, pos, ib[H_AFFINE] != 0, fb[4], ib[H_MAXIT], A)
+    else:
+        _invert_all_user(q, pos, fb[4], ib[H_MAXIT], A, tab, w)
     for j in range(n):
         a0, a1, a2 = A[0, j], A[1, j], A[2, j]
         norm = np.sqrt(a0 * a0 + a1 * a1 + a2 * a2)
