@@ -210,11 +210,17 @@ def test_the_list_is_searched_first_and_a_list_term_is_not_exchanged_for_a_featu
 
 
 def test_a_three_output_term_is_narrowed_to_its_one_output():
+    """Seed 17 of the time power: the list adds bias_drift and temperature_bias, exchanges take both out, the
+    dictionary adds the quadratic time feature on all three outputs, and it is narrowed to z (the other two
+    outputs' coefficients not significant together)."""
     _, data = hidden("time2s500@z", 17)
     rep = discover(data, noise_g=NOISE)
-    assert [s.kept for s in rep.found] == ["time2s500@z"]
-    kinds = {r.kind for r in rep.removed}
-    assert "narrowed" in kinds or rep.found[0].term == "time2s500@z"
+    assert [(s.term, s.kept) for s in rep.found] == [("time2s500@xyz", "time2s500@z")]
+    narrowed = [r for r in rep.removed if r.kind == "narrowed"]
+    assert [(r.term, r.after) for r in narrowed] == [("time2s500@xyz", "time2s500@z")] and narrowed[0].p_value >= 0.01
+    assert {r.term for r in rep.removed if r.kind == "replaced"} == {"bias_drift", "temperature_bias"}
+    assert rep.final_model.terms == ("scale", "bias", "misalignment", "time2s500@z")
+    assert "narrowed time2s500@xyz to time2s500@z" in rep.summary()
 
 
 def test_the_diagnostics_figure(tmp_path):
