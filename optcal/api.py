@@ -70,16 +70,14 @@ def _positions(data, units: str | None, raw: bool, g_local: float, model, readin
     return positions
 
 
-# the keyword arguments of optcal.recording.positions_from_raw that describe a raw recording
-_READING = ("columns", "rate", "saturation", "adc", "time_unit", "labels", "label_values", "intervals",
-            "method", "threshold_k", "window_s", "min_static_s", "init_s", "topic")
-
-
 def _check_reading(function: str, reading: dict) -> None:
-    unknown = sorted(set(reading) - set(_READING))
-    if unknown:
-        raise InputError(f"{function}() got unknown keyword(s) {', '.join(unknown)}; the recording options are "
-                         f"{', '.join(_READING)}")
+    """The recording options given as keyword arguments (:class:`optcal.recording.options.RawOptions`' names, but
+    ``units``, which the functions take themselves)."""
+    from .recording.options import RawOptions
+
+    RawOptions.of(function, **reading)
+    if "units" in reading:
+        raise InputError(f"{function}() takes `units` as its own argument; give it once")
 
 
 def calibrate(data, model=None, *, solver: str = "lm", units: str | None = None, raw: bool = False,

@@ -472,7 +472,7 @@ def test_library_errors_name_parameters_and_the_cli_names_options(tmp_path, rec2
     import argparse
     import inspect
 
-    from optcal.commands._dataopts import FLAGS, add_data_options, with_flags
+    from optcal.commands._dataopts import add_data_options, flags, with_flags
     from optcal.recording import positions_from_raw
 
     _, t, N, _, _ = rec24
@@ -497,12 +497,15 @@ def test_library_errors_name_parameters_and_the_cli_names_options(tmp_path, rec2
         library_parse_ks("two")
     with pytest.raises(InputError, match="^--threshold-k 'two': give a number"):
         parse_ks("two")
-    # every parameter the CLI maps is one of the library's, and every option it maps to exists
-    params = inspect.signature(positions_from_raw).parameters
+    # every parameter the CLI maps is one of the options object's (which positions_from_raw takes), and every
+    # option it maps to exists
+    from optcal.recording.options import RawOptions
+
+    assert "options" in inspect.signature(positions_from_raw).parameters
     parser = argparse.ArgumentParser()
     add_data_options(parser)
     options = {s for a in parser._actions for s in a.option_strings}
-    assert set(FLAGS) <= set(params) and set(FLAGS.values()) <= options
+    assert set(flags()) <= set(RawOptions.names()) and set(flags().values()) <= options | {"--units"}
     text = "lower `min_static_s`, set `init_s`, keep `other`"
     assert with_flags(text) == "lower --min-static, set --init-s, keep `other`"
 

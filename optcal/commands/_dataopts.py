@@ -1,7 +1,7 @@
 """Options shared by every command that reads data (calibrate, discover, apply): the positions CSV or a
 raw recording, its units and local gravity. The raw-recording options are turned into the keyword arguments
 of :func:`optcal.recording.workflow.positions_from_raw` here, and the library's errors, which name those parameters
-in backquotes, are given the options' names (:data:`FLAGS`, :func:`flag_names`)."""
+in backquotes, are given the options' names (:func:`flags`, :func:`flag_names`)."""
 
 from __future__ import annotations
 
@@ -15,23 +15,17 @@ from ..gravity import local_gravity_g
 
 if TYPE_CHECKING:
     from ..data import PositionsData
+    from ..recording.options import RawOptions
 
-# parameter of optcal.recording (as its errors name it) -> the option that sets it
-FLAGS = {
-    "columns": "--columns",
-    "rate": "--rate",
-    "saturation": "--saturation",
-    "adc": "--adc",
-    "time_unit": "--time-unit",
-    "labels": "--labels",
-    "intervals": "--intervals",
-    "method": "--method",
-    "window_s": "--window",
-    "min_static_s": "--min-static",
-    "init_s": "--init-s",
-    "threshold_k": "--threshold-k",
-    "topic": "--topic",
-}
+
+def flags() -> dict[str, str]:
+    """Parameter of optcal.recording (as its errors name it) -> the option that sets it: RawOptions' own list
+    (``units`` is every command's --units, named as the parameter in the library's errors). Imported when an
+    error is named: building the command line imports nothing of the recording package (numpy with it)."""
+    from ..recording.options import RawOptions
+
+    return {k: v for k, v in RawOptions.flags().items() if k not in ("units", "label_values")}
+
 # what the library's errors name that is not a parameter of positions_from_raw: its choice of reader
 READERS = {"raw": "--raw"}
 
@@ -91,8 +85,9 @@ def gravity_from_args(args) -> float:
 
 
 def with_flags(message: str) -> str:
-    """``message`` with each backquoted parameter of :data:`FLAGS` replaced by its option."""
-    return re.sub(r"`(\w+)`", lambda m: FLAGS.get(m[1], READERS.get(m[1], m[0])), message)
+    """``message`` with each backquoted parameter of :func:`flags` replaced by its option."""
+    table = {**flags(), **READERS}
+    return re.sub(r"`(\w+)`", lambda m: table.get(m[1], m[0]), message)
 
 
 @contextmanager
@@ -116,39 +111,36 @@ def parse_ks(spec) -> tuple[float, ...]:
         return multipliers(spec)
 
 
-def raw_options(args) -> dict:
-    """The keyword arguments of :func:`optcal.recording.workflow.positions_from_raw` from the parsed options: the
-    model the positions are for is calibrate's ``--model`` or discover's ``--base`` (default diag6)."""
+def raw_options(args) -> RawOptions:
+    """The raw-recording options (:class:`optcal.recording.options.RawOptions`) from the parsed command line."""
+    from ..recording.options import RawOptions
+
     labels = getattr(args, "labels", None)
     column, values = (labels.split("=", 1) if labels is not None and "=" in labels else (labels, None))
-    return {
-        "columns": getattr(args, "columns", None), "rate": getattr(args, "rate", None),
-        "units": getattr(args, "units", "g") or "g", "saturation": getattr(args, "saturation", None),
-        "adc": getattr(args, "adc", None), "time_unit": getattr(args, "time_unit", None),
-        "labels": column, "label_values": None if values is None else values.split(","),
-        "intervals": getattr(args, "intervals", None) or None,
-        "method": getattr(args, "method", None),
-        "threshold_k": None if getattr(args, "threshold_k", None) is None else parse_ks(args.threshold_k),
-        "window_s": getattr(args, "window", None), "min_static_s": getattr(args, "min_static", None),
-        "init_s": getattr(args, "init_s", None),
-        "model": getattr(args, "model", None) or getattr(args, "base", None) or "diag6",
-        "g_local": gravity_from_args(args),
-    }
+    return RawOptions(
+        columns=getattr(args, "columns", None), rate=getattr(args, "rate", None),
+        units=getattr(args, "units", "g") or "g", saturation=getattr(args, "saturation", None),
+        adc=getattr(args, "adc", None), time_unit=getattr(args, "time_unit", None), topic=getattr(args, "topic", None),
+        labels=column, label_values=None if values is None else values.split(","),
+        intervals=getattr(args, "intervals", None) or None, method=getattr(args, "method", None),
+        threshold_k=None if getattr(args, "threshold_k", None) is None else parse_ks(args.threshold_k),
+        window_s=getattr(args, "window", None), min_static_s=getattr(args, "min_static", None),
+        init_s=getattr(args, "init_s", None))
 
 
 def load_raw_positions(args, path, gyro_of=None) -> PositionsData:
-    """Positions from the raw recording ``path`` as the options ``args`` say; ``gyro_of(recording)`` gives the
-    gyroscope's Recording at the same samples (``optcal imu``), whose stillness the detection also judges."""
-    from ..recording.reading import read_recording
+    """Positions from the raw recording ``path`` as the options ``args`` say, for the model calibrate's ``--model``
+    or discover's ``--base`` names (default diag6); ``gyro_of(recording)`` gives the gyroscope's Recording at the
+    same samples (``optcal imu``), whose stillness the detection also judges."""
     from ..recording.workflow import positions_from_raw_recording
 
     opts = raw_options(args)
+    model = getattr(args, "model", None) or getattr(args, "base", None) or "diag6"
+    g_local = gravity_from_args(args)
     with flag_names():
-        rec = read_recording(path, opts.pop("columns"), opts.pop("rate"), opts.pop("units"),
-                             saturation=opts.pop("saturation"), labels=opts["labels"], adc=opts.pop("adc"),
-                             time_unit=opts.pop("time_unit"), refuse_positions=True,
-                             topic=getattr(args, "topic", None))
-        return positions_from_raw_recording(rec, gyro=None if gyro_of is None else gyro_of(rec), **opts)
+        rec = opts.read(path)
+        return positions_from_raw_recording(rec, opts, gyro=None if gyro_of is None else gyro_of(rec), model=model,
+                                            g_local=g_local)
 
 
 def load_positions(args, path) -> PositionsData:

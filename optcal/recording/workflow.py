@@ -17,7 +17,6 @@ averaged (the variance window already keeps them half a window away from motion;
 
 from __future__ import annotations
 
-from collections.abc import Sequence
 from pathlib import Path
 
 import numpy as np
@@ -27,8 +26,9 @@ from ..errors import InputError
 from ..model import get_model
 from .detection import DEFAULT_KS, DetectionResult, Detector, detect_static, parse_ks, too_few
 from .intervals import given_intervals, label_intervals, read_intervals
+from .options import RawOptions
 from .positions import positions_from_recording
-from .reading import Recording, read_recording
+from .reading import Recording
 from .segment import segment_diagnosis, segment_static
 
 
@@ -129,20 +129,12 @@ def detection_method(method: str | None, threshold_k, init_s) -> str:
     return method or ("variance" if variance_only else "segment")
 
 
-def positions_from_raw(path: str | Path, *, columns=None, rate: float | None = None, units: str = "g",
-                       saturation: float | None = None, adc: str | None = None, time_unit: str | None = None,
-                       labels: str | None = None,
-                       label_values: Sequence[str] | None = None, intervals: str | Path | None = None,
-                       method: str | None = None,
-                       threshold_k: float | str | Sequence[float] | None = None, window_s: float | None = None,
-                       min_static_s: float | None = None, init_s: float | None = None, model="diag6",
-                       g_local: float = 1.0, gyro=None, topic: str | None = None) -> PositionsData:
-    """Positions from a raw recording. ``columns``, ``rate`` (Hz), ``units``, ``saturation``, ``adc``,
-    ``time_unit``, ``labels`` (a label column) and ``topic`` (a ROS bag's or ULog's) are
-    :func:`~optcal.recording.read_recording`'s. The
-    static intervals come from the file ``intervals`` (:func:`~optcal.recording.read_intervals`), else from
-    the runs of ``label_values`` (all labels if None) in the column ``labels``, else from a detector
-    (:func:`detection_method`):
+def positions_from_raw(path: str | Path, options: RawOptions | None = None, *, model="diag6", g_local: float = 1.0,
+                       gyro=None, **kw) -> PositionsData:
+    """Positions from a raw recording: read (``options``' first seven, :class:`~optcal.recording.options.RawOptions`,
+    :func:`~optcal.recording.read_recording`'s), then its static intervals: from the file ``intervals``
+    (:func:`~optcal.recording.read_intervals`), else from the runs of ``label_values`` (all labels if None) in the
+    column ``labels``, else from a detector (:func:`detection_method`):
 
     - ``method="segment"`` (the default): change points and a rest test
       (:func:`~optcal.recording.segment.segment_static`, docs/segmentation.md), poses of at least
@@ -154,27 +146,25 @@ def positions_from_raw(path: str | Path, *, columns=None, rate: float | None = N
       2…10) are searched for the best fit of ``model`` at local gravity ``g_local``
       (:func:`choose_threshold`).
 
+    Keyword arguments ``kw`` are options too (``columns="ax,ay,az"``, ``units="counts"``, ...), over ``options``.
     Segmentation judges stillness on the gyroscope too: the recording's own gyroscope columns (gx, gy, gz), or
     ``gyro``, a :class:`~optcal.recording.Recording` whose ``N`` holds the rates at the same samples (``optcal
     imu``'s second file).
 
     Fewer intervals than ``model`` has parameters (a recording without rest among them, said so), or
     outputs whose magnitude does not fit ``units``, are an InputError."""
-    rec = read_recording(path, columns, rate, units, saturation=saturation, labels=labels, adc=adc,
-                         time_unit=time_unit, refuse_positions=True, topic=topic)
-    return positions_from_raw_recording(rec, gyro=gyro, labels=labels, label_values=label_values,
-                                        intervals=intervals, method=method, threshold_k=threshold_k,
-                                        window_s=window_s, min_static_s=min_static_s, init_s=init_s, model=model,
-                                        g_local=g_local)
+    opts = (options or RawOptions()).but("positions_from_raw", **kw)
+    return positions_from_raw_recording(opts.read(path), opts, gyro=gyro, model=model, g_local=g_local)
 
 
-def positions_from_raw_recording(rec: Recording, *, gyro=None, labels: str | None = None,
-                                 label_values: Sequence[str] | None = None, intervals=None,
-                                 method: str | None = None, threshold_k=None, window_s: float | None = None,
-                                 min_static_s: float | None = None, init_s: float | None = None, model="diag6",
-                                 g_local: float = 1.0) -> PositionsData:
+def positions_from_raw_recording(rec: Recording, options: RawOptions | None = None, *, gyro=None, model="diag6",
+                                 g_local: float = 1.0, **kw) -> PositionsData:
     """:func:`positions_from_raw` for a recording already read (``rec``; ``gyro`` a Recording of the
-    gyroscope's rates at the same samples, or None for ``rec``'s own gyroscope columns)."""
+    gyroscope's rates at the same samples, or None for ``rec``'s own gyroscope columns); of ``options`` (and
+    ``kw``), the choice of the rests."""
+    o = (options or RawOptions()).but("positions_from_raw_recording", **kw)
+    intervals, labels, label_values, method = o.intervals, o.labels, o.label_values, o.method
+    threshold_k, window_s, min_static_s, init_s = o.threshold_k, o.window_s, o.min_static_s, o.init_s
     model = get_model(model)
     if intervals is not None:
         det = given_intervals(rec, *read_intervals(intervals))
