@@ -234,3 +234,18 @@ def test_the_diagnostics_figure(tmp_path):
     assert any(t.startswith("orientation: p = ") and " → " in t for t in titles)
     assert any(t.startswith("Lomb–Scargle after the list (19 indep") for t in titles)
     assert "duration: not tested" in titles and titles[-1] == "per position: explained down to noise"
+
+
+def test_the_duration_diagnostic_sees_a_settling_bias():
+    """Poses of 2 to 20 s (the samples averaged, n) with bias_x settling as 1/duration (60 µg·(d̄/d − 1)): the
+    duration diagnostic is significant after the list, the others are not; without the effect it is not."""
+    for effect, expect in ((60e-6, True), (0.0, False)):
+        _, data = hidden(None, 7)
+        rng = np.random.default_rng(70)
+        n = rng.integers(200, 2000, len(data)).astype(float)
+        N = data.N.copy()
+        N[:, 0] += effect * (np.median(n) / n - 1.0)
+        data = dataclasses.replace(data, N=N, n_samples=n)
+        rep = discover(data, noise_g=NOISE)
+        sig = [d.name for d in rep.diagnostics_listed.significant]
+        assert (sig == ["duration"]) if expect else sig == [], rep.diagnostics_listed.summary()
