@@ -181,7 +181,8 @@ def preamble(spec: dict, rows: list[dict], spec_hash: str, presets: bool, final_
         f"{final_gap:g} of its data's optimum, so a fast method uses far fewer than its budget"
         + (f"; a trial whose solver takes the stagnation rule (CMA-ES, in staged:'s stages too; nevergrad's and "
            f"mealpy's optimisers with stop_on_stagnation) also ends once its best cost has improved by no more "
-           f"than {stagnation.rtol:g} of itself over the last {100 * stagnation.share:g} % of its budget (*ended by* in the solver settings). "
+           f"than {stagnation.rtol:g} of itself over the last {100 * stagnation.share:g} % of its budget "
+           "(*ended by* in the solver settings). "
            if stagnation is not None else ". ") +
         "*Navigation*: position error after the hours of static navigation, in nautical miles (nmi). "
         f"*value [lo, hi]* after the share at the noise floor, RMSE/CRLB and the median runtime: "
