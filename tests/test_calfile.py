@@ -80,7 +80,7 @@ def test_other_versions_and_missing_fields_are_clear_errors(tmp_path, fitted):
 
     check(None, "not a JSON calibration file", text="{not json")
     check({**good, "format": "imucal"}, "not an optcal calibration file")
-    check({**good, "format_version": 3}, "format_version 3; this optcal reads versions 1 and 2")
+    check({**good, "format_version": 4}, "format_version 4; this optcal reads versions 1, 2 and 3")
     check({k: v for k, v in good.items() if k != "format_version"}, "format_version None")
     for key in ("model", "terms", "parameters", "stderr", "units", "g_local", "data", "solver", "created"):
         check({k: v for k, v in good.items() if k != key}, f"lacks the field '{key}'")
