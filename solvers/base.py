@@ -309,7 +309,8 @@ class Solver:
     # import is a tenth of a raw calibration's start-up); the seed still makes every other solver reproducible
     uses_rng: ClassVar[bool] = True
     # Whether a solve given a Stagnation rule ends by it: for methods without a termination of their own that
-    # ends a converged run (CMA-ES inside staged:'s stages, nevergrad's and mealpy's optimisers). False for the
+    # ends a converged run (CMA-ES, also in staged:'s stages; ng: and mealpy: set it from their option
+    # stop_on_stagnation, off by default). False for the
     # local methods (their tolerances end them) and for the searches whose best cost stays flat for a long
     # stretch and then improves again (the swarms, NLopt's global methods, differential evolution:
     # docs/performance.md, "Stopping at convergence"), where the rule would end runs that had not converged.
