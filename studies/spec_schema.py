@@ -230,7 +230,9 @@ class SpecFile(_Table):
         ["24"], min_length=1, description=f"{SCHEME_HINT} or an array of them")
     truth: TruthField = "paper"
     presets: Literal["manufacturer", "none"] = "manufacturer"
-    presets_error_scale: float = Field(1.0, ge=0, description="a number: the factor on the manufacturer's error SDs")
+    presets_error_scale: float = Field(1.0, gt=0, description="a positive number: the factor on the manufacturer's "
+                                       "error SDs (0, exact presets, leaves the bound with presets undefined: give "
+                                       "a small factor such as 1e-3)")
     noise_ug: float = Field(10.0, gt=0, description="a number of µg")
     tilt_deg: float = Field(0.0, ge=0, description="a number of degrees")
     g_local: float = Field(1.0, gt=0, description="a number: the local gravity in g")

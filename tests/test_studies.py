@@ -118,6 +118,8 @@ def test_bad_top_level_values(line, key):
     ('runs = "many"', "spec bad.toml: key 'runs' must be an integer number of Monte-Carlo runs, got string 'many'"),
     ("seed = true", "spec bad.toml: key 'seed' must be a non-negative integer, got boolean true"),
     ("noise_ug = nan", "spec bad.toml: key 'noise_ug' must be positive, got nan"),
+    # exact presets leave the bound with presets undefined (it divided by zero in the report)
+    ("presets_error_scale = 0", "spec bad.toml: key 'presets_error_scale' must be positive, got 0"),
     ("truth = {K_x = 'a'}", "spec bad.toml: key 'truth.K_x' must be a number, got string 'a'"),
     ("budget = {max_time = 'x'}", "spec bad.toml: key 'budget.max_time' must be a number of seconds, got string 'x'"),
     ("budget = {max_evals = 10, tries = 3}",
