@@ -221,6 +221,43 @@ def _inverse3(m):
 
 
 @njit(**INLINE)
+def _affine_start(mi, c, N0, N1, N2, A0, A1, A2):
+    """Every position's A from the linear part alone, A = M⁻¹(N − c): the inversion's start (the answer for an
+    affine model)."""
+    for j in range(N0.size):
+        r0, r1, r2 = N0[j] - c[0], N1[j] - c[1], N2[j] - c[2]
+        A0[j] = mi[0] * r0 + mi[1] * r1 + mi[2] * r2
+        A1[j] = mi[3] * r0 + mi[4] * r1 + mi[5] * r2
+        A2[j] = mi[6] * r0 + mi[7] * r1 + mi[8] * r2
+
+
+@njit(**INLINE)
+def _newton_step(mi, j, r0, r1, r2, A0, A1, A2, step):
+    """Position j's A moved by M⁻¹ times its output residual; the step's size |δA|₁ into step[j] (≥ the
+    max-norm the NumPy oracle uses, so the sweep stops no earlier than it does)."""
+    d0 = mi[0] * r0 + mi[1] * r1 + mi[2] * r2
+    d1 = mi[3] * r0 + mi[4] * r1 + mi[5] * r2
+    d2 = mi[6] * r0 + mi[7] * r1 + mi[8] * r2
+    A0[j] += d0
+    A1[j] += d1
+    A2[j] += d2
+    step[j] = abs(d0) + abs(d1) + abs(d2)
+
+
+@njit(**INLINE)
+def _sweep_done(step, n, prev, tol):
+    """(stop, size) after a sweep: its largest step is NaN (no inverse), or the error left after it,
+    size·ρ/(1−ρ) with ρ the steps' ratio, is below tol (as Model.inverse stops)."""
+    size = 0.0
+    for j in range(n):
+        size = max(size, step[j])
+    if not size == size:
+        return True, size
+    rho = min(size / prev, 0.5) if prev > 0 else 0.0
+    return size <= tol or (prev < np.inf and size * rho / (1.0 - rho) <= tol), size
+
+
+@njit(**INLINE)
 def _invert_all(forward, q, pos, affine, tol, max_iter, A):
     """Specific force A[0:3] (3, n) of every position from its outputs: Model.inverse's iteration,
     sweeping all positions per step (a loop without branches, which the compiler vectorises)."""
@@ -229,36 +266,17 @@ def _invert_all(forward, q, pos, affine, tol, max_iter, A):
     N0, N1, N2, dT, dt = pos[ROW_N], pos[ROW_N + 1], pos[ROW_N + 2], pos[ROW_DTEMP], pos[ROW_DTIME]
     A0, A1, A2, step = A[0], A[1], A[2], A[3]
     n = N0.size
-    for j in range(n):
-        r0, r1, r2 = N0[j] - c[0], N1[j] - c[1], N2[j] - c[2]
-        A0[j] = mi[0] * r0 + mi[1] * r1 + mi[2] * r2
-        A1[j] = mi[3] * r0 + mi[4] * r1 + mi[5] * r2
-        A2[j] = mi[6] * r0 + mi[7] * r1 + mi[8] * r2
+    _affine_start(mi, c, N0, N1, N2, A0, A1, A2)
     if affine:
         return
     prev = np.inf
     for _ in range(max_iter):
         for j in range(n):
             f0, f1, f2 = forward(q, A0[j], A1[j], A2[j], dT[j], dt[j])
-            r0, r1, r2 = N0[j] - f0, N1[j] - f1, N2[j] - f2
-            d0 = mi[0] * r0 + mi[1] * r1 + mi[2] * r2
-            d1 = mi[3] * r0 + mi[4] * r1 + mi[5] * r2
-            d2 = mi[6] * r0 + mi[7] * r1 + mi[8] * r2
-            A0[j] += d0
-            A1[j] += d1
-            A2[j] += d2
-            # |δA|₁ ≥ the max-norm the NumPy oracle uses, so this stops no earlier than it does.
-            step[j] = abs(d0) + abs(d1) + abs(d2)
-        size = 0.0
-        for j in range(n):
-            size = max(size, step[j])
-        if not size == size:  # NaN: this candidate has no inverse
+            _newton_step(mi, j, N0[j] - f0, N1[j] - f1, N2[j] - f2, A0, A1, A2, step)
+        done, prev = _sweep_done(step, n, prev, tol)
+        if done:
             break
-        # Stop when the error left after this step, size·ρ/(1−ρ), is below tol (as Model.inverse does).
-        rho = min(size / prev, 0.5) if prev > 0 else 0.0
-        if size <= tol or (prev < np.inf and size * rho / (1.0 - rho) <= tol):
-            break
-        prev = size
 
 
 @njit(**JIT)
@@ -272,33 +290,16 @@ def _invert_all_user(q, pos, tol, max_iter, A, tab, w):
     N0, N1, N2, dT, dt = pos[ROW_N], pos[ROW_N + 1], pos[ROW_N + 2], pos[ROW_DTEMP], pos[ROW_DTIME]
     A0, A1, A2, step = A[0], A[1], A[2], A[3]
     n = N0.size
-    for j in range(n):
-        r0, r1, r2 = N0[j] - c[0], N1[j] - c[1], N2[j] - c[2]
-        A0[j] = mi[0] * r0 + mi[1] * r1 + mi[2] * r2
-        A1[j] = mi[3] * r0 + mi[4] * r1 + mi[5] * r2
-        A2[j] = mi[6] * r0 + mi[7] * r1 + mi[8] * r2
+    _affine_start(mi, c, N0, N1, N2, A0, A1, A2)
     prev = np.inf
     for _ in range(max_iter):
         for j in range(n):
             f0, f1, f2 = forward_all(q, A0[j], A1[j], A2[j], dT[j], dt[j])
             u0, u1, u2 = _user_outputs(q, tab, w, j, A0[j], A1[j], A2[j], A)
-            r0, r1, r2 = N0[j] - f0 - u0, N1[j] - f1 - u1, N2[j] - f2 - u2
-            d0 = mi[0] * r0 + mi[1] * r1 + mi[2] * r2
-            d1 = mi[3] * r0 + mi[4] * r1 + mi[5] * r2
-            d2 = mi[6] * r0 + mi[7] * r1 + mi[8] * r2
-            A0[j] += d0
-            A1[j] += d1
-            A2[j] += d2
-            step[j] = abs(d0) + abs(d1) + abs(d2)
-        size = 0.0
-        for j in range(n):
-            size = max(size, step[j])
-        if not size == size:
+            _newton_step(mi, j, N0[j] - f0 - u0, N1[j] - f1 - u1, N2[j] - f2 - u2, A0, A1, A2, step)
+        done, prev = _sweep_done(step, n, prev, tol)
+        if done:
             break
-        rho = min(size / prev, 0.5) if prev > 0 else 0.0
-        if size <= tol or (prev < np.inf and size * rho / (1.0 - rho) <= tol):
-            break
-        prev = size
 
 
 @njit(**INLINE)
