@@ -12,29 +12,15 @@ from __future__ import annotations
 import os
 import statistics
 import subprocess
-import sys
 import time
-from pathlib import Path
 
 import numpy as np
+from test_bench_startup import _command, _env
 
 from optcal import simulate
 from optcal.presets import draw_truth
 
 TARGET_S = 2.0
-
-
-def _command() -> list[str]:
-    script = Path(sys.executable).parent / "optcal"
-    if script.is_file():
-        return [str(script)]
-    return [sys.executable, "-c", "import sys; from optcal.cli import main; sys.exit(main())"]
-
-
-def _env(cache: Path) -> dict[str, str]:
-    env = {k: v for k, v in os.environ.items() if k != "PYTHONDONTWRITEBYTECODE"}
-    env["PYTHONPYCACHEPREFIX"] = str(cache)
-    return env
 
 
 def test_bench_discover_process_40_positions(benchmark, tmp_path):
