@@ -71,13 +71,11 @@ def _positions(data, units: str | None, raw: bool, g_local: float, model, readin
 
 
 def _check_reading(function: str, reading: dict) -> None:
-    """The recording options given as keyword arguments (:class:`optcal.recording.options.RawOptions`' names, but
-    ``units``, which the functions take themselves)."""
+    """The recording options given as keyword arguments: :class:`optcal.recording.options.RawOptions`' names
+    (``units`` is the functions' own argument)."""
     from .recording.options import RawOptions
 
     RawOptions.of(function, **reading)
-    if "units" in reading:
-        raise InputError(f"{function}() takes `units` as its own argument; give it once")
 
 
 def calibrate(data, model=None, *, solver: str = "lm", units: str | None = None, raw: bool = False,
@@ -157,19 +155,17 @@ def calibrate_imu(data, gyro=None, *, gyro_units: str, gyro_columns=None, gyro_s
         raise InputError(f"gyro must be the path of the gyroscope's file, got {type(gyro).__name__}")
     check_imu_options(gyro_scale=gyro_scale, gyro_bias=gyro_bias, g_sensitivity=g_sensitivity)
     from .determination import first_found
-    from .recording.reading import read_recording
+    from .recording.options import RawOptions
     from .recording.workflow import positions_from_raw_recording
 
     # the recording is read once, and the gyroscope before the rests are found: their detection judges its
     # stillness too
-    read = {k: reading.pop(k, None) for k in ("columns", "rate", "saturation", "adc", "time_unit", "topic")}
-    acc = read_recording(os.fspath(data), read["columns"], read["rate"], units or "g", saturation=read["saturation"],
-                         adc=read["adc"], time_unit=read["time_unit"], labels=reading.get("labels"),
-                         refuse_positions=True, topic=read["topic"])
+    opts = RawOptions(units=units or "g", **reading)
+    acc = opts.read(os.fspath(data))
     rates = read_gyro(os.fspath(data), acc, gyro=None if gyro is None else os.fspath(gyro), gyro_columns=gyro_columns,
-                      units=gyro_units, rate=read["rate"], time_unit=read["time_unit"])
-    positions = first_found(lambda name: positions_from_raw_recording(acc, gyro=rates, model=name, g_local=g_local,
-                                                                        **reading), model)
+                      units=gyro_units, rate=opts.rate, time_unit=opts.time_unit)
+    positions = first_found(lambda name: positions_from_raw_recording(acc, opts, gyro=rates, model=name,
+                                                                        g_local=g_local), model)
     return fit_imu(positions, rates, model=model, solver=solver, options=options, g_local=g_local, seed=seed,
                    budget=budget, gyro_units=gyro_units, gyro_scale=gyro_scale, gyro_bias=gyro_bias,
                    g_sensitivity=g_sensitivity, force_weak=force_weak)
