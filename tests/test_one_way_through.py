@@ -12,6 +12,7 @@ import numpy as np
 import pytest
 import robot_logs_files as R
 from conftest import run_cli
+from test_readers_wild import write_mat73
 
 import optcal
 from optcal.cli import main
@@ -19,21 +20,6 @@ from optcal.errors import InputError
 from optcal.synthetic_imu import handheld_imu
 
 G0 = 9.80665
-
-
-def _mat73(path, variables: dict):
-    """A MATLAB v7.3 file as MATLAB writes one: HDF5 behind a 512-byte user block whose first 128 bytes are the
-    MAT header text, the version 0x0200 and the endian mark "IM" (MathWorks, "MAT-File Format", v7.3), each
-    variable a dataset with its MATLAB_class."""
-    import h5py
-
-    with h5py.File(path, "w", userblock_size=512) as f:
-        for name, value in variables.items():
-            f.create_dataset(name, data=np.asarray(value, float)).attrs["MATLAB_class"] = np.bytes_("double")
-    head = b"MATLAB 7.3 MAT-file, Platform: GLNXA64, Created on: Fri Nov 27 12:00:00 2026 HDF5 schema 1.00 ."
-    with open(path, "r+b") as fh:
-        fh.write(head.ljust(116, b" ") + b"\0" * 8 + b"\x00\x02IM")
-    return path
 
 
 @pytest.fixture(scope="module")
@@ -50,8 +36,8 @@ def files(tmp_path_factory):
     np.savetxt(out["raw text"], table, delimiter=",", header="t,ax,ay,az,gx,gy,gz", comments="")
     out["raw MAT v5"] = d / "rec.mat"
     savemat(out["raw MAT v5"], {"t": t, "ax": A[:, 0], "ay": A[:, 1], "az": A[:, 2]})
-    out["raw MAT v7.3"] = _mat73(d / "rec73.mat", {"t": t[None, :], "ax": A[None, :, 0], "ay": A[None, :, 1],
-                                                     "az": A[None, :, 2]})  # a column vector: 1 × n in HDF5
+    out["raw MAT v7.3"] = write_mat73(d / "rec73.mat", {"t": t[:, None], "ax": A[:, :1], "ay": A[:, 1:2],
+                                                         "az": A[:, 2:]})  # column vectors, as MATLAB saves them
     t_ns = R.EPOCH_NS + np.round(t * 1e9).astype(np.int64)
     for storage in ("ros1", "sqlite3"):
         out[f"raw ROS bag ({storage})"] = R.imu_bag(d / f"bag_{storage}", storage, t_ns, A * G0, np.radians(Wd))
@@ -61,7 +47,7 @@ def files(tmp_path_factory):
     N = np.loadtxt(d / "pos.csv", delimiter=",", skiprows=1, usecols=(1, 2, 3))  # position, ax, ay, az
     out["positions MAT v5"] = d / "pos.mat"
     savemat(out["positions MAT v5"], {"ax": N[:, 0], "ay": N[:, 1], "az": N[:, 2]})
-    out["positions MAT v7.3"] = _mat73(d / "pos73.mat", {"P": N.T})  # n × 3 in MATLAB: 3 × n in the HDF5 file
+    out["positions MAT v7.3"] = write_mat73(d / "pos73.mat", {"P": N})
     return out
 
 

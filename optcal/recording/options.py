@@ -9,7 +9,6 @@ from __future__ import annotations
 from collections.abc import Sequence
 from dataclasses import dataclass, field, fields, replace
 from pathlib import Path
-from typing import ClassVar
 
 from ..errors import InputError
 
@@ -48,8 +47,6 @@ class RawOptions:
     window_s: float | None = _option("--window")
     min_static_s: float | None = _option("--min-static")
     init_s: float | None = _option("--init-s")
-
-    READING: ClassVar[tuple[str, ...]] = ("columns", "rate", "units", "saturation", "adc", "time_unit", "topic")
 
     @classmethod
     def names(cls) -> tuple[str, ...]:
