@@ -17,9 +17,8 @@ from test_readers_wild import write_mat73
 import optcal
 from optcal.cli import main
 from optcal.errors import InputError
+from optcal.gravity import G0
 from optcal.synthetic_imu import handheld_imu
-
-G0 = 9.80665
 
 
 @pytest.fixture(scope="module")
