@@ -51,6 +51,7 @@ import re
 import numpy as np
 import pytest
 from corpus import corpus_root
+from golden import check as golden
 
 from optcal.cli import main
 from optcal.fit import calibrate
@@ -257,14 +258,18 @@ def _check(name, extra, tmp_path, capsys):
     path, args, expect, ref, tol = CORPUS[name]
     cal = tmp_path / "cal.json"
     code, out, err = _run(["calibrate", str(DATA / path), *args, *extra, "-o", str(cal)], capsys)
+    key = f"calibrate:{name}" + (":" + " ".join(extra) if extra else "")
     if expect == "refuse" or (expect == "either" and code != 0):
         lines = err.strip().splitlines()
         assert code == 2 and len(lines) == 1 and lines[0].startswith("optcal calibrate: error: "), (code, err)
         assert not cal.exists()
+        golden(key, {"exit": code, "error": lines[0]})
         return
     assert code == 0, err.strip()
     assert cal.is_file()
     result = json.loads(cal.read_text())
+    golden(key, {"exit": code, "model": result["model"], "parameters": result["parameters"],
+                 "n_positions": result["data"]["n_positions"]})
     scale, offset, cos = _ours(result["parameters"])
     if name == "xsens":
         _xsens_check(scale, offset, cos, tol)
@@ -339,9 +344,13 @@ def test_imu_default_command(name, tmp_path, capsys):
         lines = err.strip().splitlines()
         assert code == 2 and len(lines) == 1 and lines[0].startswith("optcal imu: error: "), err
         assert not out.exists()
+        golden(f"imu:{name}", {"exit": code, "error": lines[0]})
         return
     assert code == 0, err.strip()
-    g = json.loads(out.read_text())["gyroscope"]
+    written = json.loads(out.read_text())
+    golden(f"imu:{name}", {"exit": code, "gyroscope": written["gyroscope"]["parameters"],
+                           "accelerometer": written["parameters"], "model": written["model"]})
+    g = written["gyroscope"]
     K = np.array([g["parameters"][f"K_{a}"] for a in "xyz"])
     assert np.all(K > 0)
     if isinstance(ref, str):  # imucal's own Ferraris calibration of this sensor (another session, counts to
