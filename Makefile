@@ -12,10 +12,10 @@ $(STAMP): pyproject.toml
 	$(PY) -m pip install --quiet --upgrade pip
 	$(PY) -m pip install --quiet -e ".[test]"
 	$(PY) -m pip install --quiet --no-deps $$($(PY) -c "import sys; t = __import__('tomllib' if sys.version_info >= (3, 11) else 'tomli'); print(' '.join(t.load(open('pyproject.toml', 'rb'))['tool']['optcal']['install-without-deps']))")
-	$(PY) -m optcal.warmup
+	$(PY) -m optcal.core.warmup
 	touch $(STAMP)
 
-# The headline comparison study (studies/specs/compare.toml: 41 configurations × 2 models × 2 schemes × 50 runs = 8,200 trials) and its report,
+# The headline comparison study (optcal/studies/specs/compare.toml: 41 configurations × 2 models × 2 schemes × 50 runs = 8,200 trials) and its report,
 # out/compare/report.md, on every core (docs/performance.md gives its wall time). A study that is stopped
 # resumes where it stopped when run again. `make run-quick` runs its 10-run variant.
 run: $(STAMP)
@@ -29,7 +29,7 @@ run-quick: $(STAMP)
 # ruff, then the layer contracts of pyproject.toml (CONTRIBUTING.md, "Layers"), then the tests on every core
 # (pytest-xdist; a worker that finishes early takes work from the other).
 test: $(STAMP)
-	$(PY) -m ruff check optcal solvers studies tests
+	$(PY) -m ruff check optcal tests
 	$(VENV)/bin/lint-imports --no-cache
 	$(MAKE) --no-print-directory docs
 	$(PY) -m pytest -n auto --dist worksteal
@@ -51,7 +51,7 @@ bench-compare: $(STAMP)
 	$(VENV)/bin/pytest-benchmark compare --group-by=name --columns=min,median,mean,stddev $$runs
 
 lint: $(STAMP)
-	$(PY) -m ruff check optcal solvers studies tests
+	$(PY) -m ruff check optcal tests
 
 clean:
 	rm -rf $(VENV) build *.egg-info .benchmarks

@@ -10,9 +10,9 @@ BUDGET = 2000  # evaluations per calibration
 
 
 def _problem():
-    from optcal.presets import PAPER_TRUTH, manufacturer_presets
-    from optcal.problem import CalibrationProblem
-    from optcal.simulate import simulate
+    from optcal.core.presets import PAPER_TRUTH, manufacturer_presets
+    from optcal.core.problem import CalibrationProblem
+    from optcal.core.simulate import simulate
 
     rng = np.random.default_rng(4242)
     sim = simulate("nonlinear12", PAPER_TRUTH, rng, scheme="24", noise_g=10e-6, tilt_deg=1.0)
@@ -23,7 +23,7 @@ def _problem():
 def _compile():
     """Compile the kernel once per commit (numba caches it on disk beside the installed package), outside
     every timed process: after an install the first evaluation compiles for about half a minute."""
-    from optcal.warmup import warm
+    from optcal.core.warmup import warm
 
     return warm()
 
@@ -55,7 +55,7 @@ class Calibrate:
     setup_cache = staticmethod(_compile)
 
     def setup(self, _, name):
-        import solvers
+        from optcal import solvers
 
         if not solvers.get(name).is_available():
             raise NotImplementedError  # asv: skipped

@@ -1,4 +1,4 @@
-"""``track_*``: a study's results per commit. The study is the CI spec (studies/specs/ci.toml) unless the
+"""``track_*``: a study's results per commit. The study is the CI spec (optcal/studies/specs/ci.toml) unless the
 environment names another: ``OPTCAL_ASV_SPEC`` (a shipped spec's name or a path to a user's spec file) and
 ``OPTCAL_ASV_RUNS`` (its number of Monte-Carlo runs; the spec's own by default). The spec runs once per
 commit (``setup_cache``, serial, fixed seeds), so every track below reads the same results.
@@ -12,7 +12,7 @@ from __future__ import annotations
 import os
 import tempfile
 
-from studies.spec import load
+from optcal.studies.spec import load
 
 SPEC = os.environ.get("OPTCAL_ASV_SPEC", "ci")
 RUNS = os.environ.get("OPTCAL_ASV_RUNS")
@@ -30,10 +30,10 @@ SOLVERS = [c.label for c in _S.solvers if not c.reference]
 
 def setup_cache():
     """Run the study once (this commit's code) and keep each cell's summary and each solver's ECDF areas."""
-    from studies import anytime
-    from studies.execute import run_study
-    from studies.metrics import groups
-    from studies.store import Store
+    from optcal.studies import anytime
+    from optcal.studies.execute import run_study
+    from optcal.studies.metrics import groups
+    from optcal.studies.store import Store
 
     with tempfile.TemporaryDirectory() as folder:
         run_study(_spec(), folder, executor="serial", progress=False)
@@ -73,7 +73,7 @@ track_success_rate.unit = "fraction of runs"
 
 
 def track_anytime_area(cache, solver, kind):
-    """The area under the solver's runtime ECDF (cost or accuracy targets, studies.anytime), 0 to 1; higher is
+    """The area under the solver's runtime ECDF (cost or accuracy targets, optcal.studies.anytime), 0 to 1; higher is
     better."""
     return cache["anytime"][solver][kind]
 
@@ -92,12 +92,12 @@ class TimeStudy:
     warmup_time = 0
 
     def setup_cache(self):
-        from optcal.warmup import warm
+        from optcal.core.warmup import warm
 
         warm()  # the kernel compiles once per commit here, not inside the timing
 
     def time_study_quick(self, _):
-        from studies.execute import run_study
+        from optcal.studies.execute import run_study
 
         with tempfile.TemporaryDirectory() as folder:
             run_study(_spec().quick(), folder, executor="serial", progress=False)

@@ -1,5 +1,5 @@
 """A Griffe extension for the API reference (docs/reference.md): the docstrings name objects with Sphinx's
-roles (:func:`calibrate`, :class:`~optcal.fit.Calibration`), which Markdown would print as they are; this
+roles (:func:`calibrate`, :class:`~optcal.app.fit.Calibration`), which Markdown would print as they are; this
 turns each into code that links to the object where the reference renders it, and stays plain code where it
 does not (an optional mkdocs-autorefs reference, which the strict build does not count as broken).
 """
@@ -16,7 +16,7 @@ ROLE = re.compile(r":(?:func|class|meth|attr|data|mod|obj|exc):`(~?)([\w.]+)`")
 def _identifier(obj: griffe.Object, target: str, loader: griffe.GriffeLoader) -> str:
     """The path where ``target``, as a docstring of ``obj`` names it, is defined: a relative name is looked up
     as Sphinx does, in the object's class, then module, then package; an imported name is followed to its
-    definition (``optcal.recording.Recording`` is ``optcal.recording.reading.Recording``)."""
+    definition (``optcal.core.recording.Recording`` is ``optcal.core.recording.reading.Recording``)."""
     first = target.split(".")[0]
     scope = obj if obj.is_class else obj.parent
     while scope is not None and first not in scope.members:

@@ -53,7 +53,7 @@ def assert_numbers_carry_units(obj, unit: re.Pattern, unitless=UNITLESS_NOISE_KE
 
 def run_cli(argv, capsys):
     """optcal's command line in this process (arguments turned into strings): exit code, stdout, stderr."""
-    from optcal.cli import main
+    from optcal.app.cli import main
 
     code = main([str(a) for a in argv])
     out = capsys.readouterr()

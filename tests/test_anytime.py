@@ -1,5 +1,5 @@
 """Anytime performance: what each trial records (best cost and accuracy on the evaluation grid, the optimum
-of its data set), and the analyses of studies.anytime on hand-made inputs with known answers."""
+of its data set), and the analyses of optcal.studies.anytime on hand-made inputs with known answers."""
 
 from __future__ import annotations
 
@@ -9,9 +9,9 @@ import numpy as np
 import pytest
 from test_studies import BASE, spec_of
 
-from studies.execute import run_study
-from studies.store import Store
-from studies.trial import accuracy_of, anytime_on_grid, trace_on_grid, trials, world
+from optcal.studies.execute import run_study
+from optcal.studies.store import Store
+from optcal.studies.trial import accuracy_of, anytime_on_grid, trace_on_grid, trials, world
 
 # -- what a trial records ---------------------------------------------------------------------
 
@@ -74,9 +74,9 @@ def test_a_turntable_trial_has_no_in_field_optimum(tmp_path):
 
 # -- ECDFs, profiles and bootstrap intervals on hand-made inputs ----------------------------------
 
-from studies import anytime as A  # noqa: E402
-from studies.metrics import groups  # noqa: E402
-from studies.report import write_report  # noqa: E402
+from optcal.studies import anytime as A  # noqa: E402
+from optcal.studies.metrics import groups  # noqa: E402
+from optcal.studies.report import write_report  # noqa: E402
 
 INF = np.inf
 
@@ -241,7 +241,7 @@ def test_the_report_has_the_anytime_section_with_its_figures_targets_and_interva
 
 
 def test_search_methods_are_the_in_field_metaheuristic_and_global_configurations():
-    from studies.report_sections import search_methods
+    from optcal.studies.report_sections import search_methods
 
     spec = {"solvers": [{"name": n, "label": lab, "options": {}, "reference": ref} for n, lab, ref in [
         ("scipy-lm", "scipy-lm", False), ("bsas", "bsas", False), ("staged:bsas", "staged:bsas", False),
@@ -255,7 +255,7 @@ def test_search_methods_are_the_in_field_metaheuristic_and_global_configurations
 def test_an_old_store_without_anytime_columns_still_reports(tmp_path):
     import sqlite3
 
-    from studies.store import COLUMNS
+    from optcal.studies.store import COLUMNS
 
     sp = spec_of()
     run_study(sp, tmp_path, progress=False)
@@ -278,8 +278,8 @@ def test_a_new_solver_in_one_file_appears_in_every_report_without_further_code(t
     carry it, with no code that names it."""
     import json
 
-    from optcal.cli import main
-    from solvers import registry
+    from optcal.app.cli import main
+    from optcal.solvers import registry
 
     monkeypatch.syspath_prepend(str(Path(__file__).resolve().parents[1] / "examples" / "random_search_plugin"))
     from optcal_random_search import RandomSearch

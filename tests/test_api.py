@@ -1,4 +1,4 @@
-"""The front door (optcal/api.py, docs/api.md): every python block of docs/api.md runs, in order, in one
+"""The front door (optcal/app/api.py, docs/api.md): every python block of docs/api.md runs, in order, in one
 session from the repository's root, and the values it computes are checked; then the functions' one-line
 errors for what a user can get wrong. The blocks that read the real corpus name it by its default path
 (tests/corpus.py), run on the folder the tests use, and are left out (their tests skipped) where it is absent."""
@@ -19,7 +19,7 @@ import pytest
 from corpus import DEFAULT, corpus, corpus_present, corpus_root
 
 import optcal
-from optcal.errors import InputError
+from optcal.core.errors import InputError
 
 ROOT = Path(__file__).resolve().parents[1]
 DOC = ROOT / "docs" / "api.md"
@@ -61,7 +61,7 @@ def test_every_front_door_function_has_a_section():
     text = DOC.read_text()
     for name in ("calibrate", "apply", "read_recording", "noise", "calibrate_imu"):
         assert f"## `optcal.{name}`" in text, name
-        assert getattr(optcal, name) is getattr(__import__("optcal.api", fromlist=[name]), name)
+        assert getattr(optcal, name) is getattr(__import__("optcal.app.api", fromlist=[name]), name)
 
 
 def test_calibrate_recovers_the_simulated_truth(session):
@@ -94,7 +94,7 @@ def test_calibrate_a_raw_recording(corpus, session):
 def test_the_api_refuses_what_the_data_do_not_determine_with_the_clis_line(corpus, session, tmp_path, capsys):
     """The same line from optcal.calibrate and optcal calibrate (the CLI puts its option names in for the
     backquoted parameters); a forced fit is applied with a warning naming its reasons."""
-    from optcal.cli import main
+    from optcal.app.cli import main
 
     ns, _ = session
     data = ns["mpu"].problem.data
@@ -172,19 +172,19 @@ def test_one_line_errors(call, message):
 
 
 def test_calibrate_refuses_units_that_contradict_the_data():
-    from optcal.data import PositionsData
+    from optcal.core.data import PositionsData
 
     with pytest.raises(InputError, match="the positions are in 'g' but units='counts'"):
         optcal.calibrate(PositionsData(N=np.eye(3)), units="counts")
 
 
 def test_the_front_door_names_import_nothing_heavy():
-    """Looking the four names up loads optcal.api, which imports NumPy and the rest only when called."""
+    """Looking the four names up loads optcal.app.api, which imports NumPy and the rest only when called."""
     code = ("import importlib, sys, optcal\n"
             "fns = optcal.calibrate, optcal.apply, optcal.read_recording, optcal.noise\n"
-            "print(sorted({m.split('.')[0] for m in sys.modules} & {'numpy', 'scipy', 'solvers'}))\n"
-            "importlib.import_module('optcal.noise')\n"  # the submodule, recorded as an attribute by Python ...
-            "assert optcal.noise is fns[3], optcal.noise\n")  # ... does not replace the function
+            "print(sorted(m for m in sys.modules if m in ('numpy', 'scipy', 'optcal.solvers')))\n"
+            "importlib.import_module('optcal.core.noise')\n"  # the noise package, loaded ...
+            "assert optcal.noise is fns[3], optcal.noise\n")  # ... leaves the front door's function in place
     proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120, cwd=ROOT)
     assert proc.returncode == 0, proc.stderr
     assert proc.stdout.strip() == "[]"

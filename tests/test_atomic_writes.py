@@ -3,7 +3,7 @@ file it was writing is as it was before (an old one byte for byte, a new one abs
 most a stray ``.NAME.XXXXXXXX.tmp`` beside it, never a partial file under the output's name.
 
 "Mid-write" is made deterministic by a runner script (test code only: nothing in optcal knows of it) that
-runs the command with :func:`optcal.atomicfile._temporary` wrapped, so that its Nth ``write`` to any output
+runs the command with :func:`optcal.core.atomicfile._temporary` wrapped, so that its Nth ``write`` to any output
 writes half its data, flushes it, and sends the process a signal: SIGKILL (no clean-up at all) or SIGINT
 (Ctrl-C: the temporary file is removed)."""
 
@@ -23,7 +23,7 @@ import pytest
 import tomllib
 from conftest import run_cli
 
-from optcal.errors import InputError
+from optcal.core.errors import InputError
 
 ROOT = Path(__file__).resolve().parents[1]
 IMU_ARGS = ["--gyro-columns", "gx,gy,gz", "--gyro-units", "counts", "--gyro-scale", "1000", "--model", "linear9"]
@@ -32,15 +32,15 @@ OLD = b"an old file, which must survive\n"
 RUNNER = r'''
 import os, runpy, signal, sys, time
 
-import optcal.atomicfile as af
+import optcal.core.atomicfile as af
 
 sig, after, module, *argv = sys.argv[1:]
 sig, after = getattr(signal, sig), int(after)
 if argv and argv[0] == "--no-figures":  # the study report's figures skipped: only its three text files counted
     argv = argv[1:]
-    import studies.figures
+    import optcal.studies.figures
 
-    studies.figures.Renderer.draw = lambda self, fn, path, *a, **k: path
+    optcal.studies.figures.Renderer.draw = lambda self, fn, path, *a, **k: path
 writes = 0
 
 
@@ -84,7 +84,7 @@ runpy.run_module(module, run_name="__main__", alter_sys=True)
 def work(tmp_path_factory):
     """Inputs made once, in this process: a positions CSV and its calibration, a simulated IMU recording (as
     tests/test_gyro_imu_command.py's) and its IMU file, a raw recording, and a small study folder."""
-    from optcal.gyro import draw_truth, get_gyro_model, simulate_imu
+    from optcal.core.gyro import draw_truth, get_gyro_model, simulate_imu
 
     d = tmp_path_factory.mktemp("atomic")
     (d / "runner.py").write_text(RUNNER)
@@ -101,10 +101,10 @@ def work(tmp_path_factory):
     A = np.tile([0.01, -0.02, 1.0], (n, 1)) + 1e-3 * rng.standard_normal((n, 3))
     np.savetxt(d / "raw.csv", np.column_stack([np.arange(n) / 100.0, A]), delimiter=",", header="t,ax,ay,az",
                comments="", fmt="%.9g")
-    from studies.execute import run_study
-    from studies.spec import parse
+    from optcal.studies.execute import run_study
+    from optcal.studies.spec import parse
 
-    spec = tomllib.loads((ROOT / "studies" / "specs" / "ci.toml").read_text())
+    spec = tomllib.loads((ROOT / "optcal" / "studies" / "specs" / "ci.toml").read_text())
     spec.update(runs=2, solvers=[{"name": "scipy-lm"}], navigation={"enabled": False})
     run_study(parse(spec, "ci.toml"), d / "study", progress=False)
     return d
@@ -117,7 +117,7 @@ class _NoCapture:
         return type("Out", (), {"out": "", "err": ""})()
 
 
-def killed(work: Path, after: int, *argv, sig: str = "SIGKILL", module: str = "optcal.cli"):
+def killed(work: Path, after: int, *argv, sig: str = "SIGKILL", module: str = "optcal.app.cli"):
     env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(ROOT), os.environ.get("PYTHONPATH", "")])}
     return subprocess.run([sys.executable, str(work / "runner.py"), sig, str(after), module, *map(str, argv)],
                           capture_output=True, text=True, env=env, cwd=work, timeout=120)
@@ -241,7 +241,7 @@ PNG = b"\x89PNG\r\n\x1a\n"
 
 
 def test_calibrate_plot_killed_keeps_the_old_figure(work):
-    """--plot (optcal.plots.save_figure, which calibrate, plan and discover share), cut in its first write."""
+    """--plot (optcal.core.plots.save_figure, which calibrate, plan and discover share), cut in its first write."""
     (fig,) = fresh(work / "calibrate_plot", "fit.png")
     r = killed(work, 1, "calibrate", work / "pos.csv", "--model", "linear9", "--plot", fig, "--force")
     assert_killed_mid_write(r, fig, partial=PNG[:4])
@@ -279,10 +279,10 @@ def test_study_figures_killed_keep_the_old_figures(work):
 
 
 def test_the_helper(tmp_path, monkeypatch):
-    """optcal.atomicfile directly: the mode of a new file is open()'s, a replaced file keeps its mode, a refused
+    """optcal.core.atomicfile directly: the mode of a new file is open()'s, a replaced file keeps its mode, a refused
     or failed write leaves nothing, a symbolic link is kept and its target replaced, and the bytes are
     Path.write_text's."""
-    from optcal.atomicfile import atomic_write, write_atomic
+    from optcal.core.atomicfile import atomic_write, write_atomic
 
     new = tmp_path / "new.txt"
     write_atomic(new, "a\nb\n", overwrite=False)
@@ -316,7 +316,7 @@ def test_the_helper(tmp_path, monkeypatch):
         write_atomic(tmp_path / "nowhere" / "x.txt", "x", overwrite=True)
     assert sorted(p.name for p in tmp_path.iterdir()) == ["link.txt", "new.txt", "ref.txt"]
     # the calibration files' writer refuses an existing file as before, and the JSON is what it was
-    from optcal.jsonfile import write_json_object
+    from optcal.core.jsonfile import write_json_object
 
     write_json_object({"a": 1}, tmp_path / "c.json")
     assert (tmp_path / "c.json").read_text() == json.dumps({"a": 1}, indent=2) + "\n"
@@ -325,11 +325,11 @@ def test_the_helper(tmp_path, monkeypatch):
 
 
 def test_save_figure(tmp_path):
-    """optcal.plots.save_figure through the helper: the PNG is savefig(path)'s byte for byte, a name without a
+    """optcal.core.plots.save_figure through the helper: the PNG is savefig(path)'s byte for byte, a name without a
     suffix gets savefig's .png, and a format matplotlib cannot write is one line, with nothing left behind."""
     from matplotlib.figure import Figure
 
-    from optcal.plots import save_figure
+    from optcal.core.plots import save_figure
 
     fig = Figure()
     fig.subplots().plot([0, 1, 4])

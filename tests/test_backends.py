@@ -10,11 +10,11 @@ import sys
 import numpy as np
 import pytest
 
-from optcal.fit import calibrate
-from optcal.model import get_model
-from optcal.presets import PAPER_TRUTH
-from optcal.problem import CalibrationProblem
-from optcal.simulate import simulate
+from optcal.app.fit import calibrate
+from optcal.core.model import get_model
+from optcal.core.presets import PAPER_TRUTH
+from optcal.core.problem import CalibrationProblem
+from optcal.core.simulate import simulate
 
 
 @pytest.mark.parametrize("model, scheme", [("diag6", "24"), ("linear9", "36"), ("nonlinear12", "24"),
@@ -43,7 +43,7 @@ def test_least_squares_chooses_numpy_and_search_methods_the_kernel():
 
 
 def test_unknown_backend_is_one_line():
-    from optcal.errors import InputError
+    from optcal.core.errors import InputError
 
     m = get_model("diag6")
     sim = simulate(m, {k: v for k, v in PAPER_TRUTH.items() if k in m.names}, np.random.default_rng(0), scheme="24",
@@ -59,7 +59,7 @@ def test_raw_calibration_loads_no_heavy_library(tmp_path, corpus):
     path = tmp_path / "xsens_acc.mat"
     path.write_bytes(gzip.decompress((corpus / "imu_tk" / "xsens_acc.mat.gz").read_bytes()))
     code = ("import contextlib, io, json, sys\n"
-            "from optcal.cli import main\n"
+            "from optcal.app.cli import main\n"
             "with contextlib.redirect_stdout(io.StringIO()):\n"
             f"    rc = main(['calibrate', {str(path)!r}, '--raw', '--units', 'counts'])\n"
             "heavy = ('numba', 'scipy.stats', 'ruptures', 'cvxpy', 'matplotlib', 'pandas')\n"

@@ -4,10 +4,10 @@ import numpy as np
 import pytest
 
 from optcal import CalibrationProblem, PositionsData, get_model, simulate
-from optcal.cli import main
-from optcal.errors import InputError
-from optcal.presets import PAPER_TRUTH
-from optcal.schemes import MAX_RANDOM_POSITIONS, scheme
+from optcal.app.cli import main
+from optcal.core.errors import InputError
+from optcal.core.presets import PAPER_TRUTH
+from optcal.core.schemes import MAX_RANDOM_POSITIONS, scheme
 
 
 @pytest.fixture(scope="module")

@@ -11,12 +11,12 @@ import shutil
 import numpy as np
 import pytest
 
-from optcal.cli import main
-from optcal.fit import calibrate
-from optcal.model import get_model
-from optcal.presets import PAPER_TRUTH
-from optcal.schemes import random_orientations
-from optcal.simulate import simulate
+from optcal.app.cli import main
+from optcal.app.fit import calibrate
+from optcal.core.model import get_model
+from optcal.core.presets import PAPER_TRUTH
+from optcal.core.schemes import random_orientations
+from optcal.core.simulate import simulate
 
 COUNTS = {"K_x": 16301.0, "K_y": 16452.0, "K_z": 16690.0, "b_x": 0.021, "b_y": -0.013, "b_z": 0.042,
           "S_yz": 2.0e-3, "S_zy": -1.5e-3, "S_zx": 1.0e-3}
@@ -39,7 +39,7 @@ def source(tmp_path_factory):
     (d / "empty.json").write_text("{}")
     (d / "word.json").write_text(json.dumps({**truth, "K_x": "one"}))
     fit = calibrate(sim.data, m)
-    from optcal.calfile import write_calibration
+    from optcal.core.calfile import write_calibration
 
     write_calibration(fit, d / "cal.json", units_out="g")
     lin = get_model("linear9")
@@ -79,7 +79,7 @@ def source(tmp_path_factory):
     (d / "huge_runs.toml").write_text('name = "x"\nruns = 100000000\nmodels = ["linear9"]\nschemes = ["24"]\n'
                                       '[[solvers]]\nname = "scipy-lm"\n')
     (d / "notadir").mkdir()
-    # data that do not determine a fit (issue #20, optcal.determination): 10 and 5 of the 24 positions, 12
+    # data that do not determine a fit (issue #20, optcal.core.determination): 10 and 5 of the 24 positions, 12
     # random positions for nonlinear12's 12 parameters, linear9 from 10 random positions (one spare), and
     # positions of a sensor whose y axis is 10° off (a misalignment beyond ±5°)
     sim.data.subset(range(10)).to_csv(d / "p10.csv")
@@ -102,8 +102,8 @@ def source(tmp_path_factory):
     end = 136 + struct.unpack("<II", raw[128:136])[1]
     raw[150:end] = bytes(end - 150)
     (d / "damaged.mat").write_bytes(bytes(raw))
-    # a slow continuous tumble (3 °/s for 60 s, no rest): no pose was held still (optcal.synthetic_recording)
-    from optcal.synthetic_recording import tumble_recording
+    # a slow continuous tumble (3 °/s for 60 s, no rest): no pose was held still (optcal.core.synthetic_recording)
+    from optcal.core.synthetic_recording import tumble_recording
 
     tumble = tumble_recording(np.random.default_rng(8), duration_s=60.0, turn_rate_dps=3.0).recording
     np.savetxt(d / "tumble.csv", np.column_stack([tumble.t, tumble.N]), delimiter=",", header="t,ax,ay,az",
@@ -167,8 +167,8 @@ def _reader_files(d, A):
 
 
 def _imu_files(d):
-    from optcal.exchange.common import LinearPart, calibration_dict
-    from optcal.gyro.model import get_gyro_model
+    from optcal.core.exchange.common import LinearPart, calibration_dict
+    from optcal.core.gyro.model import get_gyro_model
 
     def block(g_sensitivity, units, k):
         m = get_gyro_model(g_sensitivity)

@@ -22,11 +22,11 @@ import functools
 import numpy as np
 import pytest
 
-import solvers
-from optcal.errors import InputError
-from optcal.presets import PAPER_TRUTH, manufacturer_presets
-from optcal.problem import CalibrationProblem
-from optcal.simulate import simulate
+from optcal import solvers
+from optcal.core.errors import InputError
+from optcal.core.presets import PAPER_TRUTH, manufacturer_presets
+from optcal.core.problem import CalibrationProblem
+from optcal.core.simulate import simulate
 
 RUNS = 50
 CLAIM_BUDGET = 601

@@ -9,14 +9,14 @@ from datetime import datetime
 import numpy as np
 import pytest
 
-from optcal.calfile import FORMAT, FORMAT_VERSION, calibration_to_dict, read_calibration, write_calibration
-from optcal.cli import main
-from optcal.errors import InputError
-from optcal.fit import calibrate
-from optcal.model import Context, get_model
-from optcal.presets import PAPER_TRUTH
-from optcal.schemes import random_orientations
-from optcal.simulate import simulate
+from optcal.app.cli import main
+from optcal.app.fit import calibrate
+from optcal.core.calfile import FORMAT, FORMAT_VERSION, calibration_to_dict, read_calibration, write_calibration
+from optcal.core.errors import InputError
+from optcal.core.model import Context, get_model
+from optcal.core.presets import PAPER_TRUTH
+from optcal.core.schemes import random_orientations
+from optcal.core.simulate import simulate
 
 COUNTS_TRUTH = {"K_x": 16301.0, "K_y": 16452.0, "K_z": 16690.0, "b_x": 0.021, "b_y": -0.013, "b_z": 0.042,
                 "S_yz": 2.0e-3, "S_zy": -1.5e-3, "S_zx": 1.0e-3, "K2_x": 3.0, "K2_y": -2.0, "K2_z": 4.0}

@@ -1,12 +1,13 @@
-"""The CI study (studies/specs/ci.toml) against its committed baseline (studies/ci_tolerances.toml), checked with
-the study's own intervals (studies/ci.py): accuracy, noise-floor share and verification error fail when the
+"""The CI study (optcal/studies/specs/ci.toml) against its committed baseline (optcal/studies/ci_tolerances.toml),
+checked with
+the study's own intervals (optcal/app/study_ci.py): accuracy, noise-floor share and verification error fail when the
 baseline lies outside the new run's 95 % bootstrap interval on the bad side; the run time is reported."""
 
 from __future__ import annotations
 
 import math
 
-from studies.ci import TOLERANCES, check, junit_xml, load_baseline, propose, regressions, run_ci
+from optcal.app.study_ci import TOLERANCES, check, junit_xml, load_baseline, propose, regressions, run_ci
 
 
 def test_ci_study_within_its_baseline(tmp_path, capsys):

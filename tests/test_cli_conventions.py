@@ -12,9 +12,9 @@ from importlib.metadata import version
 
 import pytest
 
-from optcal import cli
+from optcal.app import cli
 
-CLI = [sys.executable, "-c", "import sys; from optcal.cli import main; sys.exit(main())"]
+CLI = [sys.executable, "-c", "import sys; from optcal.app.cli import main; sys.exit(main())"]
 
 
 def _subparsers(parser):
@@ -79,7 +79,7 @@ def test_help_states_the_default_model(command, option, default):
 @pytest.fixture
 def levels(monkeypatch):
     """Replace info's run by one that records the optcal logger's level and logs one message per level."""
-    from optcal.commands import info
+    from optcal.app.commands import info
 
     seen = []
 
@@ -120,7 +120,7 @@ def test_quiet_and_verbose_in_a_real_run(capsys):
 
 
 def test_parser_building_imports_no_heavy_module_or_allantools():
-    code = ("import sys, optcal.cli; optcal.cli.build_parser(); "
+    code = ("import sys, optcal.app.cli; optcal.app.cli.build_parser(); "
             "print(sorted({m.split('.')[0] for m in sys.modules} & {'numpy', 'allantools', 'matplotlib', 'scipy'}))")
     proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
     assert proc.returncode == 0, proc.stderr
@@ -131,9 +131,9 @@ def test_library_errors_name_parameters_and_the_cli_names_its_options(tmp_path, 
     """The library names a parameter in backquotes, never a flag; the command line shows its own option."""
     import pytest
 
-    from optcal.errors import InputError
-    from studies.execute import run_study
-    from studies.spec import load
+    from optcal.core.errors import InputError
+    from optcal.studies.execute import run_study
+    from optcal.studies.spec import load
 
     with pytest.raises(InputError, match="`workers` must be at least 1") as e:
         run_study(load("ci"), tmp_path / "s1", workers=0, progress=False)

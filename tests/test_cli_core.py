@@ -5,8 +5,8 @@ import json
 import numpy as np
 import pytest
 
-from optcal.cli import main
-from optcal.schemes import rotation_groups
+from optcal.app.cli import main
+from optcal.core.schemes import rotation_groups
 
 
 def _run(capsys, *argv):
@@ -154,7 +154,7 @@ def test_output_cut_short_by_the_reader_is_not_a_traceback():
     import subprocess
     import sys
 
-    proc = subprocess.Popen([sys.executable, "-c", "import sys; from optcal.cli import main; sys.exit(main())",
+    proc = subprocess.Popen([sys.executable, "-c", "import sys; from optcal.app.cli import main; sys.exit(main())",
                              "solvers"], stdout=subprocess.PIPE, stderr=subprocess.PIPE)
     proc.stdout.readline()
     proc.stdout.close()  # the reader goes away after one line
@@ -164,8 +164,8 @@ def test_output_cut_short_by_the_reader_is_not_a_traceback():
 
 
 def test_study_is_a_plug_in_command(capsys):
-    from optcal.cli import _command_modules
+    from optcal.app.cli import _command_modules
 
     mods = dict(_command_modules())
-    assert mods["study"].__name__ == "studies.command"
+    assert mods["study"].__name__ == "optcal.app.commands.study"
     assert {"calibrate", "simulate", "apply", "nav", "discover", "solvers"} <= set(mods)

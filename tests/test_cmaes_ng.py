@@ -10,11 +10,10 @@ import json
 import numpy as np
 import pytest
 
-import solvers
-from optcal import read_positions
-from optcal.cli import main
-from optcal.errors import InputError
-from optcal.problem import CalibrationProblem
+from optcal import read_positions, solvers
+from optcal.app.cli import main
+from optcal.core.errors import InputError
+from optcal.core.problem import CalibrationProblem
 
 
 @pytest.fixture(scope="module")

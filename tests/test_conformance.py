@@ -46,10 +46,10 @@ import functools
 import numpy as np
 import pytest
 
-import solvers
-from optcal.presets import draw_truth, manufacturer_presets
-from optcal.problem import CalibrationProblem
-from optcal.simulate import simulate
+from optcal import solvers
+from optcal.core.presets import draw_truth, manufacturer_presets
+from optcal.core.problem import CalibrationProblem
+from optcal.core.simulate import simulate
 
 SEED = 20240611
 CAP = 20_000  # accuracy budget cap
@@ -360,13 +360,13 @@ def test_reports_failure_when_every_cost_is_nan(name):
 
 
 def test_every_problem_a_solver_meets_is_the_protocols():
-    """solvers.base.Problem is what every solver may use (docs/design.md §10): the accelerometer's, the
+    """optcal.solvers.base.Problem is what every solver may use (docs/design.md §10): the accelerometer's, the
     gyroscope's and the planner's problems provide it, the two least-squares ones LeastSquaresProblem too; an
     object missing a member is not one."""
-    from optcal.gyro import GyroProblem, draw_truth, get_gyro_model, simulate_imu
-    from optcal.plan.design import make_criterion
-    from optcal.plan.problem import DesignProblem
-    from solvers.base import LeastSquaresProblem, Problem
+    from optcal.core.gyro import GyroProblem, draw_truth, get_gyro_model, simulate_imu
+    from optcal.core.plan.design import make_criterion
+    from optcal.core.plan.problem import DesignProblem
+    from optcal.solvers.base import LeastSquaresProblem, Problem
 
     rng = np.random.default_rng(0)
     model = get_gyro_model(False)

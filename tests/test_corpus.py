@@ -31,9 +31,10 @@ import numpy as np
 import pytest
 from corpus import corpus_root
 
-from optcal.cli import main
-from optcal.fit import calibrate
-from optcal.recording import choose_threshold, given_intervals, positions_from_recording, read_recording
+from optcal.app.cli import main
+from optcal.app.fit import calibrate
+from optcal.app.workflows.recording import choose_threshold
+from optcal.core.recording import given_intervals, positions_from_recording, read_recording
 
 CORPUS = corpus_root()  # the real corpus, beside the project (tests/corpus.py)
 IMU_TK, HB = CORPUS / "imu_tk", CORPUS / "hassan_bao"
@@ -70,7 +71,7 @@ def _pair_cosines(R):
 def _noise_floor_g(data, K, white=False):
     """RMS over positions of the standard error of a position's mean, input-referred, in g: the level a
     residual cannot be expected to go below. By default the floor positions_from_recording gives
-    (optcal.noise.floor: the Allan model of the static intervals, correlated noise included); ``white``:
+    (optcal.core.noise.floor: the Allan model of the static intervals, correlated noise included); ``white``:
     the within-interval scatter σ/√n alone, which issue #13 called the floor."""
     se = data.std / np.sqrt(data.n_samples)[:, None] if white else data.noise_of_mean()
     return float(np.sqrt(np.mean((se / K) ** 2)))
@@ -161,7 +162,7 @@ def test_xsens_standard_gravity_scale_within_the_datasheet_rounding(xsens_txt, c
 
 def test_xsens_residual_against_the_noise_floor(xsens_txt):
     """The within-interval scatter of the 40 position means is 34 µg (σ/√n, input-referred), but the MTi's
-    noise is correlated: the floor of optcal.noise.floor (the Allan model of the static intervals, each
+    noise is correlated: the floor of optcal.core.noise.floor (the Allan model of the static intervals, each
     mean's scatter about all positions' mean) is 120 µg. linear9 leaves 99 µg, nonlinear12 96 µg: 0.82
     times that floor, so nothing is left for a further term to explain (issue #13, with σ/√n as the floor,
     read the same residual as 2.9 times the noise). diag6 cannot fit this MTi at all (3.3 mg): its axes are
@@ -367,7 +368,7 @@ def test_phone_through_the_cli_against_their_sections_and_bias(phone_csv, tmp_pa
 def test_phone_residual_against_the_noise_floor(phone_csv):
     """The within-interval scatter of the position means is 0.58 mg (σ/√n: 3.9 mg steps, a sample SD of
     about 6.5 mg per axis, 56 to 314 samples a position); the floor with the phone's correlated noise
-    (optcal.noise.floor) is 1.62 mg. linear9 leaves 2.6 mg, 1.6 times that floor (4.5 times σ/√n), and
+    (optcal.core.noise.floor) is 1.62 mg. linear9 leaves 2.6 mg, 1.6 times that floor (4.5 times σ/√n), and
     nonlinear12 2.55 mg: the phone was held in the hand, and no polynomial term explains the excess."""
     rec = read_recording(phone_csv, rate=float(HB_PHONE_RATE), units="m/s2")
     det = choose_threshold(rec, "linear9")

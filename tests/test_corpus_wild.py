@@ -18,7 +18,7 @@ Each recording has an expected outcome, decided from what the data can determine
 - ``either``: exit 2 as above, or exit 0 within the reference's tolerance — never a confident wrong answer.
   For a reference too loose to demand a result (a datasheet), and for imucal's six labelled poses: six
   positions give diag6 an exact fit with no residual to check it by, which optcal refuses by design
-  (optcal.determination) and writes only with ``--force-weak``.
+  (optcal.core.determination) and writes only with ``--force-weak``.
 
 References (each folder's README gives the source, licence, commit and MD5 of every file):
 
@@ -53,9 +53,9 @@ import pytest
 from corpus import corpus_root
 from golden import check as golden
 
-from optcal.cli import main
-from optcal.fit import calibrate
-from optcal.recording import given_intervals, positions_from_recording, read_intervals, read_recording
+from optcal.app.cli import main
+from optcal.app.fit import calibrate
+from optcal.core.recording import given_intervals, positions_from_recording, read_intervals, read_recording
 
 DATA = corpus_root()  # the real corpus, beside the project (tests/corpus.py)
 G0 = 9.80665

@@ -3,10 +3,9 @@
 import numpy as np
 import pytest
 
-import solvers
-from optcal import CalibrationProblem, get_model, simulate
-from optcal.analysis import crlb
-from optcal.presets import PAPER_TRUTH, draw_truth
+from optcal import CalibrationProblem, get_model, simulate, solvers
+from optcal.core.analysis import crlb
+from optcal.core.presets import PAPER_TRUTH, draw_truth
 
 SIGMA = 10e-6
 

@@ -1,6 +1,6 @@
 """docs/design.md against the code: the term table and the named models list every parameter in the
-code's order, the positions CSV section names every column ``optcal.data`` reads, the calibration-file
-section names every field ``optcal.calfile`` writes, and no file of the repository points outside it (the
+code's order, the positions CSV section names every column ``optcal.core.data`` reads, the calibration-file
+section names every field ``optcal.core.calfile`` writes, and no file of the repository points outside it (the
 conventions live in the repository) but for one path: the real corpus's default folder, which the corpus
 locator (tests/corpus.py) and the Markdown pages that say where the corpus lives may name (issue #28)."""
 
@@ -12,9 +12,9 @@ import numpy as np
 import pytest
 from corpus import DEFAULT as CORPUS_DEFAULT
 
-from optcal import calfile, calfile_schema, data
-from optcal.data import PositionsData
-from optcal.model import NAMED_MODELS, TERMS, get_model
+from optcal.core import calfile, calfile_schema, data
+from optcal.core.data import PositionsData
+from optcal.core.model import NAMED_MODELS, TERMS, get_model
 
 ROOT = Path(__file__).resolve().parents[1]
 DOC = (ROOT / "docs" / "design.md").read_text()

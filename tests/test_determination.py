@@ -1,4 +1,4 @@
-"""A calibration only when the data determine it (issue #20, items 3 and 7; optcal/determination.py,
+"""A calibration only when the data determine it (issue #20, items 3 and 7; optcal/core/determination.py,
 docs/design.md §7.5): each class of refusal with its one line, the default model's fallback and its note,
 the expert's override recorded in the calibration file and announced by optcal apply, and well-posed fits
 (simulated, counts with an unsigned offset, seed15's gauge) left alone."""
@@ -12,16 +12,16 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from optcal import determination
-from optcal.calfile import read_calibration, write_calibration
-from optcal.cli import main
-from optcal.data import PositionsData
-from optcal.errors import InputError
-from optcal.fit import calibrate
-from optcal.model import get_model
-from optcal.presets import PAPER_TRUTH
-from optcal.schemes import six_position, tilt
-from optcal.simulate import simulate
+from optcal.app.cli import main
+from optcal.app.fit import calibrate
+from optcal.core import determination
+from optcal.core.calfile import read_calibration, write_calibration
+from optcal.core.data import PositionsData
+from optcal.core.errors import InputError
+from optcal.core.model import get_model
+from optcal.core.presets import PAPER_TRUTH
+from optcal.core.schemes import six_position, tilt
+from optcal.core.simulate import simulate
 
 N12 = get_model("nonlinear12")
 L9 = get_model("linear9")
@@ -225,8 +225,8 @@ def test_means_of_a_slow_tumble_taken_as_static_positions_are_refused():
     """The issue's case: 13 'static' intervals cut from a slow continuous rotation. Gravity sweeps a cone in
     the sensor frame, so the 13 means lie on one circle, which leaves even diag6's ellipsoid undetermined:
     refused for every model of the chain, naming the directions (at most 3, each by its 3 largest weights)."""
-    from optcal.data import PositionsData
-    from optcal.synthetic_recording import tumble_recording
+    from optcal.core.data import PositionsData
+    from optcal.core.synthetic_recording import tumble_recording
 
     N = tumble_recording(np.random.default_rng(1), duration_s=120, turn_rate_dps=3.0).recording.N
     starts = np.linspace(0, len(N) - 300, 13).astype(int)
@@ -243,8 +243,8 @@ def test_real_recordings_that_determine_their_fits_are_not_refused(corpus):
     the same ten poses do not determine linear9 (1 spare), which is refused."""
     from scipy.io import loadmat
 
-    from optcal.data import PositionsData
-    from optcal.recording import given_intervals, positions_from_recording, read_recording
+    from optcal.core.data import PositionsData
+    from optcal.core.recording import given_intervals, positions_from_recording, read_recording
 
     data = corpus  # the real corpus, beside the project (tests/corpus.py)
     for name in ("CalibrationOfLowCostTriaxialInertialSensors.mat",

@@ -10,11 +10,12 @@ from corpus import corpus_root
 from scipy import stats
 
 from optcal import get_model, simulate
-from optcal.cli import main
-from optcal.discovery import EXPLAINED, NO_DOF, REMAINS, discover, fit_model
-from optcal.errors import InputError
-from optcal.model import TERMS
-from optcal.presets import draw_truth
+from optcal.app.cli import main
+from optcal.app.workflows.discovery import discover, fit_model
+from optcal.core.discovery import EXPLAINED, NO_DOF, REMAINS
+from optcal.core.errors import InputError
+from optcal.core.model import TERMS
+from optcal.core.presets import draw_truth
 
 NOISE = 10e-6
 PATTERN = (1.0, -1.0, 1.0, -1.0, 1.0, -1.0)
@@ -318,9 +319,9 @@ def test_verdict_on_a_recording_uses_its_noise_floor(tmp_path, corpus):
     floor taken as exact (issue #20, docs/noise.md), which would call the model wrong."""
     import gzip
 
-    from optcal.analysis import goodness_of_fit
-    from optcal.distributions import chi2_sf
-    from optcal.recording.workflow import positions_from_raw
+    from optcal.app.workflows.recording import positions_from_raw
+    from optcal.core.analysis import goodness_of_fit
+    from optcal.core.distributions import chi2_sf
 
     raw = corpus / "imu_tk" / "xsens_acc.mat.gz"
     path = tmp_path / "xsens_acc.mat"

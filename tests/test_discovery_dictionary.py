@@ -11,9 +11,10 @@ import numpy as np
 import pytest
 
 from optcal import simulate
-from optcal.discovery import EXPLAINED, REMAINS, UNKNOWN, discover, fit_model
-from optcal.model import TERMS, get_model
-from optcal.presets import draw_truth
+from optcal.app.workflows.discovery import discover, fit_model
+from optcal.core.discovery import EXPLAINED, REMAINS, UNKNOWN
+from optcal.core.model import TERMS, get_model
+from optcal.core.presets import draw_truth
 
 NOISE = 10e-6
 

@@ -10,14 +10,14 @@ import numpy as np
 import pytest
 
 from optcal import simulate
-from optcal.calfile import read_calibration
-from optcal.cli import main
-from optcal.discovery.dictionary import feature_context, feature_values, generate
-from optcal.errors import InputError
-from optcal.model import TERMS, Context, NumpyOps, get_model
-from optcal.presets import draw_truth
-from optcal.problem import CalibrationProblem
-from optcal.terms import previous_signs
+from optcal.app.cli import main
+from optcal.core.calfile import read_calibration
+from optcal.core.discovery.dictionary import feature_context, feature_values, generate
+from optcal.core.errors import InputError
+from optcal.core.model import TERMS, Context, NumpyOps, get_model
+from optcal.core.presets import draw_truth
+from optcal.core.problem import CalibrationProblem
+from optcal.core.terms import previous_signs
 
 ALL = "linear9+ax.ay@z+prevax@x+osc600@xyz+temp2s5@x+ay.temp1s5@x+ax.az2@z+time3s500@y"
 
@@ -212,10 +212,10 @@ name = "pso"
 
 
 def test_cli_options_of_the_dictionary(tmp_path, capsys):
-    from optcal import discovery
-    from optcal.commands import discover as command
+    from optcal.app.commands import discover as command
+    from optcal.app.workflows import discovery as workflow
 
-    assert command.MAX_DICTIONARY_TERMS == discovery.workflow.MAX_DICTIONARY_TERMS
+    assert command.MAX_DICTIONARY_TERMS == workflow.MAX_DICTIONARY_TERMS
     rng = np.random.default_rng(4)
     sim = simulate("linear9", draw_truth("linear9", rng), rng, scheme="random:40", noise_g=1e-5, times=True,
                    effects={"osc600@x": {"c_sin600@x": 6e-5}})
@@ -241,7 +241,7 @@ def test_casadi_evaluates_user_terms():
     product, a sinusoid and a temperature power; a previous-pose term, which needs the positions' order, is
     refused with its reason."""
     pytest.importorskip("casadi")
-    from optcal.fit import calibrate
+    from optcal.app.fit import calibrate
 
     rng = np.random.default_rng(2)
     sim = simulate("linear9", draw_truth("linear9", rng), rng, scheme="random:40", noise_g=1e-5, temp=(20.0, 40.0),

@@ -1,4 +1,4 @@
-"""optcal.distributions (plain Python, no scipy at run time) against scipy.stats, over the arguments optcal's
+"""optcal.core.distributions (plain Python, no scipy at run time) against scipy.stats, over the arguments optcal's
 tests of fit use (dof 1 to 10,000, tail probabilities 1e-12 to 0.999, and the non-integer degrees of freedom of a
 correlated-noise floor), and at the edges (0, 1, inf, nan)."""
 
@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 from scipy import stats
 
-from optcal import distributions as d
+from optcal.core import distributions as d
 
 DF = np.array([1, 2, 3, 3.87, 7.5, 21.3, 100, 336, 1e4])
 Q = np.array([1e-12, 1e-8, 1e-4, 1e-3, 0.01, 0.05, 0.2, 0.5])
@@ -66,7 +66,7 @@ def test_no_scipy_at_run_time():
     import subprocess
     import sys
 
-    code = ("import sys; from optcal import distributions as d; "
+    code = ("import sys; from optcal.core import distributions as d; "
             "d.chi2_sf(3, 2); d.chi2_isf(0.05, 3); d.f_sf(2, 3, 4); d.t_isf(0.01, 5); d.norm_isf(0.01); "
             "print(sorted(m for m in sys.modules if m.split('.')[0] == 'scipy'))")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout

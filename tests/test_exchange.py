@@ -12,12 +12,12 @@ import numpy as np
 import pytest
 from corpus import corpus_root
 
-from optcal.calfile import read_calibration
-from optcal.cli import main
-from optcal.errors import InputError
-from optcal.exchange import FORMATS, common, export_text, import_calibration, imu_tk, imucal, kalibr, matrix
-from optcal.gravity import G0
-from optcal.model import get_model
+from optcal.app.cli import main
+from optcal.core.calfile import read_calibration
+from optcal.core.errors import InputError
+from optcal.core.exchange import FORMATS, common, export_text, import_calibration, imu_tk, imucal, kalibr, matrix
+from optcal.core.gravity import G0
+from optcal.core.model import get_model
 
 DATA = corpus_root() / "imucal"  # the real corpus, beside the project (tests/corpus.py)
 LINEAR = ("diag6", "linear9", "scale+bias+misalignment6")
@@ -248,8 +248,8 @@ def test_imucal_applies_an_exported_fit_as_optcal_apply_does(tmp_path, capsys):
     and its calibrate gives optcal apply's specific force (m/s²) on a raw recording to 1e-9 relative
     (optcal apply writes 10 significant digits, so up to 5e-10), and the library's to 1e-13."""
     from optcal import simulate
-    from optcal.calfile import write_calibration
-    from optcal.fit import calibrate
+    from optcal.app.fit import calibrate
+    from optcal.core.calfile import write_calibration
 
     rng = np.random.default_rng(8)
     truth = get_model("linear9").to_dict(random_linear(rng, "linear9", "counts"))
@@ -393,10 +393,10 @@ def test_an_existing_output_is_kept_unless_force(tmp_path, capsys):
 
 
 def test_the_commands_lists_match_the_library():
-    """optcal/commands/export.py and import_.py keep copies of the formats and units (importing the library
+    """optcal/app/commands/export.py and import_.py keep copies of the formats and units (importing the library
     would slow every --help); they must be the library's."""
-    from optcal.commands import export, import_
-    from optcal.data import UNITS
+    from optcal.app.commands import export, import_
+    from optcal.core.data import UNITS
 
     assert export.FORMATS == FORMATS and import_.FORMATS == FORMATS
     assert import_.UNITS == UNITS

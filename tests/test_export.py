@@ -9,9 +9,9 @@ import json
 import pytest
 from test_studies import BASE, spec_of
 
-from optcal.cli import main
-from studies.execute import run_study
-from studies.store import Store
+from optcal.app.cli import main
+from optcal.studies.execute import run_study
+from optcal.studies.store import Store
 
 iohinspector = pytest.importorskip("iohinspector")
 pl = pytest.importorskip("polars")
@@ -94,7 +94,7 @@ def test_export_refuses_a_non_empty_folder_and_writes_nothing_on_failure(study, 
     assert main(["study", "export", str(folder), "-o", str(empty)]) == 0
     assert len(list(empty.glob("*/IOHprofiler_f*.json"))) == 6
     # a failure half-way leaves neither the folder nor a temporary one behind
-    import studies.export as E
+    import optcal.studies.export as E
 
     def broken(rows, spec, spec_hash, dest):
         (dest / "partial").mkdir()
@@ -118,8 +118,8 @@ def test_export_of_an_old_store_uses_its_trace(study, tmp_path):
     import shutil
     import sqlite3
 
-    from studies.export import export
-    from studies.store import COLUMNS
+    from optcal.studies.export import export
+    from optcal.studies.store import COLUMNS
 
     folder, rows = study
     old = tmp_path / "old"
@@ -139,8 +139,8 @@ def test_export_of_an_old_store_uses_its_trace(study, tmp_path):
 
 def test_github_action_benchmark_files_carry_every_solver_with_its_interval(study, tmp_path, capsys):
     """customSmallerIsBetter / customBiggerIsBetter: a list of {name, unit, value, range, extra}, the values the
-    baseline check measures (studies.ci.measure), each with its 95 % bootstrap interval over the runs."""
-    from studies.ci import measure
+    baseline check measures (optcal.app.study_ci.measure), each with its 95 % bootstrap interval over the runs."""
+    from optcal.app.study_ci import measure
 
     folder, rows = study
     out = tmp_path / "gab"
@@ -166,7 +166,7 @@ def test_github_action_benchmark_files_carry_every_solver_with_its_interval(stud
 def test_junit_export_checks_a_baseline_and_fails_on_a_regression(study, tmp_path, capsys):
     import xml.etree.ElementTree as ET
 
-    from studies.ci import measure, propose
+    from optcal.app.study_ci import measure, propose
 
     folder, rows = study
     with Store.open_existing(folder) as st:

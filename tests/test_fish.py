@@ -10,15 +10,15 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-import solvers  # noqa: F401  (registers every solver)
-from optcal.errors import InputError
-from optcal.model import get_model
-from optcal.presets import draw_truth, manufacturer_presets
-from optcal.problem import CalibrationProblem
-from optcal.simulate import simulate
-from solvers.nafsa import visual_vector
-from solvers.oafsa import attenuation, schedule
-from solvers.registry import get
+from optcal import solvers  # noqa: F401  (registers every solver)
+from optcal.core.errors import InputError
+from optcal.core.model import get_model
+from optcal.core.presets import draw_truth, manufacturer_presets
+from optcal.core.problem import CalibrationProblem
+from optcal.core.simulate import simulate
+from optcal.solvers.nafsa import visual_vector
+from optcal.solvers.oafsa import attenuation, schedule
+from optcal.solvers.registry import get
 
 FISH = ("afsa", "oafsa", "nafsa")
 SEEDS = range(10)

@@ -1,4 +1,4 @@
-"""The noise floor of a position on poses turned and held by hand (issue #29; optcal/recording/floor.py,
+"""The noise floor of a position on poses turned and held by hand (issue #29; optcal/core/recording/floor.py,
 docs/noise.md "The floor on hand-held logs", docs/scripts/floor_mikov.py): the fit of the flicker level no
 longer swings to a confident level its points do not hold; on stationary noise the floor predicts the scatter
 of the means; on Mikov et al.'s five MPU-9150 recordings (the real corpus's mikov/, MIT) it predicts the
@@ -13,15 +13,16 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from optcal.analysis import position_sigma
-from optcal.cli import main
-from optcal.fit import calibrate
-from optcal.noise.colored import colored_noise
-from optcal.problem import CalibrationProblem
-from optcal.recording import floor as floor_module
-from optcal.recording import given_intervals, positions_from_raw, positions_from_recording, read_recording
-from optcal.recording.floor import fit_white_flicker, noise_floor
-from optcal.synthetic_recording import OFFSET, SCALE, poses_recording
+from optcal.app.cli import main
+from optcal.app.fit import calibrate
+from optcal.app.workflows.recording import positions_from_raw
+from optcal.core.analysis import position_sigma
+from optcal.core.noise.colored import colored_noise
+from optcal.core.problem import CalibrationProblem
+from optcal.core.recording import floor as floor_module
+from optcal.core.recording import given_intervals, positions_from_recording, read_recording
+from optcal.core.recording.floor import fit_white_flicker, noise_floor
+from optcal.core.synthetic_recording import OFFSET, SCALE, poses_recording
 
 G0 = 9.80665
 

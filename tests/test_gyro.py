@@ -7,11 +7,11 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from optcal import analysis
-from optcal.errors import InputError
-from optcal.gyro import GyroData, GyroProblem, draw_truth, get_gyro_model, simulate_imu
-from optcal.gyro.analysis import check_observable, g_sensitivity_test
-from solvers.registry import get
+from optcal.core import analysis
+from optcal.core.errors import InputError
+from optcal.core.gyro import GyroData, GyroProblem, draw_truth, get_gyro_model, simulate_imu
+from optcal.core.gyro.analysis import check_observable, g_sensitivity_test
+from optcal.solvers.registry import get
 
 SCALE = 1000.0  # output units per rad/s of the simulated sensor
 
@@ -173,7 +173,7 @@ def test_scale_search_bracketed_by_the_motions_finds_the_every_motion_minimum():
     within 0.3 % of the minimum of an exhaustive search over every motion (a 10-decade grid, then 41 points
     0.2 % apart about its best), at a cost no higher, on both back ends, for ten simulated recordings of 24 and
     36 poses with the bias from the rests and fitted; the bound is above the scale found."""
-    from optcal.gyro.problem import common_scale, rotations, scale_bound, start_vector
+    from optcal.core.gyro.problem import common_scale, rotations, scale_bound, start_vector
 
     def cost(model, data, rot, ks):
         R = rot.rotate_batch(model.affine(start_vector(model, data, np.asarray(ks, float)[:, None])))
@@ -215,7 +215,7 @@ def test_registry_solvers_reach_the_least_squares_optimum_unchanged(solver):
 
 def test_ellipsoid_fit_refuses_the_gyroscope_problem_in_one_line():
     """The convex ellipsoid fit belongs to the accelerometer's norm cost: on the gyroscope's problem it says so."""
-    from optcal.errors import InputError
+    from optcal.core.errors import InputError
 
     sim, _ = _sim(11)
     p, _ = _fit(sim.data, False)
@@ -235,7 +235,7 @@ def test_missed_rests_are_found_by_the_gyroscope():
     rest given nothing is found (the
     trimmed ends of the rests are not poses), nor a still gyroscope whose accelerometer shakes (a
     translation, not a pose)."""
-    from optcal.gyro.data import missed_rests
+    from optcal.core.gyro.data import missed_rests
 
     sim, _ = _sim(41)
     data = sim.data
@@ -258,7 +258,7 @@ def test_missed_rests_are_found_by_the_gyroscope():
 def test_missed_rests_mend_the_fit():
     """A fit whose motions span a missed pose: with the pose found again, the scale factors are those of the
     full rest list to within 0.1 of their standard errors."""
-    from optcal.gyro.data import missed_rests
+    from optcal.core.gyro.data import missed_rests
 
     sim, _ = _sim(43)
     full = GyroProblem(sim.data, bias="rests", scale=SCALE)
@@ -276,7 +276,7 @@ def test_whitening_takes_the_calibrated_scale_not_the_nominal():
     again at its calibrated scale, so the χ²/dof, the parameters and their standard errors are those of a
     fit from the right nominal scale; with the bias fitted and g-sensitivity tested, the likelihood-ratio
     test compares two fits whitened alike (its statistic as from the right scale)."""
-    from optcal.gyro.workflow import calibrate_gyro
+    from optcal.app.workflows.gyro import calibrate_gyro
 
     sim, _ = _sim(51, g_sensitivity=False)
     right = calibrate_gyro(sim.data, scale=SCALE)

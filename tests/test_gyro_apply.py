@@ -14,9 +14,9 @@ import pytest
 from conftest import run_cli
 from scipy.spatial.transform import Rotation
 
-from optcal.cli import main
-from optcal.gyro import draw_truth, get_gyro_model, simulate_imu
-from optcal.gyro.calfile import read_gyro_block
+from optcal.app.cli import main
+from optcal.core.gyro import draw_truth, get_gyro_model, simulate_imu
+from optcal.core.gyro.calfile import read_gyro_block
 
 G_SITE = 9.81744  # m/s², imu_tk's test_imu_calib.cpp (tests/test_gyro_imu_command.py)
 
@@ -39,10 +39,10 @@ def xsens(tmp_path_factory, corpus):
 @pytest.fixture(scope="module")
 def xsens_rests(xsens):
     """The rests optcal imu found (its detector on both sensors), and the fit's problem on them."""
-    from optcal.gyro.data import GyroData
-    from optcal.gyro.problem import GyroProblem
-    from optcal.recording import read_recording
-    from optcal.recording.workflow import positions_from_raw
+    from optcal.app.workflows.recording import positions_from_raw
+    from optcal.core.gyro.data import GyroData
+    from optcal.core.gyro.problem import GyroProblem
+    from optcal.core.recording import read_recording
 
     gyro = read_recording(xsens["gyro"], None, units="volts")  # the gyroscope's file: its N holds the rates
     pos = positions_from_raw(xsens["acc"], units="counts", model="linear9", g_local=G_SITE / 9.80665, gyro=gyro)
@@ -60,7 +60,7 @@ def test_header_and_the_rates_are_the_librarys(xsens, capsys):
     head = xsens["out"].read_text().splitlines()[0].split(",")
     assert head == ["t", "ax", "ay", "az", "wx", "wy", "wz"]
     a = np.loadtxt(xsens["out"], delimiter=",", skiprows=1)
-    from optcal.calfile import read_calibration
+    from optcal.core.calfile import read_calibration
 
     cal = read_gyro_block(read_calibration(xsens["cal"]).meta, xsens["cal"])
     expected = cal.apply(np.loadtxt(xsens["gyro"])[:, 1:4])
@@ -99,7 +99,7 @@ def _integrate(t, w, a, b) -> Rotation:
 
 def test_integrating_a_motion_gives_the_fits_rotation(xsens_rests):
     """Every motion between two rests: the rotation integrated from apply's rates agrees with the fit's own
-    integrator (optcal.gyro.problem.GyroProblem.rotation, RK4) within the bias the file cannot follow: the
+    integrator (optcal.core.gyro.problem.GyroProblem.rotation, RK4) within the bias the file cannot follow: the
     fit interpolates the bias between rests, the file subtracts one offset, so they differ by up to the
     spread times the motion's duration (measured: at most 0.91 of it, 0.04° to 0.5°, on turns of 30° to
     180°; a few split poses, under 1°). And the integrated rotation carries the gravity direction of
@@ -166,7 +166,7 @@ def test_one_file_named_or_found_by_header_gives_the_same_rates(one_file, capsys
     assert code == 0, err
     assert by_name.read_text() == by_header.read_text()
     a = np.loadtxt(by_name, delimiter=",", skiprows=1)
-    from optcal.calfile import read_calibration
+    from optcal.core.calfile import read_calibration
 
     cal = read_gyro_block(read_calibration(one_file["cal"]).meta, one_file["cal"])
     np.testing.assert_allclose(a[:, 4:7], cal.apply(one_file["W"]), rtol=1e-9, atol=1e-12)

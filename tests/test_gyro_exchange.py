@@ -6,10 +6,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from optcal.errors import InputError
-from optcal.exchange.gyro_imu_tk import dumps, gyro_from_imu_tk, gyro_to_imu_tk, loads
-from optcal.gyro.calfile import read_gyro_block
-from optcal.gyro.model import get_gyro_model
+from optcal.core.errors import InputError
+from optcal.core.exchange.gyro_imu_tk import dumps, gyro_from_imu_tk, gyro_to_imu_tk, loads
+from optcal.core.gyro.calfile import read_gyro_block
+from optcal.core.gyro.model import get_gyro_model
 
 # imu_tk's own gyroscope calibration of its Xsens pair (test_imu_gyro.calib; docs/scripts/gyro_imu_tk.py)
 XSENS = ("1 0.00593634 0.00111101\n0.00808812 1 -0.0535569\n0.0253067 -0.0025513 1\n\n"
@@ -60,7 +60,7 @@ def test_g_sensitivity_cannot_be_exported_to_imu_tk():
 def test_kalibr_gyroscope_intrinsics_reproduce_the_rates():
     """M·C·ω + A·a equals the calibrated model's output in rad/s (deg/s raw), M lower triangular with a
     positive diagonal, C a rotation; counts and a constant bias are refused."""
-    from optcal.exchange.gyro_kalibr import gyro_to_kalibr
+    from optcal.core.exchange.gyro_kalibr import gyro_to_kalibr
 
     model = get_gyro_model(True)
     rng = np.random.default_rng(4)
@@ -90,7 +90,7 @@ def test_imucal_gyroscope_round_trip_and_same_rates(corpus):
     as gyro21, written back to the same matrices, and the same rates as imucal's equation."""
     import json
 
-    from optcal.exchange.gyro_imucal import gyro_from_imucal, gyro_to_imucal
+    from optcal.core.exchange.gyro_imucal import gyro_from_imucal, gyro_to_imucal
 
     path = corpus / "imucal" / "example_cal.json"
     d = json.loads(path.read_text())

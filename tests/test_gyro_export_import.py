@@ -14,12 +14,12 @@ import numpy as np
 import pytest
 from conftest import run_cli
 
-from optcal.calfile import read_calibration
-from optcal.cli import main
-from optcal.exchange.common import LinearPart, calibration_dict
-from optcal.gravity import G0
-from optcal.gyro.calfile import read_gyro_block
-from optcal.gyro.model import get_gyro_model
+from optcal.app.cli import main
+from optcal.core.calfile import read_calibration
+from optcal.core.exchange.common import LinearPart, calibration_dict
+from optcal.core.gravity import G0
+from optcal.core.gyro.calfile import read_gyro_block
+from optcal.core.gyro.model import get_gyro_model
 
 DEG = 180.0 / math.pi
 

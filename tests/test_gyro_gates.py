@@ -18,10 +18,10 @@ import pytest
 from conftest import run_cli
 from corpus import corpus
 
-from optcal.errors import MAX_LINE, InputError
-from optcal.gyro import analysis as ga
-from optcal.gyro import draw_truth, get_gyro_model, simulate_imu
-from optcal.gyro.workflow import calibrate_gyro
+from optcal.app.workflows.gyro import calibrate_gyro
+from optcal.core.errors import MAX_LINE, InputError
+from optcal.core.gyro import analysis as ga
+from optcal.core.gyro import draw_truth, get_gyro_model, simulate_imu
 
 ROOT = Path(__file__).resolve().parents[1]
 NAMES = get_gyro_model(False, bias=False).names
@@ -175,7 +175,7 @@ def test_force_weak_keeps_the_failed_fit_marked(sdr, tmp_path, capsys):
     """The expert's override, as the accelerometer's `force_weak` (``optcal imu --force-weak``): the fit returned,
     its reasons in ``forced`` and the first note; the gyroscope block records them when given them."""
     import optcal
-    from optcal.gyro.calfile import gyro_block
+    from optcal.core.gyro.calfile import gyro_block
 
     imu = optcal.calibrate_imu(str(sdr["Short"]), columns="0,1,2,3", units="m/s2", gyro_columns="4,5,6",
                                gyro_units="deg/s", force_weak=True)
@@ -190,5 +190,5 @@ def test_force_weak_keeps_the_failed_fit_marked(sdr, tmp_path, capsys):
     code, text, err = run_cli(["imu", sdr["Short"], *SDR, "--force-weak", "-o", out], capsys)
     assert code == 0 and out.exists(), err
     assert "gyroscope forced although implausible" in text
-    g = json.loads(out.read_text())["gyroscope"]  # the file says so too (optcal.imu.ImuCalibration.gyro_block)
+    g = json.loads(out.read_text())["gyroscope"]  # the file says so too (optcal.app.imu.ImuCalibration.gyro_block)
     assert g["forced"] is True and g["forced_reasons"] and imu.gyro_block()["forced"] is True

@@ -12,9 +12,9 @@ from conftest import run_cli
 from corpus import corpus_root
 from scipy.spatial.transform import Rotation
 
-from optcal.errors import InputError
-from optcal.gyro import draw_truth, get_gyro_model, simulate_imu
-from optcal.gyro.calfile import read_gyro_block
+from optcal.core.errors import InputError
+from optcal.core.gyro import draw_truth, get_gyro_model, simulate_imu
+from optcal.core.gyro.calfile import read_gyro_block
 
 IMUCAL = corpus_root() / "imucal" / "example_ferraris_session.csv"  # the real corpus (tests/corpus.py)
 IMUCAL_ARGS = ["--columns", "ax=acc_x,ay=acc_y,az=acc_z", "--rate", "102.4", "--units", "m/s2",
@@ -62,7 +62,7 @@ def test_one_file_gives_one_calibration_file_with_both_sensors(tmp_path, capsys)
     assert np.all(np.abs(w) < 1e-3)
     assert "gyroscope: model gyro9" in text and f"wrote {out}" in text
     # the IMU file is a calibration file like any other: its accelerometer part reads back, its gyroscope checked
-    from optcal.calfile import read_calibration
+    from optcal.core.calfile import read_calibration
 
     assert read_calibration(out).model.name == "linear9"
     broken = tmp_path / "broken.json"

@@ -1,5 +1,5 @@
-"""optcal.gyro.integrate, the gyroscope's integration in NumPy (the least-squares fits of ``optcal imu``),
-against the compiled integrator of optcal.kernels.gyro: the same residuals to rounding, the same exact
+"""optcal.core.gyro.integrate, the gyroscope's integration in NumPy (the least-squares fits of ``optcal imu``),
+against the compiled integrator of optcal.core.kernels.gyro: the same residuals to rounding, the same exact
 Jacobian, the closed-form Runge-Kutta step against the four stages written out, and the fit itself."""
 
 from __future__ import annotations
@@ -7,11 +7,11 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from optcal.errors import InputError
-from optcal.gyro import GyroProblem, draw_truth, get_gyro_model, simulate_imu
-from optcal.gyro.integrate import BLOCK, CHUNK, NumpyRotations, qmul, step_quaternions
-from optcal.kernels import gyro as kernel
-from solvers.registry import get
+from optcal.core.errors import InputError
+from optcal.core.gyro import GyroProblem, draw_truth, get_gyro_model, simulate_imu
+from optcal.core.gyro.integrate import BLOCK, CHUNK, NumpyRotations, qmul, step_quaternions
+from optcal.core.kernels import gyro as kernel
+from optcal.solvers.registry import get
 
 SCALE = 1000.0
 
@@ -123,7 +123,7 @@ def test_a_population_larger_than_a_chunk_and_absurd_rates():
 def test_problem_backends_agree_and_fit_the_same():
     """GyroProblem with ``backend="numpy"``: the residuals and Jacobian of the compiled backend, and the
     Levenberg-Marquardt fit ends at the same parameters to 1e-8 of their standard errors."""
-    from optcal import analysis
+    from optcal.core import analysis
 
     data = _problem_data(False, 11, poses=36)
     fits = {}

@@ -15,9 +15,9 @@ import numpy as np
 import pytest
 from conftest import assert_numbers_carry_units, run_cli
 
-from optcal.cli import main
-from optcal.gravity import G0
-from optcal.noise import colored_noise
+from optcal.app.cli import main
+from optcal.core.gravity import G0
+from optcal.core.noise import colored_noise
 
 RATE = 50.0  # Hz
 N_GYRO = 5e-4  # rad/s/√Hz: an angle random walk of 1.72 °/√h
@@ -110,8 +110,8 @@ def test_kalibr_yaml_has_both_sensors_in_si(analysed):
 def test_kalibr_export_takes_the_noise_file(analysed, tmp_path, capsys):
     """The yaml optcal noise wrote goes into optcal export's Kalibr entry, beside the intrinsics."""
     _, yml = analysed
-    from optcal.exchange.common import LinearPart, calibration_dict
-    from optcal.gyro.model import get_gyro_model
+    from optcal.core.exchange.common import LinearPart, calibration_dict
+    from optcal.core.gyro.model import get_gyro_model
 
     model = get_gyro_model(False)
     x = np.concatenate([DEG * np.array([1.01, 0.99, 1.0]), [0.01, 0, 0, -0.01, 0.02, 0], np.zeros(3)])

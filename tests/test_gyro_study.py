@@ -12,15 +12,15 @@ import numpy as np
 import pytest
 
 import optcal
-import solvers
-from optcal.cli import main
-from optcal.errors import InputError
-from optcal.gyro import GyroProblem, draw_truth, get_gyro_model, simulate_imu
-from optcal.gyro.simulate import PROFILES, RAMP
-from solvers.base import Solver
-from studies import spec as S
-from studies.metrics import groups
-from studies.trial import gyro_data, gyro_truth, run_trial, trials, world
+from optcal import solvers
+from optcal.app.cli import main
+from optcal.core.errors import InputError
+from optcal.core.gyro import GyroProblem, draw_truth, get_gyro_model, simulate_imu
+from optcal.core.gyro.simulate import PROFILES, RAMP
+from optcal.solvers.base import Solver
+from optcal.studies import spec as S
+from optcal.studies.metrics import groups
+from optcal.studies.trial import gyro_data, gyro_truth, run_trial, trials, world
 
 if sys.version_info >= (3, 11):
     import tomllib
@@ -226,7 +226,7 @@ def test_a_tiny_gyro_study_runs_through_the_api_with_the_accelerometers_columns(
 def test_the_report_and_exports_take_a_gyro_study_unchanged(tiny):
     import json
 
-    from studies.export import export
+    from optcal.studies.export import export
 
     res, out = tiny
     text = (out / "report.md").read_text()

@@ -16,17 +16,17 @@ import numpy as np
 import pytest
 from scipy import integrate, stats
 
-import solvers
-from optcal.analysis import crlb, loss_weights, position_diagnostics
-from optcal.cli import main
-from optcal.errors import InputError
-from optcal.fit import calibrate
-from optcal.model import get_model
-from optcal.plots.fit import fit_figure
-from optcal.presets import PAPER_TRUTH
-from optcal.problem import CalibrationProblem
-from optcal.simulate import simulate
-from solvers.scipy_ls import TUNING
+from optcal import solvers
+from optcal.app.cli import main
+from optcal.app.fit import calibrate
+from optcal.core.analysis import crlb, loss_weights, position_diagnostics
+from optcal.core.errors import InputError
+from optcal.core.model import get_model
+from optcal.core.plots.fit import fit_figure
+from optcal.core.presets import PAPER_TRUTH
+from optcal.core.problem import CalibrationProblem
+from optcal.core.simulate import simulate
+from optcal.solvers.scipy_ls import TUNING
 
 SIGMA = 10e-6
 BAD = 7
@@ -216,8 +216,8 @@ def test_cli_robust_loss_and_json_positions(tmp_path, capsys):
 def test_raw_recording_with_labels_names_the_bumped_interval(tmp_path):
     """A raw recording (g, 50 Hz, a label column): 24 positions of 3 s, position p5 bumped by 2 mg along
     gravity. The fit names it by its label; the figure's ticks carry each interval's time."""
-    from optcal.recording import positions_from_raw
-    from optcal.schemes import scheme
+    from optcal.app.workflows.recording import positions_from_raw
+    from optcal.core.schemes import scheme
 
     rng = np.random.default_rng(11)
     m = get_model("linear9")
@@ -250,12 +250,13 @@ def test_raw_recording_with_labels_names_the_bumped_interval(tmp_path):
 
 @pytest.mark.parametrize("name", ["nonlinear12", "seed15", "linear9"])
 def test_projected_crlb_is_the_studies_bound_bit_for_bit(name):
-    """optcal.analysis.projected_crlb gives studies.scoring.projected_crlb's SDs, projector and natural units
+    """optcal.core.analysis.projected_crlb gives optcal.studies.scoring.projected_crlb's SDs, projector and natural
+    units
     exactly on norm problems, so studies can use it without a change in any result; crlb is it with NaN for
     parameters in an unobservable direction."""
-    from optcal.analysis import natural_units, observability, projected_crlb
-    from optcal.presets import manufacturer_presets
-    from studies.trial import projected_crlb as studies_bound
+    from optcal.core.analysis import natural_units, observability, projected_crlb
+    from optcal.core.presets import manufacturer_presets
+    from optcal.studies.trial import projected_crlb as studies_bound
 
     assert studies_bound is projected_crlb  # the studies score against the one bound
 
@@ -300,7 +301,7 @@ def test_a_zero_sample_sd_takes_its_axis_median():
 def test_calibrate_plots_a_positions_file_and_prints_the_outlier_table(tmp_path, capsys):
     """`optcal calibrate --plot` draws the residual per position for a positions file too, and the text
     output shows the per-position table when a position is named as an outlier."""
-    from optcal.cli import main
+    from optcal.app.cli import main
 
     sim = simulate(MODEL, TRUTH, np.random.default_rng(0), scheme="24", noise_g=SIGMA)
     sim.data.N[7] *= 1.0015  # position 7 displaced, 1.5 mg along gravity

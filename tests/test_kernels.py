@@ -1,6 +1,6 @@
 """The compiled kernel against the NumPy oracle: residuals, costs through views, and the analytic Jacobian.
 
-The kernel is generated from the term table (``optcal.kernels.codegen``); the NumPy path
+The kernel is generated from the term table (``optcal.core.kernels.codegen``); the NumPy path
 (``CalibrationProblem.residuals_full_numpy`` / ``jacobian_full_numpy``) is the oracle.
 """
 
@@ -8,9 +8,9 @@ import numpy as np
 import pytest
 
 from optcal import CalibrationProblem, get_model, simulate
-from optcal.kernels import codegen
-from optcal.model import NAMED_MODELS, TERMS
-from optcal.presets import PAPER_TRUTH
+from optcal.core.kernels import codegen
+from optcal.core.model import NAMED_MODELS, TERMS
+from optcal.core.presets import PAPER_TRUTH
 
 SINGLE_TERMS = [t for t in TERMS if t not in ("scale", "bias", "misalignment", "misalignment6")]
 MODELS = list(NAMED_MODELS) + [f"linear9+{t}" for t in SINGLE_TERMS]
@@ -52,11 +52,11 @@ def assert_rows_close(got, want, rtol):
 
 def test_generated_terms_are_up_to_date():
     assert codegen.TARGET.read_text() == codegen.source(), \
-        "optcal/kernels/_terms.py is stale: run `python -m optcal.kernels.codegen`"
+        "optcal/core/kernels/_terms.py is stale: run `python -m optcal.core.kernels.codegen`"
 
 
 def test_every_parameter_has_a_slot_and_named_models_use_the_small_variant():
-    from optcal.kernels import _terms
+    from optcal.core.kernels import _terms
 
     assert _terms.SLOTS == codegen.slots()
     for name in MODELS:
@@ -132,7 +132,7 @@ def test_single_candidate_path_keeps_budget_best_point_and_trace():
     z.start(5)
     pts = np.random.default_rng(7).uniform(-0.1, 0.1, (6, z.n))
     costs = [z.cost(x) for x in pts[:5]]
-    from optcal.errors import BudgetExhausted
+    from optcal.core.errors import BudgetExhausted
 
     with pytest.raises(BudgetExhausted):
         z.cost(pts[5])
@@ -159,8 +159,8 @@ def test_a_cold_cache_is_announced_and_a_warm_one_is_not(tmp_path, monkeypatch, 
     """The first evaluation after an install compiles the kernel (tens of seconds): it says so."""
     import logging
 
-    from optcal import warmup
-    from optcal.kernels import cache
+    from optcal.core import warmup
+    from optcal.core.kernels import cache
 
     warmup.warm()
     assert cache.is_cold() is False
@@ -180,7 +180,7 @@ def test_a_cold_cache_is_announced_and_a_warm_one_is_not(tmp_path, monkeypatch, 
 @pytest.mark.parametrize("name", ["scipy-lm", "bsas", "staged:bas", "nlopt-bobyqa"])
 def test_the_trace_keeps_the_best_point_of_every_improvement(name):
     """Anytime analyses need the point behind each entry of the convergence trace, not only its cost."""
-    import solvers
+    from optcal import solvers
 
     p = make_problem("nonlinear12")
     res = solvers.get(name).solve(p, budget=3000, rng=3)

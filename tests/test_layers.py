@@ -1,14 +1,12 @@
-"""The layers (CONTRIBUTING.md, "Layers"; docs/design.md §1): core ← solvers ← studies ← application, and no
-import cycles. The layers are named once, in pyproject.toml's [tool.importlinter] contracts; this file reads
-them from there and checks
+"""The layers (CONTRIBUTING.md, "Layers"; docs/design.md §1), one folder each: optcal.core ← optcal.solvers ←
+optcal.studies ← optcal.app, and no import cycles. pyproject.toml states them in two contracts (a ``layers``
+contract over the folders and an acyclic one with no exception); this file checks
 
-- that every module of optcal and studies is in exactly one layer (a new module must be placed);
-- at run time, that importing any core module leaves ``solvers`` and ``studies`` out of ``sys.modules``,
-  however it reaches them (a fresh interpreter imports the core modules one at a time);
-- statically, that no core module names ``solvers``, ``studies`` or an application-layer module in an
-  import statement or in a string given to ``importlib.import_module`` / ``__import__``, and that no module
-  at all imports one of the project's modules by a fixed string (which would hide the edge from the
-  contracts);
+- that the contracts are that short, and that every module lives in one of the four folders;
+- at run time, that importing any module of a layer leaves every higher layer out of ``sys.modules``,
+  however it reaches them (a fresh interpreter imports the layer's modules one at a time);
+- statically, that no module imports one of the project's modules by a fixed string (which would hide the
+  edge from the contracts);
 - that no two modules import each other, directly or through others (grimp's graph, function-level imports
   included);
 - and that ``lint-imports`` (the contracts themselves) passes, so that pytest alone checks them too.
@@ -33,28 +31,11 @@ except ModuleNotFoundError:  # Python 3.10
     import tomli as tomllib
 
 ROOT = Path(__file__).resolve().parents[1]
-PACKAGES = ("optcal", "solvers", "studies")
-CONTRACTS = {c["id"]: c for c in tomllib.loads((ROOT / "pyproject.toml").read_text())["tool"]["importlinter"]
-             ["contracts"]}
-
-CORE = tuple(CONTRACTS["core"]["source_modules"])
-SOLVERS = tuple(CONTRACTS["solvers"]["source_modules"])
-STUDIES_LIBRARY = tuple(CONTRACTS["studies"]["source_modules"])
-# The application layer: what the core may not import, less the lower layers themselves.
-APPLICATION = tuple(sorted({m for c in ("core", "studies") for m in CONTRACTS[c]["forbidden_modules"]}
-                           - {"solvers", "studies"}))
-# Package __init__ files that re-export names of two layers, the application layer's at first use (PEP 562).
-# Importing them imports no solver (checked below for optcal; tests/test_startup.py checks `import optcal`).
-FACADES = {
-    "optcal": "the package's public names; the application layer's (discover, and optcal.api's) at first use",
-    "optcal.discovery": "re-exports discovery's core names, and discover/fit_model/score from its workflow",
-    "optcal.recording": "re-exports the recording path's core names, and choose_threshold/fit_score/"
-                        "positions_from_raw from its workflow",
-    # packages whose modules sit in two layers; their __init__ imports only the core ones
-    "optcal.gyro": "the gyroscope's core names (data, model, problem, simulation); optcal.gyro.workflow, which runs "
-                   "a solver, is imported by name",
-    "optcal.plan": "imports nothing; optcal.plan.solve, which runs a registry solver, is imported by name",
-}
+PACKAGES = ("optcal",)
+LINTER = tomllib.loads((ROOT / "pyproject.toml").read_text())["tool"]["importlinter"]
+CONTRACTS = {c["id"]: c for c in LINTER["contracts"]}
+# lowest first: a layer may import those before it, never those after it
+LAYERS = tuple(f"optcal.{name}" for name in reversed(CONTRACTS["layers"]["layers"]))
 
 
 def _within(module: str, layer) -> bool:
@@ -64,16 +45,10 @@ def _within(module: str, layer) -> bool:
 def _modules(package: str) -> list[str]:
     """Every module of a package in the source tree (packages by their __init__), by file, without importing."""
     out = []
-    for path in sorted((ROOT / package).rglob("*.py")):
+    for path in sorted((ROOT.joinpath(*package.split("."))).rglob("*.py")):
         parts = path.relative_to(ROOT).with_suffix("").parts
         out.append(".".join(parts[:-1] if parts[-1] == "__init__" else parts))
     return out
-
-
-def _layer_of(module: str) -> list[str]:
-    layers = {"core": CORE, "solvers": SOLVERS, "studies": STUDIES_LIBRARY, "application": APPLICATION}
-    found = [name for name, layer in layers.items() if _within(module, layer)]
-    return found + (["facade"] if module in FACADES else [])
 
 
 def _path(module: str) -> Path:
@@ -81,55 +56,64 @@ def _path(module: str) -> Path:
     return base / "__init__.py" if base.is_dir() else base.with_suffix(".py")
 
 
-def test_every_module_is_in_exactly_one_layer():
-    mods = [m for p in PACKAGES for m in _modules(p) if m != "studies"]  # studies/__init__.py is empty
-    assert len(mods) > 60, mods  # the walk found the tree
-    misplaced = {m: _layer_of(m) for m in mods if len(_layer_of(m)) != 1}
-    assert misplaced == {}, ("name each module in one layer of pyproject.toml's [tool.importlinter] contracts "
-                             f"(or, for a facade, in tests/test_layers.py): {misplaced}")
-    assert {"optcal.fit", "optcal.cli", "optcal.commands", "optcal.discovery.workflow", "studies.command"} <= set(
-        APPLICATION)
-    assert {"optcal.problem", "optcal.analysis", "optcal.model", "optcal.discovery.statistics"} <= set(CORE)
+def test_the_contracts_are_the_folders():
+    """Two contracts, no exception, no module named by hand: the layers are the folders."""
+    assert list(CONTRACTS) == ["layers", "acyclic"]
+    assert LINTER["root_packages"] == ["optcal"]
+    assert CONTRACTS["layers"]["containers"] == ["optcal"] and CONTRACTS["layers"]["exhaustive"] is True
+    assert LAYERS == ("optcal.core", "optcal.solvers", "optcal.studies", "optcal.app")
+    assert CONTRACTS["acyclic"]["ancestors"] == ["optcal"] and "ignore_imports" not in CONTRACTS["acyclic"]
+    text = (ROOT / "pyproject.toml").read_text()
+    section = text[text.index("[tool.importlinter]"):]
+    section = re.split(r"\n\[tool\.(?!importlinter)", section)[0]
+    assert len([ln for ln in section.splitlines() if ln.strip() and not ln.startswith("#")]) <= 16, section
+
+
+def test_every_module_lives_in_one_layer_folder():
+    mods = _modules("optcal")
+    assert len(mods) > 150, mods  # the walk found the tree
+    outside = [m for m in mods if m != "optcal" and not _within(m, LAYERS)]
+    assert outside == [], f"put each module in one layer's folder (optcal/core, solvers, studies or app): {outside}"
+    assert sorted(p.name for p in (ROOT / "optcal").iterdir() if p.is_dir() and p.name != "__pycache__") == [
+        "app", "core", "solvers", "studies"]
 
 
 # -- at run time ---------------------------------------------------------------------------------------
 
 _IMPORT_EACH = """
 import importlib, json, sys
+above = sys.argv[1].split(",")
 found = []
-for name in sys.argv[1:]:
+for name in sys.argv[2:]:
     importlib.import_module(name)
-    found.append([name, sorted({m.split(".")[0] for m in sys.modules} & {"solvers", "studies"})])
+    found.append([name, sorted({a for a in above for m in sys.modules if m == a or m.startswith(a + ".")})])
 print(json.dumps(found))
 """
 
 
-def _import_each(modules: list[str]) -> dict[str, list[str]]:
-    """Import ``modules`` one after another in a fresh interpreter: {module: [solvers/studies imported by then]}."""
-    proc = subprocess.run([sys.executable, "-c", _IMPORT_EACH, *modules], capture_output=True, text=True,
-                          timeout=600, cwd=ROOT)
+def _import_each(modules: list[str], above) -> dict[str, list[str]]:
+    """Import ``modules`` one after another in a fresh interpreter: {module: [the layers of ``above`` imported by
+    then]}."""
+    proc = subprocess.run([sys.executable, "-c", _IMPORT_EACH, ",".join(above), *modules], capture_output=True,
+                          text=True, timeout=600, cwd=ROOT)
     assert proc.returncode == 0, proc.stderr
     return dict(json.loads(proc.stdout.strip().splitlines()[-1]))
 
 
-def test_importing_core_modules_imports_neither_solvers_nor_studies():
-    core = [m for m in _modules("optcal") if _within(m, CORE)]
-    found = _import_each(core)
-    assert list(found) == core
+@pytest.mark.parametrize("level", range(3))
+def test_importing_a_layer_imports_no_higher_layer(level):
+    layer, above = LAYERS[level], LAYERS[level + 1:]
+    mods = _modules(layer)
+    found = _import_each(mods, above)
+    assert list(found) == mods
     assert {m: got for m, got in found.items() if got} == {}
-    print(f"{len(core)} core modules imported; solvers and studies stayed out")
 
 
 def test_the_run_time_check_sees_an_import_of_solvers():
-    """The check above can fail: the discovery workflow, application layer, does import solvers; and the
-    facade optcal.discovery does too, but only when one of the workflow's names is first used."""
-    assert _import_each(["optcal.discovery", "optcal.discovery.workflow"]) == {
-        "optcal.discovery": [], "optcal.discovery.workflow": ["solvers"]}
-
-
-def test_importing_solvers_imports_no_study():
-    found = _import_each(_modules("solvers"))
-    assert {m: got for m, got in found.items() if got != ["solvers"]} == {}
+    """The check above can fail: the discovery workflow (application) imports the solvers; the core's
+    discovery package does not."""
+    assert _import_each(["optcal.core.discovery", "optcal.app.workflows.discovery"], LAYERS[1:3]) == {
+        "optcal.core.discovery": [], "optcal.app.workflows.discovery": ["optcal.solvers"]}
 
 
 # -- statically ------------------------------------------------------------------------------------------
@@ -181,20 +165,21 @@ def test_the_dynamic_import_scan_finds_string_imports():
     src = textwrap.dedent("""
         import importlib
         from importlib import import_module
-        importlib.import_module("solvers")
-        import_module(f"studies.{name}")
-        __import__("optcal.fit")
+        importlib.import_module("optcal.solvers")
+        import_module(f"optcal.studies.{name}")
+        __import__("optcal.app.fit")
         importlib.import_module("..commands.calibrate", __package__)
         importlib.import_module(f".{name}", __package__)
         importlib.import_module(name)
-        importlib.import_module("optcal.model")
+        importlib.import_module("optcal.core.model")
     """)
-    found = dynamic_imports(src, "optcal.discovery.statistics")
-    assert found == [(4, "solvers"), (5, "studies.{}"), (6, "optcal.fit"), (7, "optcal.commands.calibrate"),
-                     (8, "optcal.discovery.{}"), (9, None), (10, "optcal.model")]
-    forbidden = ("solvers", "studies", *APPLICATION)
-    assert [_names(t, forbidden) for _, t in found] == [["solvers"], ["studies"], ["optcal.fit"],
-                                                        ["optcal.commands"], [], [], []]
+    found = dynamic_imports(src, "optcal.core.discovery.statistics")
+    assert found == [(4, "optcal.solvers"), (5, "optcal.studies.{}"), (6, "optcal.app.fit"),
+                     (7, "optcal.core.commands.calibrate"),
+                     (8, "optcal.core.discovery.{}"), (9, None), (10, "optcal.core.model")]
+    forbidden = LAYERS[1:]
+    assert [_names(t, forbidden) for _, t in found] == [["optcal.solvers"], ["optcal.studies"], ["optcal.app"],
+                                                        [], [], [], []]
 
 
 def _production_modules():
@@ -203,26 +188,21 @@ def _production_modules():
             yield module, _path(module).read_text()
 
 
-def test_core_modules_name_no_other_layer_in_imports_or_strings():
-    """The rule tests/test_cli_core.py checked for all of optcal, now for its core (the application layer in
-    optcal imports solvers on purpose), and with imports by string."""
-    forbidden = ("solvers", "studies", *APPLICATION)
-    static, dynamic = [], []
-    for module, source in _production_modules():
-        if not _within(module, CORE):
-            continue
-        for node in ast.walk(ast.parse(source)):
-            mods = ([a.name for a in node.names] if isinstance(node, ast.Import)
-                    else [node.module or ""] if isinstance(node, ast.ImportFrom) and node.level == 0 else [])
-            static += [f"{module}: {m}" for m in mods if m.split(".")[0] in ("solvers", "studies")]
-        dynamic += [f"{module}:{line}: {t}" for line, t in dynamic_imports(source, module) if _names(t, forbidden)]
-    assert static == []
-    assert dynamic == []
+def test_no_module_imports_a_higher_layer_by_a_built_string():
+    """An import whose target is built at run time (an f-string) is invisible to the contracts: none of a lower
+    layer's may name a higher layer."""
+    bad = []
+    for level, layer in enumerate(LAYERS[:-1]):
+        for module in _modules(layer):
+            bad += [f"{module}:{line}: {t}" for line, t in dynamic_imports(_path(module).read_text(), module)
+                    if _names(t, LAYERS[level + 1:])]
+    assert bad == []
 
 
 def test_no_module_imports_one_of_the_projects_modules_by_a_fixed_string():
     """``importlib.import_module("optcal.x")`` is ``import optcal.x`` hidden from the contracts: write the
-    import. Plugin discovery (optcal.cli over optcal/commands, solvers/__init__.py over its folder) builds
+    import. Plugin discovery (optcal.app.cli over optcal/app/commands, optcal/solvers/__init__.py over its folder)
+    builds
     the name from what it finds in its own package, relative to it, and is not a fixed string."""
     hidden = [f"{module}:{line}: {t}" for module, source in _production_modules()
               for line, t in dynamic_imports(source, module)

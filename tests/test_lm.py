@@ -1,4 +1,4 @@
-"""solvers.lm, optcal's Levenberg-Marquardt in NumPy (the commands' default fit), against SciPy's MINPACK
+"""optcal.solvers.lm, optcal's Levenberg-Marquardt in NumPy (the commands' default fit), against SciPy's MINPACK
 (scipy-lm) on the accelerometer's and the gyroscope's problems, on a classic test function, and at its edges."""
 
 import subprocess
@@ -8,10 +8,10 @@ import numpy as np
 import pytest
 
 import optcal
-from optcal.fit import calibrate
-from optcal.gyro import GyroProblem, draw_truth, get_gyro_model, simulate_imu
-from solvers.lm import levenberg_marquardt
-from solvers.registry import get
+from optcal.app.fit import calibrate
+from optcal.core.gyro import GyroProblem, draw_truth, get_gyro_model, simulate_imu
+from optcal.solvers.lm import levenberg_marquardt
+from optcal.solvers.registry import get
 
 
 @pytest.mark.parametrize("model", ["nonlinear12", "linear9", "diag6", "seed15"])
@@ -79,7 +79,7 @@ def test_budget_and_non_finite_trial_points():
 
 def test_registry_import_loads_no_optimisation_library():
     """Why lm exists: building the registry and running lm import neither scipy nor any solver back end."""
-    code = ("import sys, optcal; from optcal.fit import calibrate; "
+    code = ("import sys, optcal; from optcal.app.fit import calibrate; "
             "calibrate(optcal.simulate('nonlinear12', None, 1).data); "
             "print(sorted({m.split('.')[0] for m in sys.modules} & "
             "{'scipy', 'casadi', 'nlopt', 'cvxpy', 'cma', 'nevergrad', 'numba'}))")

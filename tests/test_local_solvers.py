@@ -18,18 +18,18 @@ import nlopt
 import numpy as np
 import pytest
 
-import solvers
-from optcal.analysis import crlb
-from optcal.data import PositionsData
-from optcal.errors import InputError
-from optcal.model import Context, get_model
-from optcal.presets import PAPER_TRUTH, Presets, draw_truth, manufacturer_presets
-from optcal.problem import CalibrationProblem
-from optcal.schemes import rotation_groups
-from optcal.simulate import simulate
-from solvers import casadi_ipopt as ci
-from solvers.ellipsoid import ellipsoid_start, fit_ellipsoid
-from solvers.nlopt_solver import RESULTS
+from optcal import solvers
+from optcal.core.analysis import crlb
+from optcal.core.data import PositionsData
+from optcal.core.errors import InputError
+from optcal.core.model import Context, get_model
+from optcal.core.presets import PAPER_TRUTH, Presets, draw_truth, manufacturer_presets
+from optcal.core.problem import CalibrationProblem
+from optcal.core.schemes import rotation_groups
+from optcal.core.simulate import simulate
+from optcal.solvers import casadi_ipopt as ci
+from optcal.solvers.ellipsoid import ellipsoid_start, fit_ellipsoid
+from optcal.solvers.nlopt_solver import RESULTS
 
 SIGMA = 10e-6
 

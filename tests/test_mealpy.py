@@ -1,4 +1,5 @@
-"""mealpy's optimisers as the ``mealpy:NAME`` family (solvers/mealpy_solver.py, docs/algorithms.md §17), beyond the
+"""mealpy's optimisers as the ``mealpy:NAME`` family (optcal/solvers/mealpy_solver.py, docs/algorithms.md §17), beyond
+the
 conformance suite (which runs GWO, WOA, HHO, SHADE and PSO through every check of the solver contract): names,
 options and their one-line errors, the epochs sized from the budget, batched evaluation, seeds (mealpy's global
 NumPy draws included), the stagnation rule, the listing, and the mealpy study spec's report."""
@@ -12,14 +13,14 @@ import math
 import numpy as np
 import pytest
 
-import solvers
-from optcal.cli import main
-from optcal.errors import InputError
-from optcal.presets import draw_truth, manufacturer_presets
-from optcal.problem import CalibrationProblem
-from optcal.simulate import simulate
-from solvers.base import Stagnation
-from solvers.mealpy_solver import evaluations_per_epoch, resolve
+from optcal import solvers
+from optcal.app.cli import main
+from optcal.core.errors import InputError
+from optcal.core.presets import draw_truth, manufacturer_presets
+from optcal.core.problem import CalibrationProblem
+from optcal.core.simulate import simulate
+from optcal.solvers.base import Stagnation
+from optcal.solvers.mealpy_solver import evaluations_per_epoch, resolve
 
 pytestmark = pytest.mark.skipif(importlib.util.find_spec("mealpy") is None, reason="mealpy is not installed")
 
@@ -219,9 +220,9 @@ def test_the_mealpy_spec_reports_its_optimisers_like_every_solver(tmp_path):
     comparisons, its anytime curves and its settings with the reasons its trials ended."""
     from dataclasses import replace
 
-    from studies.execute import run_study
-    from studies.report import write_report
-    from studies.spec import load
+    from optcal.studies.execute import run_study
+    from optcal.studies.report import write_report
+    from optcal.studies.spec import load
 
     spec = replace(load("mealpy").with_runs(3), models=("nonlinear12",), schemes=("24",))
     assert [c.label for c in spec.solvers][:3] == ["mealpy:GWO", "mealpy:WOA", "mealpy:HHO"]

@@ -5,9 +5,9 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from optcal.errors import InputError
-from optcal.model import NAMED_MODELS, TERMS, Context, get_model
-from optcal.schemes import random_orientations
+from optcal.core.errors import InputError
+from optcal.core.model import NAMED_MODELS, TERMS, Context, get_model
+from optcal.core.schemes import random_orientations
 
 ALL_TERMS = ("scale+bias+misalignment6+quadratic+cubic+scale_asymmetry+cross_coupling"
              "+temperature_bias+temperature_scale+bias_drift")

@@ -1,4 +1,4 @@
-"""Static navigation (optcal.nav, docs/design.md §13): closed-form Schuler checks, Eq. 23, Foucault modulation,
+"""Static navigation (optcal.core.nav, docs/design.md §13): closed-form Schuler checks, Eq. 23, Foucault modulation,
 self-alignment, the calibration error at a fixed attitude, and the `optcal nav` command."""
 
 import json
@@ -10,11 +10,11 @@ from scipy.integrate import solve_ivp
 from scipy.ndimage import uniform_filter1d
 from scipy.signal import hilbert
 
-from optcal.cli import main
-from optcal.errors import InputError
-from optcal.gravity import G0, normal_gravity
-from optcal.model import get_model
-from optcal.nav import (
+from optcal.app.cli import main
+from optcal.core.errors import InputError
+from optcal.core.gravity import G0, normal_gravity
+from optcal.core.model import get_model
+from optcal.core.nav import (
     OMEGA_E,
     calibration_error_body,
     error_dynamics,
@@ -22,7 +22,7 @@ from optcal.nav import (
     propagate,
     static_navigation,
 )
-from optcal.presets import PAPER_TRUTH
+from optcal.core.presets import PAPER_TRUTH
 
 NMI = 1852.0
 LAT = 45.0
@@ -30,7 +30,7 @@ DF = 100e-6 * G0  # a 100 µg accelerometer error, m/s²
 
 
 def wgs84_radii(lat_deg):
-    """Meridian and prime-vertical radii written out here, independently of optcal.nav."""
+    """Meridian and prime-vertical radii written out here, independently of optcal.core.nav."""
     a, e2 = 6378137.0, 6.69437999014e-3
     s2 = math.sin(math.radians(lat_deg)) ** 2
     return a * (1 - e2) / (1 - e2 * s2) ** 1.5, a / math.sqrt(1 - e2 * s2)

@@ -1,4 +1,5 @@
-"""optcal noise (optcal/noise/, optcal/plots/noise.py, optcal/commands/noise.py): the Allan-deviation reading
+"""optcal noise (optcal/core/noise/, optcal/core/plots/noise.py, optcal/app/commands/noise.py): the Allan-deviation
+reading
 of white noise, bias instability and bias random walk on synthetic noise of known strength, the JSON and Kalibr
 outputs, bad input, and calibrate/info --noise-from."""
 
@@ -13,8 +14,8 @@ import numpy as np
 import pytest
 from conftest import assert_numbers_carry_units
 
-from optcal.cli import main
-from optcal.noise import FLICKER_FACTOR, G0, WhiteNoise, analyse, analyse_axis, octave_m
+from optcal.app.cli import main
+from optcal.core.noise import FLICKER_FACTOR, G0, WhiteNoise, analyse, analyse_axis, octave_m
 
 FS = 100.0  # Hz
 
@@ -105,7 +106,7 @@ def test_random_walk_is_recovered():
 
 
 def test_the_fit_recovers_exact_coefficients_from_a_noise_free_curve():
-    from optcal.noise import fit_terms
+    from optcal.core.noise import fit_terms
 
     taus = 2.0 ** np.arange(14) / FS
     a, b, c = (80e-6) ** 2, (0.664 * 12e-6) ** 2, (3e-6) ** 2 / 3
@@ -262,9 +263,9 @@ def test_real_mpu6050_rest_has_the_datasheet_noise_density(capsys, corpus):
 @pytest.fixture(scope="module")
 def positions_with_n(tmp_path_factory):
     """24 simulated positions with n = 1000 samples each (10 s at 100 Hz) and no sx, sy, sz."""
-    from optcal.model import get_model
-    from optcal.presets import PAPER_TRUTH
-    from optcal.simulate import simulate
+    from optcal.core.model import get_model
+    from optcal.core.presets import PAPER_TRUTH
+    from optcal.core.simulate import simulate
 
     model = get_model("nonlinear12")
     truth = {n: PAPER_TRUTH.get(n, 1.0 if n.startswith("K_") else 0.0) for n in model.names}
@@ -283,8 +284,8 @@ def _noise_json(tmp_path, density_g, name):
 
 
 def test_noise_from_sets_calibrates_standard_errors(positions_with_n, capsys, tmp_path, static_recording):
-    from optcal.data import read_positions
-    from optcal.fit import calibrate
+    from optcal.app.fit import calibrate
+    from optcal.core.data import read_positions
 
     d1 = 30e-6
     j1, j2 = _noise_json(tmp_path, d1, "n1.json"), _noise_json(tmp_path, 2 * d1, "n2.json")
@@ -359,7 +360,7 @@ def test_colored_noise_has_the_allan_deviation_of_its_coefficients(term, coef, e
     and 10 % at 10 s (EDF ≈ 60-100)."""
     import allantools
 
-    from optcal.noise.colored import colored_noise
+    from optcal.core.noise.colored import colored_noise
 
     y = colored_noise(100_000, FS, np.random.default_rng(11), **{term: coef})
     assert y.shape == (100_000, 3)
@@ -375,7 +376,7 @@ def test_colored_noise_white_plus_flicker_adds_in_allan_variance_and_is_read_bac
     """White + flicker + random walk (N = 60 µg/√Hz, B = 15 µg, K = 1 µg/√s; 10 h at 10 Hz): the noise
     analysis of optcal.noise reads N within 1 %, B within 15 % and K within 40 % on every axis (seed fixed;
     K's part of the curve has only a few independent averages)."""
-    from optcal.noise.colored import colored_noise
+    from optcal.core.noise.colored import colored_noise
 
     y = colored_noise(360_000, 10.0, np.random.default_rng(5), white=60e-6, flicker=15e-6, random_walk=1e-6)
     rep = analyse(y + [0.0, 0.0, 1.0], 10.0)
@@ -387,7 +388,7 @@ def test_colored_noise_white_plus_flicker_adds_in_allan_variance_and_is_read_bac
 
 
 def test_colored_noise_draws_from_the_generator_only_and_axes_are_independent():
-    from optcal.noise.colored import colored_noise
+    from optcal.core.noise.colored import colored_noise
 
     kw = dict(white=1e-4, flicker=2e-5, random_walk=1e-6)
     a = colored_noise(5000, 50.0, np.random.default_rng(3), **kw)
@@ -405,8 +406,8 @@ def test_colored_noise_draws_from_the_generator_only_and_axes_are_independent():
     (dict(axes=0), "`axes`"),
 ])
 def test_colored_noise_bad_input_names_the_parameter(kwargs, name):
-    from optcal.errors import InputError
-    from optcal.noise.colored import colored_noise
+    from optcal.core.errors import InputError
+    from optcal.core.noise.colored import colored_noise
 
     args = dict(n=100, rate_hz=10.0) | kwargs
     n, rate = args.pop("n"), args.pop("rate_hz")

@@ -1,4 +1,4 @@
-"""The noise floor of a position (issue #20, item 5; optcal/noise/floor.py, docs/noise.md "The noise floor of a
+"""The noise floor of a position (issue #20, item 5; optcal/core/noise/floor.py, docs/noise.md "The noise floor of a
 position"): the pooled Allan variance, the covariance of interval means under flicker noise, the floor against
 σ/√n, what positions_from_recording and the positions CSV carry, the false-alarm rate of the χ² (F) test on
 simulated white + flicker recordings, and the Xsens MTi recording of imu_tk (BSD licence; the real corpus's imu_tk/,
@@ -14,20 +14,20 @@ import numpy as np
 import pytest
 from corpus import corpus_root
 
-from optcal.analysis import goodness_of_fit
-from optcal.data import read_positions
-from optcal.errors import InputError
-from optcal.fit import calibrate
-from optcal.model import get_model
-from optcal.noise.colored import colored_noise
-from optcal.noise.fit import FLICKER_FACTOR, SLOPE_TOL
-from optcal.presets import PAPER_TRUTH
-from optcal.problem import CalibrationProblem
-from optcal.recording import floor as floor_module
-from optcal.recording import given_intervals, positions_from_recording, read_recording
-from optcal.recording.floor import centred_variance, flicker_covariance, noise_floor, octaves, pooled_avar
-from optcal.recording.reading import Recording
-from optcal.schemes import scheme
+from optcal.app.fit import calibrate
+from optcal.core.analysis import goodness_of_fit
+from optcal.core.data import read_positions
+from optcal.core.errors import InputError
+from optcal.core.model import get_model
+from optcal.core.noise.colored import colored_noise
+from optcal.core.noise.fit import FLICKER_FACTOR, SLOPE_TOL
+from optcal.core.presets import PAPER_TRUTH
+from optcal.core.problem import CalibrationProblem
+from optcal.core.recording import floor as floor_module
+from optcal.core.recording import given_intervals, positions_from_recording, read_recording
+from optcal.core.recording.floor import centred_variance, flicker_covariance, noise_floor, octaves, pooled_avar
+from optcal.core.recording.reading import Recording
+from optcal.core.schemes import scheme
 
 RATE, DWELL, MOVE = 100.0, 5.0, 3.0  # Hz, s of each pose, s of motion between poses
 MODEL = get_model("linear9")
@@ -38,7 +38,7 @@ MEMS = dict(white=100e-6, flicker=150e-6)
 
 # -- the pieces ------------------------------------------------------------------------------------------------
 def test_the_floor_spells_the_constants_of_the_noise_fit_alike():
-    """optcal.recording.floor cannot import optcal.noise (which reads recordings); its copies must agree."""
+    """optcal.core.recording.floor cannot import optcal.core.noise (which reads recordings); its copies must agree."""
     assert floor_module.FLICKER_FACTOR == FLICKER_FACTOR and floor_module.SLOPE_TOL == SLOPE_TOL
 
 
@@ -197,7 +197,7 @@ def test_positions_from_a_recording_carry_the_floor_and_the_csv_its_se_columns(t
 @pytest.mark.slow
 def test_chi2_test_keeps_its_false_alarm_rate_with_the_new_floor_and_not_with_sigma_over_root_n():
     """300 simulated recordings of the true linear9 model (24 poses of 5 s, 3 s of motion between, MEMS white +
-    flicker noise), calibrated through positions_from_recording and optcal.fit.calibrate: at α = 5 % the test
+    flicker noise), calibrated through positions_from_recording and optcal.app.fit.calibrate: at α = 5 % the test
     against the new floor (χ² judged by its moments under the floor's correlated noise and the floor's degrees
     of freedom) rejects at most 21 of 300 (5 % plus the one-sided 95 % binomial tolerance
     1.645·√(0.05·0.95/300) = 2.1 %; measured 12); against σ/√n (the χ² test) at least 250 of 300 (measured 300)."""
@@ -223,7 +223,7 @@ def test_xsens_residual_is_at_its_new_noise_floor(tmp_path, corpus):
     floor and χ² rejects at p ~ 1e-100; the new floor (116 µg: the z axis's σ_A flattens at 0.55 counts from
     τ = 0.6 s) makes residual / floor 0.85 and p = 0.21 (docs/noise.md). Asserted: residual / old floor 2-4,
     residual / new floor 0.6-1.3, the new p-value above 0.01 and the old one below 1e-20."""
-    from optcal.recording import choose_threshold
+    from optcal.app.workflows.recording import choose_threshold
 
     path = tmp_path / "xsens_acc.mat"
     path.write_bytes(gzip.decompress(XSENS.read_bytes()))

@@ -15,10 +15,10 @@ from conftest import run_cli
 from test_readers_wild import write_mat73
 
 import optcal
-from optcal.cli import main
-from optcal.errors import InputError
-from optcal.gravity import G0
-from optcal.synthetic_imu import handheld_imu
+from optcal.app.cli import main
+from optcal.core.errors import InputError
+from optcal.core.gravity import G0
+from optcal.core.synthetic_imu import handheld_imu
 
 
 @pytest.fixture(scope="module")

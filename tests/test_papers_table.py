@@ -83,9 +83,9 @@ def test_the_implied_noise_is_the_bound_scaled(implied):
 def test_the_cost_readings_match_simulated_optima():
     """Row 11's formulas against the optima of simulated data: E Σe² = σ²·dof and E Σ|e| = σ·√(2/π)·Σ√(1 − h),
     over 60 data sets of the bsas2020 spec fitted by least squares."""
-    import solvers
-    from studies import spec as specs
-    from studies.trial import trials, world
+    from optcal import solvers
+    from optcal.studies import spec as specs
+    from optcal.studies.trial import trials, world
 
     ts = [t for t in trials(specs.load("bsas2020").with_runs(60)) if t.config.label == "BSAS"]
     sigma = ts[0].noise_ug * 1e-6

@@ -1,4 +1,4 @@
-"""optcal.plan: the information of a design against optcal.analysis, the known optimal designs computed from
+"""optcal.core.plan: the information of a design against optcal.core.analysis, the known optimal designs computed from
 first principles (the regular icosahedron for linear9's D criterion, the octahedron for diag6), the exchange
 against a registry solver, scheme names and files, faces and tilts, placement robustness, next-best pose and
 "enough yet?", and the command's bad input (docs/planning.md)."""
@@ -8,19 +8,19 @@ import json
 import numpy as np
 import pytest
 
-from optcal.analysis import projected_crlb
-from optcal.cli import main
-from optcal.data import PositionsData
-from optcal.errors import InputError
-from optcal.plan.criteria import Criterion, parse_targets
-from optcal.plan.design import make_criterion, plan
-from optcal.plan.fisher import InformationModel
-from optcal.plan.fixtures import candidates, from_faces, handling_order, to_faces, turn_angle_deg
-from optcal.plan.robust import placement_score
-from optcal.plan.schemefile import read_scheme, scheme_csv
-from optcal.plan.sequential import next_best, progress
-from optcal.problem import CalibrationProblem
-from optcal.schemes import scheme
+from optcal.app.cli import main
+from optcal.core.analysis import projected_crlb
+from optcal.core.data import PositionsData
+from optcal.core.errors import InputError
+from optcal.core.plan.criteria import Criterion, parse_targets
+from optcal.core.plan.design import make_criterion, plan
+from optcal.core.plan.fisher import InformationModel
+from optcal.core.plan.fixtures import candidates, from_faces, handling_order, to_faces, turn_angle_deg
+from optcal.core.plan.robust import placement_score
+from optcal.core.plan.schemefile import read_scheme, scheme_csv
+from optcal.core.plan.sequential import next_best, progress
+from optcal.core.problem import CalibrationProblem
+from optcal.core.schemes import scheme
 
 
 def icosahedron() -> np.ndarray:
@@ -43,7 +43,7 @@ def _run(capsys, *argv):
 @pytest.mark.parametrize("model", ["diag6", "linear9", "nonlinear12", "seed15"])
 @pytest.mark.parametrize("spec", ["24", "36"])
 def test_information_matches_the_projected_crlb(model, spec):
-    """The batched information gives the same bounds as optcal.analysis.projected_crlb (the studies' bound)."""
+    """The batched information gives the same bounds as optcal.core.analysis.projected_crlb (the studies' bound)."""
     info = InformationModel.of(model, 10e-6)
     d = scheme(spec)
     sd = info.sd(info.information(d[None]))[0]
@@ -95,7 +95,7 @@ def test_planned_schemes_beat_the_papers_per_position():
 
 
 def test_the_exchange_and_a_registry_solver_agree():
-    from optcal.plan.solve import solve_design
+    from optcal.app.workflows.plan import solve_design
 
     crit = make_criterion("linear9", "D")
     design, record = solve_design(crit, 12, solver="cmaes", starts=1, budget=3000, rng=np.random.default_rng(3))
@@ -105,7 +105,7 @@ def test_the_exchange_and_a_registry_solver_agree():
 
 
 def test_solvers_without_a_cost_only_path_are_refused():
-    from optcal.plan.solve import solve_design
+    from optcal.app.workflows.plan import solve_design
 
     with pytest.raises(InputError, match="search method"):
         solve_design(make_criterion("linear9"), 12, solver="scipy-lm", starts=1, budget=100,
@@ -265,8 +265,8 @@ def test_design_problem_counts_and_keeps_the_best():
     """The design problem's budget and best point behave as CalibrationProblem's (CONTRIBUTING.md): past the
     budget candidates cost inf and the next call raises; the best point evaluated is kept; the equal-area map
     inverts."""
-    from optcal.errors import BudgetExhausted
-    from optcal.plan.problem import DesignProblem, coordinates_of, directions_of
+    from optcal.core.errors import BudgetExhausted
+    from optcal.core.plan.problem import DesignProblem, coordinates_of, directions_of
 
     crit = make_criterion("linear9")
     dp = DesignProblem(crit, 12)

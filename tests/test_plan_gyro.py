@@ -1,4 +1,4 @@
-"""optcal.plan.gyro*: the rotations between rests for the gyroscope (docs/planning.md, "Planning the rotations").
+"""optcal.core.gyro.plan*: the rotations between rests for the gyroscope (docs/planning.md, "Planning the rotations").
 
 The candidates' information against the problem's own Jacobian on a recording that follows a plan; a turn about
 the gravity direction is blind to the rate sensed along it; turns about one axis leave the other axes' scale
@@ -10,15 +10,15 @@ import json
 import numpy as np
 import pytest
 
-from optcal.cli import main
-from optcal.errors import InputError
-from optcal.gyro import GyroProblem, draw_truth, get_gyro_model
-from optcal.plan.gyro import GyroNoise, MotionPlan, Timing, criterion, model_spec
-from optcal.plan.gyro_candidates import candidates
-from optcal.plan.gyro_follow import plan_csv, read_plan, simulate_plan, verdict
-from optcal.plan.gyro_search import habitual, neighbours, search
-from optcal.schemes import scheme
-from solvers.registry import get
+from optcal.app.cli import main
+from optcal.core.errors import InputError
+from optcal.core.gyro import GyroProblem, draw_truth, get_gyro_model
+from optcal.core.gyro.plan import GyroNoise, MotionPlan, Timing, criterion, model_spec
+from optcal.core.gyro.plan_candidates import candidates
+from optcal.core.gyro.plan_follow import plan_csv, read_plan, simulate_plan, verdict
+from optcal.core.gyro.plan_search import habitual, neighbours, search
+from optcal.core.schemes import scheme
+from optcal.solvers.registry import get
 
 NOISE = GyroNoise()  # 1e-4 rad/s/√Hz, 10 µg per rest mean, rests of 3 s
 ONE_AXIS = scheme("24")[:8]  # the 24-position scheme's first group: gravity turns about the sensor's x axis
@@ -251,7 +251,7 @@ def test_cli_prints_the_plan_and_writes_a_file_others_read(tmp_path, capsys):
     (["--scheme", "24", "--motion-budget", "10"], "no plan of these poses fits the motion budget of 10 s"),
 ])
 def test_bad_gyroscope_plans_are_one_line_and_exit_2(argv, fragment, tmp_path, capsys):
-    from optcal.plan.schemefile import scheme_csv
+    from optcal.core.plan.schemefile import scheme_csv
 
     up, down = np.array([[0, 0, 1.0]]), np.array([[0, 0, -1.0]])
     files = {"ONE_AXIS": ONE_AXIS, "THREE": np.eye(3), "UP": np.repeat(up, 5, 0),

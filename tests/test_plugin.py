@@ -19,12 +19,12 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-import solvers
-from optcal.cli import main
-from optcal.presets import draw_truth, manufacturer_presets
-from optcal.problem import CalibrationProblem
-from optcal.simulate import simulate
-from solvers.base import Solver
+from optcal import solvers
+from optcal.app.cli import main
+from optcal.core.presets import draw_truth, manufacturer_presets
+from optcal.core.problem import CalibrationProblem
+from optcal.core.simulate import simulate
+from optcal.solvers.base import Solver
 
 EXAMPLE = Path(__file__).resolve().parents[1] / "examples" / "random_search_plugin"
 
@@ -64,7 +64,7 @@ def test_plugin_installs_registers_and_solves(tmp_path):
     (tmp_path / "presets.json").write_text(presets.to_json())
     # One interpreter with the target directory on its path runs both commands (start-up is the slow part).
     script = (
-        "from optcal.cli import main\n"
+        "from optcal.app.cli import main\n"
         "main(['solvers', '--json'])\nprint('\\f')\n"
         f"main(['calibrate', {str(tmp_path / 'pos.csv')!r}, '--solver', 'random-search', '--presets', "
         f"{str(tmp_path / 'presets.json')!r}, '--budget', '4001', '--seed', '3', '--option', 'm=40', '--json'])\n"

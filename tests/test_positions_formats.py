@@ -13,13 +13,13 @@ from argparse import Namespace
 import numpy as np
 import pytest
 
-from optcal.cli import main
-from optcal.data import read_positions
-from optcal.errors import InputError
-from optcal.recording import read_recording
-from optcal.recording.sniff import POSITION_JUMP, SAMPLE_JUMP, jump_ratio, mat_table
-from optcal.schemes import scheme
-from optcal.simulate import simulate
+from optcal.app.cli import main
+from optcal.core.data import read_positions
+from optcal.core.errors import InputError
+from optcal.core.recording import read_recording
+from optcal.core.recording.sniff import POSITION_JUMP, SAMPLE_JUMP, jump_ratio, mat_table
+from optcal.core.schemes import scheme
+from optcal.core.simulate import simulate
 
 
 @pytest.fixture(scope="module")
@@ -228,7 +228,7 @@ def test_a_file_of_neither_kind_is_read_as_asked(tmp_path, capsys):
     sweep = np.column_stack([np.sin(a), 0.02 * np.cos(3 * a), np.cos(a)])
     path = tmp_path / "sweep.txt"
     np.savetxt(path, sweep, fmt="%.7f")
-    from optcal.commands._dataopts import load_positions
+    from optcal.app.commands._dataopts import load_positions
 
     data = load_positions(Namespace(raw=False, units="g"), path)
     np.testing.assert_allclose(data.N, sweep, atol=1e-7)
@@ -318,8 +318,8 @@ def test_the_corpus_files_are_told_apart(corpus):
     """Position means (Hassan & Bao's 24 and 49, MAT files) against recordings (imu_tk's Xsens, the phone, the
     MPU-6050, imucal's session, CK-Explorer; the real corpus, tests/corpus.py): the margins to the two
     thresholds are a factor of about 2 or more."""
-    from optcal.recording.reading import raw_file_reason
-    from optcal.recording.sniff import table_kind
+    from optcal.core.recording.reading import raw_file_reason
+    from optcal.core.recording.sniff import table_kind
 
     hb = corpus / "hassan_bao"
     for name, ratio in (("CalibrationOfLowCostTriaxialInertialSensors.mat", 0.78),

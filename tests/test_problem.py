@@ -4,10 +4,10 @@ import numpy as np
 import pytest
 
 from optcal import Budget, BudgetExhausted, CalibrationProblem, get_model, simulate
-from optcal.analysis import crlb, observability
-from optcal.errors import InputError
-from optcal.presets import PAPER_TRUTH, manufacturer_presets
-from optcal.schemes import scheme, tilt
+from optcal.core.analysis import crlb, observability
+from optcal.core.errors import InputError
+from optcal.core.presets import PAPER_TRUTH, manufacturer_presets
+from optcal.core.schemes import scheme, tilt
 
 
 def _sim(model="nonlinear12", scheme_="24", seed=0, **kw):
@@ -180,7 +180,7 @@ def test_standard_errors_grow_with_the_residual_when_the_model_misses_an_effect(
     errors are scaled by the Birge ratio sqrt(χ²/dof), with a note saying so."""
     from dataclasses import replace
 
-    from optcal.fit import calibrate
+    from optcal.app.fit import calibrate
 
     truth = {k: v for k, v in PAPER_TRUTH.items() if k in get_model("linear9").names}
     for effects, misfit in ((None, False), ({"cubic": {"K3_x": 3e-4, "K3_y": -2e-4, "K3_z": 2e-4}}, True)):

@@ -12,10 +12,10 @@ import numpy as np
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from optcal.data import read_positions
-from optcal.errors import InputError
-from optcal.recording.reading import raw_file_reason, read_recording
-from optcal.recording.sniff import mat_table
+from optcal.core.data import read_positions
+from optcal.core.errors import InputError
+from optcal.core.recording.reading import raw_file_reason, read_recording
+from optcal.core.recording.sniff import mat_table
 
 SETTINGS = settings(max_examples=150, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 NAMES = ["ax", "ay", "az", "position", "t", "temp", "n", "sx", "sy", "sz", "se_x", "ref_x", "time", "acc_x",

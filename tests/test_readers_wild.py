@@ -15,13 +15,13 @@ import numpy as np
 import pytest
 from corpus import corpus
 
-from optcal.cli import _run, main
-from optcal.errors import MAX_LINE, InputError, listing, one_line
-from optcal.recording import given_intervals, read_intervals, read_recording
-from optcal.recording.intervals import IntervalTimes
-from optcal.recording.reading import _load_numeric
-from optcal.recording.sniff import ALIAS_KEYS, mat_table, sniff_layout
-from optcal.synthetic_recording import poses_recording
+from optcal.app.cli import _run, main
+from optcal.core.errors import MAX_LINE, InputError, listing, one_line
+from optcal.core.recording import given_intervals, read_intervals, read_recording
+from optcal.core.recording.intervals import IntervalTimes
+from optcal.core.recording.reading import _load_numeric
+from optcal.core.recording.sniff import ALIAS_KEYS, mat_table, sniff_layout
+from optcal.core.synthetic_recording import poses_recording
 
 
 def _cli(argv, capsys):
@@ -303,9 +303,9 @@ def test_mat_v73_without_numbers_and_broken_are_one_line(tmp_path, capsys):
 
 
 def test_a_mat_v73_positions_file_calibrates(tmp_path, capsys):
-    from optcal.model import get_model
-    from optcal.presets import PAPER_TRUTH
-    from optcal.simulate import simulate
+    from optcal.core.model import get_model
+    from optcal.core.presets import PAPER_TRUTH
+    from optcal.core.simulate import simulate
 
     m = get_model("linear9")
     sim = simulate(m, {k: v for k, v in PAPER_TRUTH.items() if k in m.names}, np.random.default_rng(4),

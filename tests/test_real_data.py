@@ -15,13 +15,13 @@ import numpy as np
 import pytest
 from corpus import corpus_root
 
-from optcal.analysis import observability
-from optcal.cli import main
-from optcal.errors import InputError
-from optcal.fit import calibrate
-from optcal.problem import CalibrationProblem
-from optcal.recording import (
-    choose_threshold,
+from optcal.app.cli import main
+from optcal.app.fit import calibrate
+from optcal.app.workflows.recording import choose_threshold
+from optcal.core.analysis import observability
+from optcal.core.errors import InputError
+from optcal.core.problem import CalibrationProblem
+from optcal.core.recording import (
     given_intervals,
     label_intervals,
     positions_from_recording,
@@ -82,7 +82,7 @@ def test_imucal_norm_fit_agrees_with_imucal_within_method_differences(annotated)
     (up to 0.024 rad) move the result at second order, (0.024)² ≈ 6e-4."""
     _, _, data, ref = annotated
     # six positions, six parameters: an exact fit, no residual to judge it by, so optcal refuses it unless
-    # told to write a weak fit (optcal.determination); forced, it is imucal's result to 3e-4
+    # told to write a weak fit (optcal.core.determination); forced, it is imucal's result to 3e-4
     with pytest.raises(InputError, match="exact fit"):
         calibrate(data, "diag6", g_local=G_IMUCAL / G0)
     cal = calibrate(data, "diag6", g_local=G_IMUCAL / G0, force_weak=True)

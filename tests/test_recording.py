@@ -6,14 +6,14 @@ import json
 import numpy as np
 import pytest
 
-from optcal import gravity
-from optcal.cli import main
-from optcal.commands._dataopts import load_positions, parse_ks
-from optcal.errors import InputError
-from optcal.fit import calibrate
-from optcal.model import get_model
-from optcal.recording import (
-    choose_threshold,
+from optcal.app.cli import main
+from optcal.app.commands._dataopts import load_positions, parse_ks
+from optcal.app.fit import calibrate
+from optcal.app.workflows.recording import choose_threshold
+from optcal.core import gravity
+from optcal.core.errors import InputError
+from optcal.core.model import get_model
+from optcal.core.recording import (
     describe_detection,
     detect_static,
     given_intervals,
@@ -23,7 +23,7 @@ from optcal.recording import (
     read_recording,
     variance_statistic,
 )
-from optcal.schemes import scheme
+from optcal.core.schemes import scheme
 
 K0 = 16384.0
 TRUTH = {"K_x": 16301.0, "K_y": 16452.0, "K_z": 16690.0, "b_x": 0.021, "b_y": -0.013, "b_z": 0.042,
@@ -148,7 +148,7 @@ def test_formats_columns_and_rate(tmp_path, rec24):
 
 
 def test_fast_reader_and_numpy_reader_agree(tmp_path, rec24, monkeypatch):
-    from optcal.recording import reading
+    from optcal.core.recording import reading
 
     _, t, N, _, _ = rec24
     n = 2000
@@ -410,7 +410,7 @@ def test_bad_input_no_rest_at_the_start(tmp_path, capsys):
     assert main(["calibrate", path, "--raw", "--units", "counts", "--model", "linear9"]) == 0
     out = capsys.readouterr().out
     assert "24 static interval(s)" in out and "change-point segmentation" in out
-    from optcal.recording import positions_from_raw
+    from optcal.app.workflows.recording import positions_from_raw
 
     data = positions_from_raw(path, units="counts", model="linear9", method="variance")
     assert len(data) == 24 and "quietest windows" in describe_detection(data)
@@ -456,7 +456,7 @@ def test_quantised_still_start_and_constant_recording(tmp_path, rec24, capsys):
 def test_load_positions_uses_the_raw_path(rec24):
     import argparse
 
-    from optcal.commands._dataopts import add_data_options
+    from optcal.app.commands._dataopts import add_data_options
 
     p = argparse.ArgumentParser()
     add_data_options(p)
@@ -472,8 +472,8 @@ def test_library_errors_name_parameters_and_the_cli_names_options(tmp_path, rec2
     import argparse
     import inspect
 
-    from optcal.commands._dataopts import add_data_options, flags, with_flags
-    from optcal.recording import positions_from_raw
+    from optcal.app.commands._dataopts import add_data_options, flags, with_flags
+    from optcal.app.workflows.recording import positions_from_raw
 
     _, t, N, _, _ = rec24
     p = write(tmp_path / "norate.csv", None, N[:3000], header="ax,ay,az")
@@ -489,7 +489,7 @@ def test_library_errors_name_parameters_and_the_cli_names_options(tmp_path, rec2
     assert code == 2 and "--window must be a positive number of seconds, got 0" in err
     with pytest.raises(InputError, match="`threshold_k` -1: multipliers must be positive"):
         positions_from_raw(rec24[0], units="counts", threshold_k=-1)
-    from optcal.recording import parse_ks as library_parse_ks
+    from optcal.core.recording import parse_ks as library_parse_ks
 
     assert library_parse_ks((3, 5.5)) == (3.0, 5.5) and library_parse_ks(4) == (4.0,)
     assert library_parse_ks("2:4") == parse_ks("2:4") == (2.0, 3.0, 4.0)
@@ -499,7 +499,7 @@ def test_library_errors_name_parameters_and_the_cli_names_options(tmp_path, rec2
         parse_ks("two")
     # every parameter the CLI maps is one of the options object's (which positions_from_raw takes), and every
     # option it maps to exists
-    from optcal.recording.options import RawOptions
+    from optcal.core.recording.options import RawOptions
 
     assert "options" in inspect.signature(positions_from_raw).parameters
     parser = argparse.ArgumentParser()
@@ -511,7 +511,7 @@ def test_library_errors_name_parameters_and_the_cli_names_options(tmp_path, rec2
 
 
 def test_the_library_path_gives_the_cli_path_positions(tmp_path, rec24):
-    from optcal.recording import positions_from_raw
+    from optcal.app.workflows.recording import positions_from_raw
 
     path, _, _, spans, _ = rec24
     data = positions_from_raw(path, units="counts", threshold_k=4, model="linear9")
@@ -543,26 +543,22 @@ def _imports(path, package):
     return {m for m in found if m.split(".")[0] == "optcal"}
 
 
-def test_recording_package_imports_no_cli_no_plots_and_has_no_cycle():
+def test_recording_package_imports_no_app_no_plots_and_has_no_cycle():
     from pathlib import Path
 
-    import optcal.recording
+    import optcal.core.recording
 
-    root = Path(optcal.recording.__file__).parent
+    root = Path(optcal.core.recording.__file__).parent
     graph = {}
     for f in sorted(root.glob("*.py")):
-        name = "optcal.recording" + ("" if f.name == "__init__.py" else "." + f.stem)
-        graph[name] = _imports(f, "optcal.recording")
-        assert not any(m.startswith(("optcal.commands", "optcal.cli", "optcal.plots")) for m in graph[name]), name
-    assert graph["optcal.recording.workflow"] >= {"optcal.recording.detection", "optcal.recording.positions",
-                                                  "optcal.fit", "optcal.model"}
-    assert {"optcal.recording.reading", "optcal.recording.workflow"} <= graph["optcal.recording"]
-    # only the workflow fits (and so may reach the solvers); the core modules import neither it nor optcal.fit
-    for name in set(graph) - {"optcal.recording", "optcal.recording.workflow"}:
-        assert not graph[name] & {"optcal.fit", "optcal.recording.workflow"}, name
+        name = "optcal.core.recording" + ("" if f.name == "__init__.py" else "." + f.stem)
+        graph[name] = _imports(f, "optcal.core.recording")
+        # the core's recording path: no application layer (the workflow that fits lives in optcal.app), no figure
+        assert not any(m.startswith(("optcal.app", "optcal.solvers", "optcal.core.plots")) for m in graph[name]), name
+    assert {"optcal.core.recording.reading", "optcal.core.recording.segment"} <= graph["optcal.core.recording"]
     # no cycle among the package's modules (its __init__ only re-exports, and no module imports it)
-    inner = {k: {m for m in v if m in graph and m != "optcal.recording"} for k, v in graph.items()}
-    assert not any("optcal.recording" in v for k, v in graph.items() if k != "optcal.recording")
+    inner = {k: {m for m in v if m in graph and m != "optcal.core.recording"} for k, v in graph.items()}
+    assert not any("optcal.core.recording" in v for k, v in graph.items() if k != "optcal.core.recording")
     done, stack = set(), []
 
     def visit(n):
@@ -576,9 +572,8 @@ def test_recording_package_imports_no_cli_no_plots_and_has_no_cycle():
 
     for n in inner:
         visit(n)
-    assert {"optcal.recording", "optcal.recording.sniff", "optcal.recording.reading", "optcal.recording.detection",
-            "optcal.recording.segment", "optcal.recording.intervals", "optcal.recording.positions",
-            "optcal.recording.report", "optcal.recording.workflow"} <= done
+    assert {f"optcal.core.recording.{m}" for m in ("sniff", "reading", "detection", "segment", "intervals",
+                                                   "positions", "report")} <= done
 
 
 def test_recording_figure_uses_no_pyplot_and_calibrate_writes_nothing_on_a_bad_plot(tmp_path, rec24, capsys):
@@ -586,8 +581,8 @@ def test_recording_figure_uses_no_pyplot_and_calibrate_writes_nothing_on_a_bad_p
     import sys
 
     code = ("import sys, numpy as np\n"
-            "from optcal.recording import read_recording, detect_static\n"
-            "from optcal.plots.recording import recording_figure\n"
+            "from optcal.core.recording import read_recording, detect_static\n"
+            "from optcal.core.plots.recording import recording_figure\n"
             f"rec = read_recording({rec24[0]!r}, units='counts')\n"
             "det = detect_static(rec, 4)\n"
             "fig = recording_figure(rec, det, np.zeros(det.n_intervals))\n"

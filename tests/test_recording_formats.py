@@ -11,20 +11,14 @@ import lzma
 import numpy as np
 import pytest
 
-from optcal.cli import main
-from optcal.errors import InputError
-from optcal.fit import calibrate
-from optcal.model import get_model
-from optcal.recording import (
-    choose_threshold,
-    detect_static,
-    detection_summary,
-    positions_from_raw,
-    positions_from_recording,
-    read_recording,
-)
-from optcal.recording import reading as reading_module
-from optcal.schemes import scheme
+from optcal.app.cli import main
+from optcal.app.fit import calibrate
+from optcal.app.workflows.recording import choose_threshold, positions_from_raw
+from optcal.core.errors import InputError
+from optcal.core.model import get_model
+from optcal.core.recording import detect_static, detection_summary, positions_from_recording, read_recording
+from optcal.core.recording import reading as reading_module
+from optcal.core.schemes import scheme
 
 TRUTH = {"K_x": 30000.0, "K_y": 29500.0, "K_z": 30400.0, "b_x": 0.012, "b_y": -0.020, "b_z": 0.100,
          "S_yz": 2.0e-3, "S_zy": -1.5e-3, "S_zx": 1.0e-3}
@@ -221,7 +215,7 @@ def test_duplicate_column_names_are_refused(tmp_path, capsys):
 
 
 def test_positions_file_and_recording_given_for_each_other(tmp_path, uint16, capsys):
-    from optcal.data import PositionsData
+    from optcal.core.data import PositionsData
 
     pos = tmp_path / "positions.csv"
     PositionsData(N=scheme("24"), n_samples=np.full(24, 300.0), std=np.full((24, 3), 1e-3)).to_csv(pos)

@@ -12,11 +12,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from studies.execute import run_study
-from studies.report import PER_POSITION_HEADER, write_report
-from studies.report_sections import per_position, positions_of, scheme_phrase, schemes_phrase
-from studies.spec import parse, tomllib
-from studies.store import Store
+from optcal.studies.execute import run_study
+from optcal.studies.report import PER_POSITION_HEADER, write_report
+from optcal.studies.report_sections import per_position, positions_of, scheme_phrase, schemes_phrase
+from optcal.studies.spec import parse, tomllib
+from optcal.studies.store import Store
 
 SPEC = """
 name = "sizes"
@@ -49,8 +49,8 @@ def test_scheme_sizes_and_names():
 
 
 def test_a_scheme_file_has_as_many_positions_as_rows(tmp_path):
-    from optcal.plan.schemefile import scheme_csv
-    from optcal.schemes import rotation_groups
+    from optcal.core.plan.schemefile import scheme_csv
+    from optcal.core.schemes import rotation_groups
 
     path = tmp_path / "mine.csv"
     path.write_text(scheme_csv(rotation_groups(60.0)))
@@ -128,7 +128,7 @@ def test_the_bound_per_position_is_the_geometry_s(sizes):
 def test_a_gyroscope_study_has_no_accuracy_per_position(tmp_path):
     """The gyroscope's problem has no noise per reading in the spec's units (noise_ug is the accelerometer's
     on each rest), so its report leaves the column, its definition and the bound per position out."""
-    sp = parse({**tomllib.loads((Path(__file__).parents[1] / "studies/specs/gyro_compare.toml").read_text()),
+    sp = parse({**tomllib.loads((Path(__file__).parents[1] / "optcal/studies/specs/gyro_compare.toml").read_text()),
                 "runs": 2, "models": ["gyro9"], "schemes": ["24"], "solvers": [{"name": "scipy-lm"}],
                 "executor": {"kind": "serial"}}, "gyro_compare.toml")
     run_study(sp, tmp_path, progress=False)

@@ -1,6 +1,6 @@
 """The study report's speed-ups change nothing (issue #22): each group's statistics computed once
-(studies.report.FinishedGroup) are those of a plain group, and the figures drawn by worker processes
-(studies.figures.Renderer) are the files drawn in the report's own process, pixel for pixel, with the same
+(optcal.studies.report.FinishedGroup) are those of a plain group, and the figures drawn by worker processes
+(optcal.studies.figures.Renderer) are the files drawn in the report's own process, pixel for pixel, with the same
 report.md, parameters.md and summary.json."""
 
 from __future__ import annotations
@@ -15,12 +15,12 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from studies import figures
-from studies.execute import run_study
-from studies.metrics import groups
-from studies.report import FinishedGroup, finished_groups, write_report
-from studies.spec import load
-from studies.store import Store
+from optcal.studies import figures
+from optcal.studies.execute import run_study
+from optcal.studies.metrics import groups
+from optcal.studies.report import FinishedGroup, finished_groups, write_report
+from optcal.studies.spec import load
+from optcal.studies.store import Store
 
 
 @pytest.fixture(scope="module")

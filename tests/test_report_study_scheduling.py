@@ -1,4 +1,4 @@
-"""The order in which a study's trials go to the workers (studies.execute.schedule, issue #22): the last runs'
+"""The order in which a study's trials go to the workers (optcal.studies.execute.schedule, issue #22): the last runs'
 trials one by one, longest expected first, so that no worker waits at the end for another's chunk of
 CMA-ES and nevergrad trials; and the order changes no result (trials.csv the same, column for column)."""
 
@@ -8,11 +8,11 @@ import csv
 
 import pytest
 
-from studies import execute
-from studies.execute import chunks, expected_seconds, run_study, schedule
-from studies.spec import load, parse, tomllib
-from studies.store import TIMING
-from studies.trial import trials
+from optcal.studies import execute
+from optcal.studies.execute import chunks, expected_seconds, run_study, schedule
+from optcal.studies.spec import load, parse, tomllib
+from optcal.studies.store import TIMING
+from optcal.studies.trial import trials
 
 SPEC = """
 name = "order"

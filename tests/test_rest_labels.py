@@ -1,5 +1,5 @@
 """The labelled benchmark of rest detection (issue #29, item 8): rests labelled independently of the detectors
-(optcal.recording.labels), the simulated hand-held IMU recordings they are checked on (optcal.synthetic_imu),
+(optcal.core.recording.labels), the simulated hand-held IMU recordings they are checked on (optcal.core.synthetic_imu),
 and the acceptance test of the new detection on every labelled real recording: recall ≥ 0.95 of the labelled
 rests and precision ≥ 0.99 by sample. docs/scripts/rest_benchmark.py prints the table of docs/segmentation.md
 from the same corpus table (LABELLED) and scores.
@@ -14,7 +14,7 @@ source's own intervals where it gives them:
 - shen_gesture, MPU-9250 (no licence stated: used here only): a re-run of the source's own detector,
   ``FindFixData.m`` (``derived/intervals_findfixdata_39.json``);
 - Hassan & Bao, phone (MIT): the 30 sections ``CombinedAlgorithm.m`` averages (no gyroscope: precision by the
-  conservative off-pose rule of optcal.recording.labels);
+  conservative off-pose rule of optcal.core.recording.labels);
 - CK-Explorer (Apache-2.0): the logger's 160 blocks of 100 samples, one pose each, back to back;
 - gyroscope only: imu_tk's Xsens MTi (BSD), Mikov et al.'s five MPU-9150 (MIT), sdr_rev2's two logs (no
   licence stated: used here only).
@@ -31,10 +31,10 @@ import numpy as np
 import pytest
 from corpus import corpus_root
 
-from optcal.errors import InputError
-from optcal.recording import label_intervals, read_recording, segment_static
-from optcal.recording.labels import RestLabels, gyro_labels, interval_labels, runs, score_rests
-from optcal.synthetic_imu import TRUE_REST_DEG, handheld_imu
+from optcal.core.errors import InputError
+from optcal.core.recording import label_intervals, read_recording, segment_static
+from optcal.core.recording.labels import RestLabels, gyro_labels, interval_labels, runs, score_rests
+from optcal.core.synthetic_imu import TRUE_REST_DEG, handheld_imu
 
 
 def find_rests(acc, gyro=None, **kw):
@@ -339,7 +339,7 @@ def test_gyroscope_labels_against_the_truth(case):
 
 def test_gyroscope_labels_leave_a_still_recording_still(rng):
     """Noise alone (a still gyroscope with a bias, 10 minutes at 100 Hz) moves no sample: one rest."""
-    from optcal.recording.reading import Recording
+    from optcal.core.recording.reading import Recording
 
     n = 60000
     W = 0.1 * rng.standard_normal((n, 3)) + [0.5, -1.0, 0.3]
@@ -353,7 +353,7 @@ def test_gyroscope_labels_leave_a_still_recording_still(rng):
 def test_gyroscope_labels_find_a_slow_drift():
     """A hand drifting through 0.6° at 0.3 °/s in the middle of a 10 s hold, below the motion floors (1 °/s):
     the drift moves, the hold on both sides stays still."""
-    from optcal.recording.reading import Recording
+    from optcal.core.recording.reading import Recording
 
     rng = np.random.default_rng(7)
     n, rate = 1000, 100.0

@@ -10,12 +10,12 @@ import json
 import numpy as np
 import pytest
 
-from optcal.fit import calibrate
-from optcal.recording import read_recording, segment_static
-from optcal.recording.intervals import given_intervals
-from optcal.recording.positions import positions_from_recording
-from optcal.recording.workflow import choose_threshold
-from optcal.synthetic_recording import poses_recording
+from optcal.app.fit import calibrate
+from optcal.app.workflows.recording import choose_threshold
+from optcal.core.recording import read_recording, segment_static
+from optcal.core.recording.intervals import given_intervals
+from optcal.core.recording.positions import positions_from_recording
+from optcal.core.synthetic_recording import poses_recording
 
 SHEN_COLUMNS = "t=0,ax=1,ay=2,az=3,gx=4,gy=5,gz=6"
 # the source's own calibration re-run (the corpus folder's README): counts/g and g
@@ -68,7 +68,7 @@ def test_shen_no_turning_sample_in_a_kept_rest(shen):
 def test_shen_default_calibration_matches_the_source(shen, corpus, tmp_path):
     """optcal calibrate's default path (nonlinear12) gives the source's scale factors to 0.01 % and offsets to
     0.5 mg (its own standard errors are 0.013 % and 0.25 mg); before, 5 rests were lost."""
-    from optcal.cli import main
+    from optcal.app.cli import main
 
     out = tmp_path / "cal.json"
     assert main(["calibrate", str(corpus / "shen_gesture" / "caldata.mat"), "--raw", "--columns", "0,1,2,3",

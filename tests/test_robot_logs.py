@@ -13,9 +13,9 @@ import robot_logs_files as R
 from conftest import run_cli
 
 import optcal
-from optcal.errors import InputError
-from optcal.recording import bags
-from optcal.recording.reading import read_recording
+from optcal.core.errors import InputError
+from optcal.core.recording import bags
+from optcal.core.recording.reading import read_recording
 
 G0 = 9.80665
 FORMATS = ("ros1", "sqlite3", "mcap", "ulog")
@@ -208,11 +208,11 @@ def test_ulog_sources_sensor_combined_and_raw_sensors(tmp_path):
 
 @pytest.fixture(scope="module")
 def twins(tmp_path_factory):
-    """A simulated 24-pose IMU recording (optcal.gyro.simulate_imu: rests of 3 s, motions of 2 s, 100 Hz; the
+    """A simulated 24-pose IMU recording (optcal.core.gyro.simulate_imu: rests of 3 s, motions of 2 s, 100 Hz; the
     accelerometer with scale factors and offsets, in m/s²; a gyroscope of unit nominal scale, in rad/s) written as a
     ROS 1 bag, ROS 2 SQLite and MCAP bags and a ULog, each with its CSV twin holding the same numbers (the
     ULog's float32 values, its microsecond times) in the columns t, ax..az, gx..gz."""
-    from optcal.gyro import draw_truth, get_gyro_model, simulate_imu
+    from optcal.core.gyro import draw_truth, get_gyro_model, simulate_imu
 
     d = tmp_path_factory.mktemp("twins")
     rng = np.random.default_rng(33)
@@ -311,7 +311,7 @@ def test_noise_and_the_python_api_read_logs_as_the_twin(twins, capsys):
 def imu_file(twins, tmp_path_factory):
     path, _ = twins[0]["ros1"]
     out = tmp_path_factory.mktemp("cal") / "imu.json"
-    from optcal.cli import main
+    from optcal.app.cli import main
 
     assert main(["imu", str(path), "--gyro-units", "rad/s", "--model", "linear9", "-o", str(out)]) == 0
     return out
@@ -322,8 +322,8 @@ def test_apply_writes_a_calibrated_bag_of_the_same_storage(tmp_path, storage, im
     """Every Imu message's linear_acceleration is the calibration applied to it in m/s² and its angular_velocity
     the gyroscope's in rad/s; every other byte of every message, and every other topic, as it was; on a new
     topic the originals stay. A ROS 2 bag's one .mcap/.db3 file gives one file."""
-    from optcal.calfile import read_calibration
-    from optcal.gyro.calfile import read_gyro_block
+    from optcal.core.calfile import read_calibration
+    from optcal.core.gyro.calfile import read_gyro_block
 
     t_ns, acc, gyro = _data(600)
     odom = R.vector_topic(storage, t_ns[::5], np.arange(3 * len(t_ns[::5])).reshape(-1, 3))
@@ -361,7 +361,7 @@ def test_apply_writes_a_calibrated_bag_of_the_same_storage(tmp_path, storage, im
 
 
 def test_apply_to_a_ulog_writes_a_table(twins, imu_file, tmp_path, capsys):
-    from optcal.calfile import read_calibration
+    from optcal.core.calfile import read_calibration
 
     path, _ = twins[0]["ulog"]
     out = tmp_path / "flight.csv"

@@ -12,7 +12,7 @@ import pytest
 from golden import check as golden
 from golden import pixels
 
-from optcal.cli import main
+from optcal.app.cli import main
 
 
 def _run(argv, capsys):

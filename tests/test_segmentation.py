@@ -1,4 +1,4 @@
-"""Change-point segmentation of raw recordings (optcal.recording.segment; docs/segmentation.md, issue #20):
+"""Change-point segmentation of raw recordings (optcal.core.recording.segment; docs/segmentation.md, issue #20):
 poses with and without motion between them are found, a recording without rest is refused, intervals stay
 inside the rests, the noise comes from the recording, and the detector is chosen as documented."""
 
@@ -7,12 +7,12 @@ import json
 import numpy as np
 import pytest
 
-from optcal.cli import main
-from optcal.errors import InputError
-from optcal.recording import Recording, interval_scores, positions_from_raw, segment_static
-from optcal.recording.segment import segment_diagnosis
-from optcal.recording.workflow import detection_method
-from optcal.synthetic_recording import arc, poses_recording, random_directions, tumble_recording
+from optcal.app.cli import main
+from optcal.app.workflows.recording import detection_method, positions_from_raw
+from optcal.core.errors import InputError
+from optcal.core.recording import Recording, interval_scores, segment_static
+from optcal.core.recording.segment import segment_diagnosis
+from optcal.core.synthetic_recording import arc, poses_recording, random_directions, tumble_recording
 
 RATE = 100.0
 TOL = 30  # samples (0.3 s at 100 Hz): how far a found interval may reach beyond its true rest
@@ -49,7 +49,7 @@ def test_one_second_poses_back_to_back_and_steps_calibrate(tmp_path, capsys):
     assert main(["calibrate", path, "--raw", "--model", "diag6", "--min-static", "0.5", "--json"]) == 0
     out = json.loads(capsys.readouterr().out)
     K = np.array([out["parameters"][f"K_{a}"] for a in "xyz"])
-    np.testing.assert_allclose(K, [1.012, 0.991, 1.004], rtol=2e-3)  # optcal.synthetic_recording.SCALE
+    np.testing.assert_allclose(K, [1.012, 0.991, 1.004], rtol=2e-3)  # optcal.core.synthetic_recording.SCALE
     assert out["n_positions"] == 15
 
 

@@ -1,4 +1,4 @@
-"""optcal.recording.pelt against ruptures' compiled PELT (KernelCPD, linear kernel, min_size 1, jump 1): the same
+"""optcal.core.recording.pelt against ruptures' compiled PELT (KernelCPD, linear kernel, min_size 1, jump 1): the same
 change points on random piecewise-constant series with noise, at many penalties, and on the block series that
 segmentation builds from raw recordings of the real corpus (tests/corpus.py; docs/segmentation.md)."""
 
@@ -6,9 +6,9 @@ import numpy as np
 import pytest
 import ruptures
 
-import optcal.recording.segment as segment
-from optcal.recording.pelt import RUPTURES_FROM_BLOCKS, VECTOR_FROM, pelt_l2, pelt_l2_many
-from optcal.recording.reading import read_recording
+import optcal.core.recording.segment as segment
+from optcal.core.recording.pelt import RUPTURES_FROM_BLOCKS, VECTOR_FROM, pelt_l2, pelt_l2_many
+from optcal.core.recording.reading import read_recording
 
 
 def _ruptures(Z, pen):

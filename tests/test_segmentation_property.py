@@ -1,4 +1,4 @@
-"""Property-based tests of change-point segmentation (optcal.recording.segment, issue #20): random numbers of
+"""Property-based tests of change-point segmentation (optcal.core.recording.segment, issue #20): random numbers of
 poses held 0.5 s to 2 minutes, joined by turns or steps, at random noise levels, with saturation and dropped
 (NaN) samples. Whatever the recording, segmentation returns intervals or raises InputError, never anything
 else; its intervals never hold a saturated or missing sample; and on clean recordings every interval lies in
@@ -8,9 +8,9 @@ import numpy as np
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from optcal.errors import InputError
-from optcal.recording import interval_scores, segment_static
-from optcal.synthetic_recording import poses_recording
+from optcal.core.errors import InputError
+from optcal.core.recording import interval_scores, segment_static
+from optcal.core.synthetic_recording import poses_recording
 
 TOL = 30  # samples at 100 Hz (0.3 s)
 SETTINGS = settings(max_examples=40, deadline=None, derandomize=True,

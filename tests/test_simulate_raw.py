@@ -1,5 +1,5 @@
 """`optcal simulate --raw`: a hand-held IMU recording to try the raw path on (the README's first calibration).
-It is optcal.synthetic_imu's recording (re-seats with a motion), written as a CSV with a header; calibrate,
+It is optcal.core.synthetic_imu's recording (re-seats with a motion), written as a CSV with a header; calibrate,
 imu and apply read it without naming a column."""
 
 from __future__ import annotations
@@ -10,13 +10,13 @@ import numpy as np
 import pytest
 from conftest import run_cli
 
-from optcal.synthetic_imu import handheld_imu
+from optcal.core.synthetic_imu import handheld_imu
 
 
 @pytest.fixture(scope="module")
 def recording(tmp_path_factory):
     path = tmp_path_factory.mktemp("raw") / "rec.csv"
-    from optcal.cli import main
+    from optcal.app.cli import main
 
     assert main(["simulate", "--raw", "--seed", "1", "-o", str(path)]) == 0
     return path

@@ -32,12 +32,12 @@ print(_json.dumps(sorted({_m.split(".")[0] for _m in _sys.modules} & set(_sys.ar
 """
 
 # optcal's own command line, as tests/test_cli_core.py runs it in a subprocess.
-CLI = [sys.executable, "-c", "import sys; from optcal.cli import main; sys.exit(main())"]
+CLI = [sys.executable, "-c", "import sys; from optcal.app.cli import main; sys.exit(main())"]
 
 # `optcal --help` and `optcal calibrate --help` in-process, their output swallowed.
 _HELP = """
 import contextlib, io
-from optcal.cli import main
+from optcal.app.cli import main
 for argv in (["--help"], ["calibrate", "--help"]):
     with contextlib.redirect_stdout(io.StringIO()):
         try:
@@ -61,8 +61,8 @@ def test_import_optcal_imports_no_heavy_module():
 
 
 def test_building_the_parser_imports_no_heavy_module():
-    found = imported("import optcal.cli\noptcal.cli.build_parser()")
-    assert found == [], f"optcal.cli.build_parser() imports {found}"
+    found = imported("import optcal.app.cli\noptcal.app.cli.build_parser()")
+    assert found == [], f"optcal.app.cli.build_parser() imports {found}"
 
 
 def test_help_imports_no_heavy_module():
@@ -78,8 +78,8 @@ def test_help_path_does_not_import_numpy():
 
 
 def test_study_plug_in_imports_no_heavy_module():
-    found = imported("import studies.command, studies.cli", names=(*HEAVY, "numpy", "solvers"))
-    assert found == [], f"studies.command and studies.cli import {found}"
+    found = imported("import optcal.app.commands.study, optcal.app.study_cli", names=(*HEAVY, "numpy", "solvers"))
+    assert found == [], f"optcal.app.commands.study and optcal.app.study_cli import {found}"
 
 
 @pytest.mark.parametrize("argv, expected", [
@@ -99,11 +99,11 @@ def test_lazy_public_names():
     """Every name of ``__all__`` resolves and is listed by ``dir()``; ``optcal.simulate`` stays the function
     even when the submodule of the same name is imported after the package."""
     import optcal
-    import optcal.simulate  # the submodule, which Python records as an attribute of the package
+    import optcal.core.simulate  # the submodule, which Python records as an attribute of the package
     from optcal import discover
     from optcal import simulate as simulate_from_package
-    from optcal.discovery import discover as discover_direct
-    from optcal.simulate import Simulation, simulate
+    from optcal.app.workflows.discovery import discover as discover_direct
+    from optcal.core.simulate import Simulation, simulate
 
     assert set(optcal.__all__) <= set(dir(optcal))
     for name in optcal.__all__:
@@ -111,14 +111,14 @@ def test_lazy_public_names():
     assert optcal.simulate is simulate and isinstance(simulate, types.FunctionType)
     assert simulate_from_package is simulate and optcal.Simulation is Simulation
     assert discover is discover_direct
-    assert optcal.model.TERMS is optcal.TERMS  # submodules reachable as before
+    assert optcal.core.model.TERMS is optcal.TERMS  # submodules reachable as before
     with pytest.raises(AttributeError, match="no attribute 'no_such_name'"):
         optcal.no_such_name  # noqa: B018
 
 
 def test_lazy_simulate_survives_a_fresh_interpreter():
-    """The order that matters: the submodule first (as studies.trial does), then the package's name."""
-    code = ("import optcal.simulate, optcal, types\n"
+    """The order that matters: the submodule first (as optcal.studies.trial does), then the package's name."""
+    code = ("import optcal.core.simulate, optcal, types\n"
             "assert isinstance(optcal.simulate, types.FunctionType), optcal.simulate\n"
             "from optcal import simulate\n"
             "assert isinstance(simulate, types.FunctionType), simulate\n")
@@ -126,10 +126,10 @@ def test_lazy_simulate_survives_a_fresh_interpreter():
 
 
 def test_discover_help_defaults_are_the_library_defaults():
-    """optcal/commands/discover.py keeps copies of the defaults (importing optcal.discovery would slow
+    """optcal/app/commands/discover.py keeps copies of the defaults (importing optcal.core.discovery would slow
     every --help); they must be the library's."""
-    from optcal import discovery
-    from optcal.commands import discover
+    from optcal.app.commands import discover
+    from optcal.core import discovery
 
     assert discover.CANDIDATES == discovery.CANDIDATES
     assert discover.DEFAULT_ALPHA == discovery.DEFAULT_ALPHA
@@ -142,7 +142,7 @@ def _write_recording(path):
 
 def test_arrow_reader_is_loaded_at_first_read(tmp_path, monkeypatch):
     arrow_csv = pytest.importorskip("pyarrow.csv")
-    from optcal.recording import reading
+    from optcal.core.recording import reading
 
     _write_recording(tmp_path / "r.csv")
     monkeypatch.setattr(reading, "_arrow_csv", reading._NOT_LOADED)
@@ -152,7 +152,7 @@ def test_arrow_reader_is_loaded_at_first_read(tmp_path, monkeypatch):
 
 
 def test_without_pyarrow_the_numpy_reader_is_used(tmp_path, monkeypatch):
-    from optcal.recording import reading
+    from optcal.core.recording import reading
 
     _write_recording(tmp_path / "r.csv")
     monkeypatch.setattr(reading, "_arrow_csv", reading._NOT_LOADED)
@@ -169,13 +169,13 @@ def _command_alone(argv: list[str], command: str, checks: str = "") -> list[str]
     ruptures) modules it imported."""
     code = f"""
         import contextlib, io, sys
-        from optcal.cli import main
+        from optcal.app.cli import main
         out = io.StringIO()
         with contextlib.redirect_stdout(out):
             assert main({argv!r}) == 0
         commands = sorted(m for m in sys.modules
-                          if m.startswith("optcal.commands.") and not m.split(".")[-1].startswith("_"))
-        assert commands == [{f"optcal.commands.{command}"!r}], commands
+                          if m.startswith("optcal.app.commands.") and not m.split(".")[-1].startswith("_"))
+        assert commands == [{f"optcal.app.commands.{command}"!r}], commands
     """
     return imported(textwrap.dedent(code) + textwrap.dedent(checks), HEAVY + ("pydantic", "ruptures"))
 
@@ -184,7 +184,7 @@ def test_calibrating_a_raw_recording_imports_no_heavy_module(tmp_path, corpus):
     """The whole ``optcal calibrate RAW --raw --units counts -o cal.json`` on imu_tk's Xsens recording (issue
     #20: the process's time is mostly imports): none of HEAVY, no importlib.metadata (entry points are read
     only for a name that is not built in), no pydantic (the file's schema is for reading), and of the command
-    modules only calibrate's. The fit is solvers.lm's."""
+    modules only calibrate's. The fit is optcal.solvers.lm's."""
     import gzip
 
     path = tmp_path / "xsens_acc.mat"
@@ -201,11 +201,11 @@ def test_calibrating_a_raw_recording_imports_no_heavy_module(tmp_path, corpus):
 
 def test_calibrating_an_imu_imports_no_heavy_module(tmp_path, corpus):
     """The whole ``optcal imu`` on imu_tk's Xsens pair (issue #23: the process's time against imu_tk's): the
-    gyroscope's least squares integrate in NumPy (optcal.gyro.integrate), so neither numba nor scipy is
+    gyroscope's least squares integrate in NumPy (optcal.core.gyro.integrate), so neither numba nor scipy is
     loaded, and of the command modules only imu's."""
     out = tmp_path / "imu.json"
     argv = ["imu", str(IMU_TK / "xsens_acc.mat.gz"), "--gyro", str(IMU_TK / "xsens_gyro.mat.gz"), "--gyro-units",
             "counts", "--gyro-scale", "6258", "--units", "counts", "--model", "linear9", "--threshold-k", "3",
             "-o", str(out)]
-    assert _command_alone(argv, "imu", 'assert "optcal.kernels.gyro" not in sys.modules\n') == []
+    assert _command_alone(argv, "imu", 'assert "optcal.core.kernels.gyro" not in sys.modules\n') == []
     assert out.is_file()

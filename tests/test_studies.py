@@ -9,17 +9,17 @@ import textwrap
 import numpy as np
 import pytest
 
-import solvers
-from optcal.cli import main
-from optcal.errors import InputError
-from solvers.base import Solver
-from studies import spec as S
-from studies.execute import run_study
-from studies.metrics import Group, groups
-from studies.report import write_report
-from studies.spec import tomllib  # tomllib, or tomli on Python 3.10
-from studies.store import TIMING, Store
-from studies.trial import infield_data, run_trial, stream, trace_on_grid, trials, truth_of
+from optcal import solvers
+from optcal.app.cli import main
+from optcal.core.errors import InputError
+from optcal.solvers.base import Solver
+from optcal.studies import spec as S
+from optcal.studies.execute import run_study
+from optcal.studies.metrics import Group, groups
+from optcal.studies.report import write_report
+from optcal.studies.spec import tomllib  # tomllib, or tomli on Python 3.10
+from optcal.studies.store import TIMING, Store
+from optcal.studies.trial import infield_data, run_trial, stream, trace_on_grid, trials, truth_of
 
 BASE = """
 name = "t"
@@ -48,7 +48,7 @@ def _strip(rows):
 # -- spec validation --------------------------------------------------------------------------
 
 def test_a_run_count_that_would_exhaust_memory_is_refused_in_one_line():
-    from optcal.errors import InputError
+    from optcal.core.errors import InputError
 
     with pytest.raises(InputError, match="key 'runs' must be above 0 and at most 10000, got 100000000"):
         S.parse(tomllib.loads('runs = 100000000\n[[solvers]]\nname = "scipy-lm"\n'), "x.toml")
@@ -160,7 +160,7 @@ def test_bad_spec_from_the_command_line_is_one_line_exit_2(tmp_path, capsys):
 def test_all_expands_to_every_available_solver_and_its_staged_version():
     sp = spec_of(solvers_toml='[[solvers]]\nname = "all"\nexclude = ["pso"]\n')
     labels = [c.label for c in sp.solvers]
-    from solvers import registry
+    from optcal.solvers import registry
 
     avail = [n for n in registry.names() if n != "pso" and registry.solver_class(n)[0].is_available()]
     assert labels == avail + [f"staged:{n}" for n in avail]
@@ -384,7 +384,7 @@ def test_report_writes_tables_figures_and_summary(tmp_path):
     # every solver's evaluation rate from the study's own records, as a column of the report; the cost's unit
     assert "| runtime s median [95 % CI] | evaluations (median) | evaluations/s |" in text
     assert "final cost (g²) median [min, max]" in text and "runtime s median [p10, p90]" not in text
-    from studies.store import Store
+    from optcal.studies.store import Store
 
     with Store.open_existing(tmp_path) as st:
         rows = [r for r in st.rows() if r["solver"] == "scipy-lm" and r["status"] == "ok"]
@@ -393,7 +393,7 @@ def test_report_writes_tables_figures_and_summary(tmp_path):
     assert f"| {rate:,.0f} |" in text
     assert (tmp_path / "parameters.md").read_text().count("| K_x |") == 2
     try:
-        import optcal.nav  # noqa: F401
+        import optcal.core.nav  # noqa: F401
     except ImportError:
         return
     assert "Static navigation" in text and (tmp_path / "figures" / "navigation_nonlinear12_24.png").is_file()
@@ -409,7 +409,7 @@ def test_bsas2020_report_has_the_papers_navigation_table_and_figure(tmp_path):
     """Issue 6 / 2020 paper Table 6 and Figure 11: the 5-hour static position error of the truth
     calibration (zero), the traditional calibration (10″ turntable) and each solver, in one table and one
     figure of the bsas2020 report. 5 runs of the shipped spec (its --quick variant)."""
-    pytest.importorskip("optcal.nav")
+    pytest.importorskip("optcal.core.nav")
     sp = S.load("bsas2020").quick()
     run_study(sp, tmp_path, progress=False)
     text = write_report(tmp_path).read_text()
@@ -430,8 +430,8 @@ def test_bsas2020_report_has_the_papers_navigation_table_and_figure(tmp_path):
 def test_navigation_attitude_reaches_the_metric():
     """[navigation] attitude_deg: a scale-factor error is invisible to a level static run (only the
     horizontal biases act there) and visible to a tilted one (docs/navigation.md)."""
-    from optcal.model import get_model
-    from studies.trial import _navigation
+    from optcal.core.model import get_model
+    from optcal.studies.trial import _navigation
 
     m = get_model("nonlinear12")
     x_true = m.default_vector(1.0)
@@ -468,8 +468,8 @@ def test_the_bound_with_presets_is_the_floor_the_staged_procedure_does_not_beat(
 
 def test_crlb_with_presets_tends_to_the_data_bound_and_to_the_presets():
     """Vague presets leave the data's bound; exact presets pin every parameter."""
-    from optcal.problem import CalibrationProblem
-    from studies.trial import crlb_with_presets, projected_crlb
+    from optcal.core.problem import CalibrationProblem
+    from optcal.studies.trial import crlb_with_presets, projected_crlb
 
     t = trials(spec_of())[0]
     sim = infield_data(t, truth_of(t))
@@ -485,7 +485,7 @@ def test_a_store_from_before_a_new_column_still_reports(tmp_path):
     """Stores written before `crlb_presets` existed gain the column (empty) when opened."""
     import sqlite3
 
-    from studies.store import COLUMNS
+    from optcal.studies.store import COLUMNS
 
     sp = spec_of()
     run_study(sp, tmp_path, progress=False, limit=2)
@@ -504,7 +504,7 @@ def test_a_store_from_before_a_new_column_still_reports(tmp_path):
 
 def test_a_scoring_error_fails_its_trial_not_the_study(tmp_path, monkeypatch):
     """Anything after the solve (metrics, verification, navigation) that raises is a failed trial."""
-    import studies.trial as T
+    import optcal.studies.trial as T
 
     def broken(*a, **k):
         raise ValueError("navigation blew up")
@@ -543,7 +543,7 @@ def test_progress_is_printed_as_lines_when_the_output_is_not_a_terminal(monkeypa
     done, rate, time left) instead; off when progress is False."""
     import io
 
-    from studies import execute
+    from optcal.studies import execute
 
     out = io.StringIO()
     bar = execute._progress(40, None, "demo", out)

@@ -1,4 +1,4 @@
-"""optcal.study, the studies' Python API (studies/api.py, docs/api.md): the doc's study block runs as written
+"""optcal.study, the studies' Python API (optcal/studies/api.py, docs/api.md): the doc's study block runs as written
 and prints what the doc shows; the tables hold what the store and the report hold; bad arguments are one-line
 InputErrors."""
 
@@ -13,7 +13,7 @@ import pytest
 from golden import check as golden
 
 import optcal
-from optcal.errors import InputError
+from optcal.core.errors import InputError
 
 ROOT = Path(__file__).resolve().parents[1]
 DOC = ROOT / "docs" / "api.md"
@@ -55,7 +55,7 @@ def test_the_tables_hold_the_trials_and_the_report_numbers(session):
     s = res.summary
     assert list(s["solver"]) == [c.label for c in res.spec.solvers]
     # the summary's numbers are the report's groups over the same trials
-    from studies.metrics import groups
+    from optcal.studies.metrics import groups
 
     g = {x.solver: x for x in groups(t.to_dict("records"))}
     for _, r in s.iterrows():
@@ -91,8 +91,8 @@ def test_simulate_draws_a_truth_as_the_command_does():
     """optcal.simulate(model, None, rng) draws the truth from rng first, as `optcal simulate` without --truth."""
     import numpy as np
 
-    from optcal.model import get_model
-    from optcal.presets import draw_truth
+    from optcal.core.model import get_model
+    from optcal.core.presets import draw_truth
 
     sim = optcal.simulate("nonlinear12", None, 11)
     assert sim.truth == pytest.approx(draw_truth(get_model("nonlinear12"), np.random.default_rng(11)))

@@ -1,5 +1,5 @@
 """The studies' early stop (issue #22): an in-field trial stops once its cost is within FINAL_GAP of its data's
-optimum (studies.trial.FINAL_GAP, as COCO stops a run at its last target). Checked trial by trial against the
+optimum (optcal.studies.trial.FINAL_GAP, as COCO stops a run at its last target). Checked trial by trial against the
 same study with no stop: every accuracy column agrees far below its printed digits, the anytime table (reached
 shares, ECDF areas, profiles) is identical, and the trials that stop use fewer evaluations."""
 
@@ -9,10 +9,10 @@ import math
 
 import pytest
 
-from studies import anytime, trial
-from studies.execute import run_study
-from studies.spec import load
-from studies.store import Store
+from optcal.studies import anytime, trial
+from optcal.studies.execute import run_study
+from optcal.studies.spec import load
+from optcal.studies.store import Store
 
 SPEC = """
 name = "early-stop"

@@ -8,10 +8,10 @@ import textwrap
 
 import pytest
 
-from studies import spec as S
-from studies.execute import run_study
-from studies.spec import tomllib  # tomllib, or tomli on Python 3.10
-from studies.store import TIMING, Store
+from optcal.studies import spec as S
+from optcal.studies.execute import run_study
+from optcal.studies.spec import tomllib  # tomllib, or tomli on Python 3.10
+from optcal.studies.store import TIMING, Store
 
 SPEC = textwrap.dedent("""
     name = "executors"
@@ -65,7 +65,7 @@ def test_processes_match_serial(spec, serial_rows, tmp_path):
     # the session records the trials' own wall time, from which the report gives the workers' busy share
     import json
 
-    from studies.report import busy_share
+    from optcal.studies.report import busy_share
 
     with Store.open_existing(tmp_path) as st:
         session = json.loads(st.meta("sessions"))[-1]
@@ -75,7 +75,7 @@ def test_processes_match_serial(spec, serial_rows, tmp_path):
 
 
 def test_trials_go_to_workers_in_chunks_of_consecutive_trials():
-    from studies.execute import CHUNKS_PER_WORKER, MAX_CHUNK, chunks
+    from optcal.studies.execute import CHUNKS_PER_WORKER, MAX_CHUNK, chunks
 
     tasks = list(range(7200))
     cs = chunks(tasks, 2)
@@ -103,7 +103,7 @@ def test_dask_default_local_cluster_matches_serial_and_resumes(spec, serial_rows
 
 
 def test_scheduler_needs_dask(spec, tmp_path):
-    from optcal.errors import InputError
+    from optcal.core.errors import InputError
 
     with pytest.raises(InputError, match="`scheduler` is for the dask `executor`"):
         run_study(spec, tmp_path, executor="processes", scheduler="tcp://127.0.0.1:1", progress=False)

@@ -1,4 +1,4 @@
-"""The kernel-cache check (optcal/kernels/cache.py) recognises a cache built by any command (issue #22): after
+"""The kernel-cache check (optcal/core/kernels/cache.py) recognises a cache built by any command (issue #22): after
 a plain `pip install -e .` a command that compiled only the batch and Jacobian entry points (a least-squares
 fit, a study's workers) left no cost_one index, and every later command warned that it was compiling."""
 
@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import sys
 
-from optcal.kernels import cache
+from optcal.core.kernels import cache
 
 
 def _tree(tmp_path, monkeypatch, names):

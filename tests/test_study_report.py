@@ -1,5 +1,5 @@
 """The study report's statistics and records (issue #22): paired comparisons between solvers over the same runs
-(Wilcoxon signed-rank, Holm correction, rank-biserial effect size; studies/paired.py), the solver settings, the
+(Wilcoxon signed-rank, Holm correction, rank-biserial effect size; optcal/studies/paired.py), the solver settings, the
 provenance and the other fields of summary.json, and the report's paired table, on the CI study."""
 
 from __future__ import annotations
@@ -9,10 +9,10 @@ import json
 import numpy as np
 import pytest
 
-from studies import paired
-from studies.execute import run_study
-from studies.report import SUMMARY_FORMAT, read_summary, write_report
-from studies.spec import load
+from optcal.studies import paired
+from optcal.studies.execute import run_study
+from optcal.studies.report import SUMMARY_FORMAT, read_summary, write_report
+from optcal.studies.spec import load
 
 
 def test_holm_by_hand():
@@ -127,7 +127,7 @@ def test_accuracy_runtime_numbers_do_not_overlap_in_a_crowded_row():
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from studies.figures import _place_numbers
+    from optcal.studies.figures import _place_numbers
 
     fig, ax = plt.subplots(figsize=(10.5, 6.5))
     x = 0.01 * 1.12 ** np.arange(14)  # fourteen points, 12 % apart in runtime, on two nearby rows

@@ -11,9 +11,9 @@ import sys
 import time
 from pathlib import Path
 
-from studies import spec as S
-from studies.execute import run_study
-from studies.store import TIMING, Store
+from optcal.studies import spec as S
+from optcal.studies.execute import run_study
+from optcal.studies.store import TIMING, Store
 
 SPEC = """
 name = "killme"
@@ -55,7 +55,7 @@ def test_kill_minus_9_then_resume_loses_nothing(tmp_path):
     spec_path.write_text(SPEC)
     out = tmp_path / "killed"
     db = out / "study.sqlite"
-    cmd = [sys.executable, "-m", "optcal.cli", "study", "run", str(spec_path), "--out", str(out),
+    cmd = [sys.executable, "-m", "optcal.app.cli", "study", "run", str(spec_path), "--out", str(out),
            "--executor", "serial", "--no-report", "--no-progress"]
     proc = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
     try:

@@ -1,5 +1,5 @@
 """Every solver a study can name from this tree ("all" in a spec expands to them) has its section in
-docs/algorithms.md (CONTRIBUTING.md, "Adding a solver"): a solver module added to solvers/ without one fails
+docs/algorithms.md (CONTRIBUTING.md, "Adding a solver"): a solver module added to optcal/solvers/ without one fails
 here, naming the section to write. A plugin outside the tree (entry point optcal.solvers) documents itself
 and is not checked."""
 
@@ -8,8 +8,8 @@ from __future__ import annotations
 import re
 from pathlib import Path
 
-import solvers  # noqa: F401 - registers the in-tree solvers
-from solvers import registry
+from optcal import solvers  # noqa: F401 - registers the in-tree solvers
+from optcal.solvers import registry
 
 DOC = Path(__file__).resolve().parents[1] / "docs" / "algorithms.md"
 

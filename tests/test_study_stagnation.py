@@ -1,4 +1,5 @@
-"""The studies' stagnation rule (issue #32; studies.trial.STAGNATION, solvers.base.Stagnation): a trial whose
+"""The studies' stagnation rule (issue #32; optcal.studies.trial.STAGNATION, optcal.solvers.base.Stagnation): a trial
+whose
 solver takes the rule ends once its best cost has improved by no more than rtol of itself over the last share of
 its budget. Checked trial by trial against the same study without the rule: the solvers that do not take it run
 exactly as before; CMA-ES, through the four-stage procedure (the rule ends each stage), and a mealpy optimiser
@@ -14,12 +15,12 @@ import math
 import numpy as np
 import pytest
 
-from solvers.base import STOP_REASONS
-from studies import anytime, trial
-from studies.execute import run_study
-from studies.report import write_report
-from studies.spec import load
-from studies.store import Store
+from optcal.solvers.base import STOP_REASONS
+from optcal.studies import anytime, trial
+from optcal.studies.execute import run_study
+from optcal.studies.report import write_report
+from optcal.studies.spec import load
+from optcal.studies.store import Store
 
 SPEC = """
 name = "stagnation"
@@ -108,7 +109,7 @@ def test_the_rule_saves_evaluations_and_keeps_accuracy_within_its_interval(both)
         assert saved > 0.15, (name, saved)
     # CMA-ES, which the headline study runs with the rule: its group's RMSE/CRLB moves far less than its 95 %
     # bootstrap interval is wide
-    from studies.metrics import groups
+    from optcal.studies.metrics import groups
 
     ga = next(g for g in groups(list(full.values())) if g.solver == "staged:cmaes")
     gb = next(g for g in groups(list(stop.values())) if g.solver == "staged:cmaes")

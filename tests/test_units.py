@@ -7,14 +7,14 @@ import json
 import numpy as np
 import pytest
 
-from optcal.calfile import read_calibration, write_calibration
-from optcal.cli import main
-from optcal.data import guess_units
-from optcal.fit import calibrate
-from optcal.model import TERMS, get_model
-from optcal.presets import PAPER_TRUTH
-from optcal.schemes import random_orientations
-from optcal.simulate import simulate
+from optcal.app.cli import main
+from optcal.app.fit import calibrate
+from optcal.core.calfile import read_calibration, write_calibration
+from optcal.core.data import guess_units
+from optcal.core.model import TERMS, get_model
+from optcal.core.presets import PAPER_TRUTH
+from optcal.core.schemes import random_orientations
+from optcal.core.simulate import simulate
 
 COUNTS = {"K_x": 16301.0, "K_y": 16452.0, "K_z": 16690.0, "b_x": 0.021, "b_y": -0.013, "b_z": 0.042,
           "S_yz": 2.0e-3, "S_zy": -1.5e-3, "S_zx": 1.0e-3}
@@ -135,8 +135,8 @@ def test_height_without_latitude_is_refused(counts_files, capsys):
 
 
 def test_a_gravity_that_looks_like_g_is_named(capsys):
-    from optcal.errors import InputError
-    from optcal.gravity import check_gravity_g, local_gravity_g
+    from optcal.core.errors import InputError
+    from optcal.core.gravity import check_gravity_g, local_gravity_g
 
     with pytest.raises(InputError, match="looks like g, not m/s²"):
         local_gravity_g(1.0)

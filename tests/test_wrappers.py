@@ -16,15 +16,15 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-import solvers
-from optcal.cli import main
-from optcal.errors import InputError
-from optcal.presets import draw_truth, manufacturer_presets
-from optcal.problem import Budget, CalibrationProblem
-from optcal.simulate import simulate
-from solvers.base import Solver
-from solvers.mcs import MonteCarlo
-from solvers.staged import Staged
+from optcal import solvers
+from optcal.app.cli import main
+from optcal.core.errors import InputError
+from optcal.core.presets import draw_truth, manufacturer_presets
+from optcal.core.problem import Budget, CalibrationProblem
+from optcal.core.simulate import simulate
+from optcal.solvers.base import Solver
+from optcal.solvers.mcs import MonteCarlo
+from optcal.solvers.staged import Staged
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "examples" / "random_search_plugin"))
 from optcal_random_search import RandomSearch  # noqa: E402

@@ -28,9 +28,10 @@ import time
 import numpy as np
 
 from optcal import simulate
-from optcal.discovery import DEFAULT_ALPHA, DEFAULT_BIC_THRESHOLD, discover
-from optcal.model import TERMS
-from optcal.presets import draw_truth
+from optcal.app.workflows.discovery import discover
+from optcal.core.discovery import DEFAULT_ALPHA, DEFAULT_BIC_THRESHOLD
+from optcal.core.model import TERMS
+from optcal.core.presets import draw_truth
 
 NOISE = 10e-6
 PATTERN = (1.0, -1.0, 1.0, -1.0, 1.0, -1.0)

@@ -25,9 +25,9 @@ from pathlib import Path
 
 import numpy as np
 
-from optcal.cli import main as cli
-from optcal.discovery import discover, fit_model
-from optcal.model import get_model
+from optcal.app.cli import main as cli
+from optcal.app.workflows.discovery import discover, fit_model
+from optcal.core.model import get_model
 
 ROOT = Path(__file__).resolve().parents[2]
 sys.path.insert(0, str(ROOT / "tests"))
@@ -65,7 +65,7 @@ def effects(seeds: int) -> None:
     print("\n| effect (term) | formula | named (alone) | gap closed | base RMS | final RMS | effect-free RMS | "
           "seconds |")
     print("|---|---|---|---|---|---|---|---|")
-    from optcal.model import TERMS
+    from optcal.core.model import TERMS
 
     for term in EFFECTS:
         got = alone = closed = 0
@@ -108,8 +108,8 @@ def diagnostics(seeds: int) -> None:
     """The diagnostics' two tests: on the product effect of the tests (seed 0) each diagnostic's p against the
     floor and against the residual left; on effect-free data with 30 µg of white noise beyond the stated 10 µg
     (and at the true floor, 31.6 µg), how often each diagnostic's p falls below 0.01."""
-    from optcal.discovery.diagnostics import diagnose, floor_of
-    from optcal.discovery.dictionary import feature_context
+    from optcal.core.discovery.diagnostics import diagnose, floor_of
+    from optcal.core.discovery.dictionary import feature_context
 
     _, data = hidden("ax.ay@z", 0)
     rep = discover(data, noise_g=NOISE)

@@ -1,6 +1,6 @@
 """The discovery reports and figures shown in docs/discovery.md: a simulated two-effect example and the
 real recordings of the real corpus (tests/corpus.py: ``OPTCAL_CORPUS``, else the shared folder beside the clone;
-read and cut into static positions by optcal.recording).
+read and cut into static positions by optcal.core.recording).
 
     .venv/bin/python docs/scripts/discovery_examples.py [--real DIR] [--figures docs/figures]
 
@@ -17,11 +17,11 @@ from pathlib import Path
 
 import numpy as np
 
-from optcal import recording as rc
 from optcal import simulate
-from optcal.discovery import discover
-from optcal.errors import InputError
-from optcal.presets import draw_truth
+from optcal.app.workflows.discovery import discover
+from optcal.core import recording as rc
+from optcal.core.errors import InputError
+from optcal.core.presets import draw_truth
 
 ROOT = Path(__file__).resolve().parents[2]
 sys.path.insert(0, str(ROOT / "tests"))

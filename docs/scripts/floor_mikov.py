@@ -1,5 +1,5 @@
 """The tables of docs/noise.md, "The floor on hand-held logs": is the noise floor of a position
-(optcal.recording.floor) larger than the scatter of the position means on poses turned and held by hand? Mikov,
+(optcal.core.recording.floor) larger than the scatter of the position means on poses turned and held by hand? Mikov,
 Reginya & Moschevikin's five MPU-9150 recordings (the real corpus's mikov/, MIT; tests/corpus.py: ``OPTCAL_CORPUS``,
 else the shared folder beside the clone), each read as tests/test_corpus_wild.py reads it.
 
@@ -14,7 +14,7 @@ It prints four markdown tables:
    sensitivity matrix), the offsets and the cosines of the angles between the axes (tests/test_corpus_wild.py's
    gauge-free comparison).
 2. The floor against the scatter it must predict: the same model fitted again without each position in turn
-   (optcal.fit.calibrate on the command's intervals, no recheck), the left-out position's prediction error e_i
+   (optcal.app.fit.calibrate on the command's intervals, no recheck), the left-out position's prediction error e_i
    scaled by √(1 − h_i) (h its leverage in the whole fit) so that its SD is the position's σ_i when the floor is
    right; "scatter" is the RMS of those, and each floor's ratio to it is 1/RMS(e_i√(1 − h_i)/σ_i). Floors: the
    command's, σ/√n, and σ/√n of the samples' component along the specific force (a turn of the pose does not
@@ -24,7 +24,7 @@ It prints four markdown tables:
    them); the turn check (the per-axis flicker level against the one read along the force, in standard errors,
    ``NoiseFloor.turn_z``); and the half-interval test: half the difference of the two halves' means of each
    interval, along the force and across it, RMS over intervals in units of σ/√n of that component.
-4. Simulated recordings (optcal.synthetic_recording.poses_recording) with each recording's poses (the
+4. Simulated recordings (optcal.core.synthetic_recording.poses_recording) with each recording's poses (the
    directions of its position means), hold times and gaps, and stationary white + flicker noise at its fitted
    levels (RMS over the axes of N and B): the floor against the actual scatter of the means about their average
    (the floor's definition), RMS over positions, axes and SEEDS recordings (default 100); also with B = 0.
@@ -42,13 +42,13 @@ from pathlib import Path
 
 import numpy as np
 
-from optcal.analysis import position_sigma, white_sigma
-from optcal.cli import main
-from optcal.fit import calibrate
-from optcal.problem import CalibrationProblem
-from optcal.recording import floor as F
-from optcal.recording import given_intervals, positions_from_recording, read_recording
-from optcal.synthetic_recording import OFFSET, SCALE, poses_recording
+from optcal.app.cli import main
+from optcal.app.fit import calibrate
+from optcal.core.analysis import position_sigma, white_sigma
+from optcal.core.problem import CalibrationProblem
+from optcal.core.recording import floor as F
+from optcal.core.recording import given_intervals, positions_from_recording, read_recording
+from optcal.core.synthetic_recording import OFFSET, SCALE, poses_recording
 
 ROOT = Path(__file__).resolve().parents[2]
 sys.path.insert(0, str(ROOT / "tests"))

@@ -67,13 +67,14 @@ def calibrate_xsens(bias: str = "rests", g_sensitivity: bool = False) -> dict:
     parameters, the calibration matrix M, the bias in counts (fitted, or the first rest's: the same 50 s
     initial rest imu_tk takes its bias from), their standard errors, and the motions' residual angles
     before and after."""
-    from optcal import analysis
-    from optcal.fit import calibrate
-    from optcal.gyro import GyroProblem
-    from optcal.gyro.analysis import check_observable
-    from optcal.gyro.recording import gyro_data, join_times
-    from optcal.recording import choose_threshold, positions_from_recording, read_recording
-    from solvers.registry import get
+    from optcal.app.fit import calibrate
+    from optcal.app.workflows.recording import choose_threshold
+    from optcal.core import analysis
+    from optcal.core.gyro import GyroProblem
+    from optcal.core.gyro.analysis import check_observable
+    from optcal.core.gyro.recording import gyro_data, join_times
+    from optcal.core.recording import positions_from_recording, read_recording
+    from optcal.solvers.registry import get
 
     t0 = time.perf_counter()
     with tempfile.TemporaryDirectory() as tmp:

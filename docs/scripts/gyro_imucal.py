@@ -26,11 +26,11 @@ RATE = 102.4  # Hz (README of the data)
 
 
 def calibrate_imucal(bias: str = "rests") -> dict:
-    from optcal.fit import calibrate
-    from optcal.gyro.data import GyroData
-    from optcal.gyro.workflow import calibrate_gyro
-    from optcal.recording import read_recording
-    from optcal.recording.workflow import positions_from_raw
+    from optcal.app.fit import calibrate
+    from optcal.app.workflows.gyro import calibrate_gyro
+    from optcal.app.workflows.recording import positions_from_raw
+    from optcal.core.gyro.data import GyroData
+    from optcal.core.recording import read_recording
 
     path = DATA / "example_ferraris_session.csv"
     positions = positions_from_raw(path, columns="ax=acc_x,ay=acc_y,az=acc_z", rate=RATE, units="m/s2",

@@ -1,9 +1,7 @@
-"""Facts of the import graph of optcal, solvers and studies (issue #30's closing note, CONTRIBUTING.md "Layers"):
-the number of modules, the floors (the longest chain of module imports, a module counted once), the import
-cycles between modules and between the sibling subpackages of a package, and the upward arrows: imports from a
-lower layer into a higher one, the layers being core ← solvers ← studies ← application (``APPLICATION`` lists
-the application's modules while they live among the core's; a module under ``optcal/app/`` is application by
-its folder).
+"""Facts of optcal's import graph (issue #30's closing note, CONTRIBUTING.md "Layers"): the number of modules,
+the floors (the longest chain of module imports, a module counted once), the import cycles between modules and
+between the sibling subpackages of a package, and the upward arrows: imports from a lower layer into a higher
+one, the layers being the folders optcal/core ← optcal/solvers ← optcal/studies ← optcal/app.
 
     .venv/bin/python docs/scripts/import_graph.py
 
@@ -16,25 +14,14 @@ import sys
 
 import grimp
 
-# the application's modules that still live beside the core's (none once the layers are one folder each)
-APPLICATION = (
-    "optcal.api", "optcal.cli", "optcal.commands", "optcal.fit", "optcal.imu", "optcal.study",
-    "optcal.recording.workflow", "optcal.discovery.workflow", "optcal.gyro.workflow", "optcal.plan.solve",
-    "optcal.app",
-)
-LAYER = {"core": 0, "solvers": 1, "studies": 2, "application": 3}
+LAYER = {"core": 0, "solvers": 1, "studies": 2, "app": 3}
 
 
 def layer_of(module: str) -> str:
-    if module == "solvers" or module.startswith("solvers."):
-        return "solvers"
-    if module in ("studies.command", "studies.cli", "studies.ci"):
-        return "application"
-    if module == "studies" or module.startswith("studies."):
-        return "studies"
-    if any(module == a or module.startswith(a + ".") for a in APPLICATION):
-        return "application"
-    return "core"
+    """A module's layer is its folder; the package's own __init__ (the front door, which imports only the
+    core's errors and loads the rest by name at first use) counts as the top."""
+    parts = module.split(".")
+    return parts[1] if len(parts) > 1 and parts[1] in LAYER else "app"
 
 
 def strongly_connected(nodes: list[str], deps: dict[str, set[str]]) -> list[list[str]]:
@@ -103,7 +90,7 @@ def facts(graph) -> dict:
 
 
 def main() -> None:
-    f = facts(grimp.build_graph("optcal", "solvers", "studies", cache_dir=None))
+    f = facts(grimp.build_graph("optcal", cache_dir=None))
     print(f"modules: {f['modules']}")
     print(f"floors (longest chain of module imports): {f['floors']}")
     print(f"cycles between modules: {len(f['module_cycles'])}; between sibling packages: "

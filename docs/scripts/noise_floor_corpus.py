@@ -1,15 +1,15 @@
 """The table of docs/noise.md, "The noise floor of a position": each raw recording of the real corpus
 (tests/corpus.py: ``OPTCAL_CORPUS``, else the shared folder beside the clone; each folder with its licence and
 README) calibrated by the default path of ``optcal calibrate
---raw`` (optcal.recording.positions_from_raw: the default segmentation, positions; optcal.fit.calibrate), its
-verdicts against the white-noise floor σ/√n (the old one) and against the noise floor of optcal.recording.floor
+--raw`` (optcal.core.recording.positions_from_raw: the default segmentation, positions; optcal.app.fit.calibrate), its
+verdicts against the white-noise floor σ/√n (the old one) and against the noise floor of optcal.core.recording.floor
 (the new one).
 
     .venv/bin/python docs/scripts/noise_floor_corpus.py [--simulate SEEDS]
 
 With ``--simulate`` it prints instead the false-alarm table: SEEDS simulated recordings per noise (linear9
-truth, scheme 24, poses of 5 s with 3 s between, 100 Hz, optcal.noise.colored_noise), each calibrated with the
-true model through positions_from_recording and optcal.fit.calibrate, and the share of χ² tests that reject at
+truth, scheme 24, poses of 5 s with 3 s between, 100 Hz, optcal.core.noise.colored_noise), each calibrated with the
+true model through positions_from_recording and optcal.app.fit.calibrate, and the share of χ² tests that reject at
 5 % against σ/√n, against the model's Allan deviation at τ = each interval's length (never below σ/√n; the
 χ² test) and against the new floor (about 15 s per 200 seeds and noise).
 
@@ -30,11 +30,12 @@ from pathlib import Path
 import numpy as np
 from scipy.io import loadmat
 
-from optcal.analysis import goodness_of_fit, position_diagnostics
-from optcal.errors import InputError
-from optcal.fit import calibrate
-from optcal.problem import CalibrationProblem
-from optcal.recording import choose_threshold, positions_from_raw, positions_from_recording, read_recording
+from optcal.app.fit import calibrate
+from optcal.app.workflows.recording import choose_threshold, positions_from_raw
+from optcal.core.analysis import goodness_of_fit, position_diagnostics
+from optcal.core.errors import InputError
+from optcal.core.problem import CalibrationProblem
+from optcal.core.recording import positions_from_recording, read_recording
 
 ROOT = Path(__file__).resolve().parents[2]
 sys.path.insert(0, str(ROOT / "tests"))
@@ -105,12 +106,12 @@ NOISES = (("white only", 100e-6, 0.0), ("flicker beyond τ = 14 s", 100e-6, 40e-
 
 def simulated(seed: int, white: float, flicker: float):
     """One simulated recording calibrated with the true linear9 model: the new fit and the old χ² test."""
-    from optcal.model import get_model
-    from optcal.noise.colored import colored_noise
-    from optcal.presets import PAPER_TRUTH
-    from optcal.recording import given_intervals
-    from optcal.recording.reading import Recording
-    from optcal.schemes import scheme
+    from optcal.core.model import get_model
+    from optcal.core.noise.colored import colored_noise
+    from optcal.core.presets import PAPER_TRUTH
+    from optcal.core.recording import given_intervals
+    from optcal.core.recording.reading import Recording
+    from optcal.core.schemes import scheme
 
     model = get_model("linear9")
     truth = model.from_dict({k: v for k, v in PAPER_TRUTH.items() if k in model.names})

@@ -5,7 +5,7 @@ named, and the tables of the bsas2020 and nafsa2015 studies.
 
 What it computes:
   * the Cramér-Rao bound of the 2020 paper's simulation (seed15, 24 positions, the paper's truth, 10 µg per
-    axis on each position's mean; optcal.analysis.crlb) against the magnitudes of its Table 3, and the
+    axis on each position's mean; optcal.core.analysis.crlb) against the magnitudes of its Table 3, and the
     noise those magnitudes imply: per position mean, σ = 10 µg · RMSE / CRLB (the bound is linear in σ),
     or, if the 10 µg were per sample, the samples each position would have to average, (CRLB / RMSE)²;
   * the noise the paper's final cost (its Figure 5) implies, under each reading of its Eq. 13 whose
@@ -35,14 +35,14 @@ import time
 import numpy as np
 
 import optcal
-from optcal.analysis import crlb, hat_values, projected_crlb
-from optcal.model import get_model
-from optcal.presets import PAPER_TRUTH
-from optcal.problem import CalibrationProblem, Counter
-from optcal.simulate import simulate
-from studies import spec as specs
-from studies.metrics import groups
-from studies.trial import SOLVER, key, stream, trial_budget, trials, world
+from optcal.core.analysis import crlb, hat_values, projected_crlb
+from optcal.core.model import get_model
+from optcal.core.presets import PAPER_TRUTH
+from optcal.core.problem import CalibrationProblem, Counter
+from optcal.core.simulate import simulate
+from optcal.studies import spec as specs
+from optcal.studies.metrics import groups
+from optcal.studies.trial import SOLVER, key, stream, trial_budget, trials, world
 
 NOISE_UG = 10.0  # 2020 §4.1: "the random bias of accelerometer is set as 10 ug"
 G0 = 9.80665  # m/s² per g
@@ -213,7 +213,7 @@ def stage_costs(runs: int, beetles=(10, 6, 2)) -> dict[int, np.ndarray]:
 
 
 def optcal_solver(name: str, options: dict):
-    import solvers
+    from optcal import solvers
 
     return solvers.get(name, **options)
 

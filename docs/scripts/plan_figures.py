@@ -6,9 +6,9 @@ order), with the papers' 24-position scheme as grey crosses.
 
 from pathlib import Path
 
-from optcal.plan.figure import plan_figure
-from optcal.plan.fixtures import handling_order
-from optcal.schemes import scheme
+from optcal.core.plan.figure import plan_figure
+from optcal.core.plan.fixtures import handling_order
+from optcal.core.schemes import scheme
 
 
 def main() -> None:

@@ -2,8 +2,8 @@
 position at a time until "enough yet?" says the targets are met, judged as a user would, from the data
 (the directions estimated by the closed-form linear fit of the positions recorded so far).
 
-Every session: a navigation-grade truth drawn for nonlinear12 (optcal.presets.draw_truth), 10 µg per axis on
-each position mean, every pose placed with 3° per axis of error (optcal.schemes.tilt), targets scale factors
+Every session: a navigation-grade truth drawn for nonlinear12 (optcal.core.presets.draw_truth), 10 µg per axis on
+each position mean, every pose placed with 3° per axis of error (optcal.core.schemes.tilt), targets scale factors
 ≤ 20 ppm and biases ≤ 30 µg. Policies: `advised` (optcal plan --recorded: the next best pose for the targets),
 `random` (a uniformly random orientation), `habitual` (the 24-position scheme in its order, then the 36's).
 Each session draws from numpy Generators seeded (session, policy); at most 60 positions. The "true" check
@@ -16,13 +16,13 @@ from pathlib import Path
 
 import numpy as np
 
-from optcal.data import PositionsData
-from optcal.model import get_model
-from optcal.plan.criteria import Criterion, parse_targets
-from optcal.plan.fisher import InformationModel
-from optcal.plan.sequential import next_best, progress, recorded_directions
-from optcal.presets import draw_truth
-from optcal.schemes import random_orientations, scheme, tilt
+from optcal.core.data import PositionsData
+from optcal.core.model import get_model
+from optcal.core.plan.criteria import Criterion, parse_targets
+from optcal.core.plan.fisher import InformationModel
+from optcal.core.plan.sequential import next_best, progress, recorded_directions
+from optcal.core.presets import draw_truth
+from optcal.core.schemes import random_orientations, scheme, tilt
 
 SESSIONS = 100
 NOISE = 10e-6

@@ -8,13 +8,13 @@ is at most the 24-position scheme's on every observable parameter.
 
 import numpy as np
 
-from optcal.analysis import crlb
-from optcal.model import get_model
-from optcal.plan.design import make_criterion
-from optcal.presets import PAPER_TRUTH
-from optcal.problem import CalibrationProblem
-from optcal.schemes import scheme
-from optcal.simulate import simulate
+from optcal.core.analysis import crlb
+from optcal.core.model import get_model
+from optcal.core.plan.design import make_criterion
+from optcal.core.presets import PAPER_TRUTH
+from optcal.core.problem import CalibrationProblem
+from optcal.core.schemes import scheme
+from optcal.core.simulate import simulate
 
 NOISE = 10e-6
 SCHEMES = ["24", "36", "plan:D12", "plan:D15", "plan:D18", "plan:D24"]
@@ -34,7 +34,7 @@ def bound_of(model: str, directions: np.ndarray) -> tuple[np.ndarray, np.ndarray
     import tempfile
     from pathlib import Path
 
-    from optcal.plan.schemefile import scheme_csv
+    from optcal.core.plan.schemefile import scheme_csv
 
     with tempfile.TemporaryDirectory() as tmp:
         f = Path(tmp) / "s.csv"
@@ -45,9 +45,9 @@ def bound_of(model: str, directions: np.ndarray) -> tuple[np.ndarray, np.ndarray
 def targets_search() -> None:
     """Plans to the targets 'every parameter's SD at most the 24-position scheme's' (criterion targets, max
     SD/target), N from 12 up, until the plan meets them at nominal parameters and at the paper's truth."""
-    from optcal.plan.criteria import Criterion
-    from optcal.plan.design import plan
-    from optcal.plan.fisher import InformationModel
+    from optcal.core.plan.criteria import Criterion
+    from optcal.core.plan.design import plan
+    from optcal.core.plan.fisher import InformationModel
 
     info = InformationModel.of("nonlinear12", NOISE)
     sd24 = info.sd(info.information(scheme("24")[None]))[0]

@@ -21,8 +21,8 @@ import functools
 import time
 from collections import defaultdict
 
-from studies import spec as specs
-from studies.trial import run_trial, trials
+from optcal.studies import spec as specs
+from optcal.studies.trial import run_trial, trials
 
 SPENT = [0.0]
 
@@ -41,14 +41,14 @@ def timed(fn):
 
 def instrument() -> str:
     """Wrap the evaluation entry points; returns which ones were found."""
-    from optcal.problem import CalibrationProblem
+    from optcal.core.problem import CalibrationProblem
 
     if not hasattr(CalibrationProblem, "residuals_full_numpy"):
         # the code before the compiled kernel: time the NumPy evaluation instead
         CalibrationProblem.residuals_full = timed(CalibrationProblem.residuals_full)
         CalibrationProblem.jacobian_full = timed(CalibrationProblem.jacobian_full)
         return "numpy residuals_full / jacobian_full"
-    from optcal.kernels import evaluate
+    from optcal.core.kernels import evaluate
 
     for name in ("cost_one", "evaluate_batch", "jacobian"):
         setattr(evaluate, name, timed(getattr(evaluate, name)))

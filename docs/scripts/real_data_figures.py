@@ -24,19 +24,14 @@ from pathlib import Path
 
 import numpy as np
 
-from optcal import api
-from optcal.errors import InputError
-from optcal.fit import calibrate
-from optcal.plots import save_figure
-from optcal.plots.recording import recording_figure
-from optcal.recording import (
-    choose_threshold,
-    given_intervals,
-    label_intervals,
-    positions_from_recording,
-    read_recording,
-)
-from optcal.recording.positions import mat_positions
+from optcal.app import api
+from optcal.app.fit import calibrate
+from optcal.app.workflows.recording import choose_threshold
+from optcal.core.errors import InputError
+from optcal.core.plots import save_figure
+from optcal.core.plots.recording import recording_figure
+from optcal.core.recording import given_intervals, label_intervals, positions_from_recording, read_recording
+from optcal.core.recording.positions import mat_positions
 
 ROOT = Path(__file__).resolve().parents[2]
 sys.path.insert(0, str(ROOT / "tests"))

@@ -9,13 +9,13 @@ docs/segmentation.md).
 
 The corpus: where tests/corpus.py finds it (OPTCAL_CORPUS, else its default beside the clone); its
 labelled recordings and their labels are tests/test_rest_labels.py's LABELLED table. Labels (independent of
-all three detectors) and scores are optcal.recording.labels': the gyroscope's stillness where there is a
+all three detectors) and scores are optcal.core.recording.labels': the gyroscope's stillness where there is a
 gyroscope, and the source's own intervals where it gives them (their precision by the gyroscope's labels, or
 without a gyroscope by the conservative off-pose rule). A labelled rest (at least 0.5 s) is recalled when the
 kept intervals attributed to it (each to the labelled rest it overlaps most) cover at least half of it;
 precision by sample is the fraction of kept samples labelled still.
 
-Simulated: optcal.synthetic_imu.handheld_imu, 20 poses at 100 Hz unless said, five seeds per case (pooled:
+Simulated: optcal.core.synthetic_imu.handheld_imu, 20 poses at 100 Hz unless said, five seeds per case (pooled:
 rests and samples summed; time per recording), scored against the simulator's truth; the row "gyroscope
 labels" is the labeller itself against that truth.
 """
@@ -40,10 +40,11 @@ from test_rest_labels import (  # noqa: E402
     find_rests,
 )
 
-from optcal.errors import InputError  # noqa: E402
-from optcal.recording import choose_threshold, segment_static  # noqa: E402
-from optcal.recording.labels import gyro_labels, interval_labels, score_rests  # noqa: E402
-from optcal.synthetic_imu import handheld_imu  # noqa: E402
+from optcal.app.workflows.recording import choose_threshold  # noqa: E402
+from optcal.core.errors import InputError  # noqa: E402
+from optcal.core.recording import segment_static
+from optcal.core.recording.labels import gyro_labels, interval_labels, score_rests  # noqa: E402
+from optcal.core.synthetic_imu import handheld_imu  # noqa: E402
 
 SEEDS = range(5)
 NEW = "new"

@@ -1,11 +1,11 @@
 """Precision and recall of static-interval detection, old (variance detector with the threshold search,
-Tedaldi et al. 2014) against new (change-point segmentation, optcal.recording.segment), on simulated
+Tedaldi et al. 2014) against new (change-point segmentation, optcal.core.recording.segment), on simulated
 recordings with known poses and on the real corpus (tests/corpus.py: ``OPTCAL_CORPUS``, else the shared folder
 beside the clone). Prints the tables of docs/segmentation.md.
 
     .venv/bin/python docs/scripts/segmentation_scores.py
 
-Simulated: optcal.synthetic_recording, 100 Hz, 12 random poses, five seeds per case. A found interval is a true
+Simulated: optcal.core.synthetic_recording, 100 Hz, 12 random poses, five seeds per case. A found interval is a true
 positive when it overlaps one true rest by at least half its own length and lies inside it but for 0.3 s
 (30 samples) at each end; a rest is recalled when a true positive lies in it; IoU is that of the static
 samples. Real: the references are sections people chose inside their poses (shorter than the rests), so
@@ -25,15 +25,10 @@ from pathlib import Path
 
 import numpy as np
 
-from optcal.errors import InputError
-from optcal.recording import (
-    choose_threshold,
-    interval_scores,
-    label_intervals,
-    read_recording,
-    segment_static,
-)
-from optcal.synthetic_recording import poses_recording, tumble_recording
+from optcal.app.workflows.recording import choose_threshold
+from optcal.core.errors import InputError
+from optcal.core.recording import interval_scores, label_intervals, read_recording, segment_static
+from optcal.core.synthetic_recording import poses_recording, tumble_recording
 
 ROOT = Path(__file__).resolve().parents[2]
 sys.path.insert(0, str(ROOT / "tests"))

@@ -1,6 +1,6 @@
 """The stagnation rule on the headline study: its configurations that take the rule, with and without it.
 
-Runs the compare spec's configurations whose solver takes the rule (studies.trial.STAGNATION; in the compare
+Runs the compare spec's configurations whose solver takes the rule (optcal.studies.trial.STAGNATION; in the compare
 spec: cmaes and staged:cmaes), and those named with --also with the rule forced on (the swarms, nevergrad's:
 what the rule would do to the solvers that do not take it), twice into two folders, once with the rule and
 once without, and prints per
@@ -26,12 +26,12 @@ from pathlib import Path
 
 import numpy as np
 
-import solvers
-from studies import anytime, trial
-from studies.execute import run_study
-from studies.metrics import cells, groups
-from studies.spec import load
-from studies.store import Store
+from optcal import solvers
+from optcal.studies import anytime, trial
+from optcal.studies.execute import run_study
+from optcal.studies.metrics import cells, groups
+from optcal.studies.spec import load
+from optcal.studies.store import Store
 
 
 def takers(spec) -> tuple:

@@ -11,11 +11,11 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from optcal.calfile import read_calibration, write_calibration
-from optcal.fit import calibrate
-from optcal.recording import read_recording, variance_statistic
-from optcal.schemes import random_orientations
-from optcal.simulate import simulate
+from optcal.app.fit import calibrate
+from optcal.core.calfile import read_calibration, write_calibration
+from optcal.core.recording import read_recording, variance_statistic
+from optcal.core.schemes import random_orientations
+from optcal.core.simulate import simulate
 
 TRUTH = {"K_x": 16301.0, "K_y": 16452.0, "K_z": 16690.0, "b_x": 0.021, "b_y": -0.013, "b_z": 0.042,
          "S_yz": 2.0e-3, "S_zy": -1.5e-3, "S_zx": 1.0e-3, "K2_x": 3.0, "K2_y": -2.0, "K2_z": 4.0}

@@ -11,9 +11,8 @@ import time
 import numpy as np
 import pytest
 
-import solvers
-from optcal import CalibrationProblem, get_model, simulate
-from optcal.presets import PAPER_TRUTH
+from optcal import CalibrationProblem, get_model, simulate, solvers
+from optcal.core.presets import PAPER_TRUTH
 
 
 @pytest.fixture(scope="module")

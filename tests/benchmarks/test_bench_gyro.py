@@ -27,8 +27,8 @@ import numpy as np
 import pytest
 from test_bench_startup import _command, _env, paired_with_imu_tk, xsens_pair
 
-import solvers
-from optcal.gyro import GyroProblem, draw_truth, get_gyro_model, simulate_imu
+from optcal import solvers
+from optcal.core.gyro import GyroProblem, draw_truth, get_gyro_model, simulate_imu
 
 IMU_TK_WHOLE_PROCESS_S = 0.52  # the figure for imu_tk on the Xsens pair
 

@@ -15,11 +15,11 @@ import time
 import numpy as np
 import pytest
 
-import solvers
-from optcal.model import get_model
-from optcal.presets import PAPER_TRUTH, manufacturer_presets
-from optcal.problem import CalibrationProblem
-from optcal.simulate import simulate
+from optcal import solvers
+from optcal.core.model import get_model
+from optcal.core.presets import PAPER_TRUTH, manufacturer_presets
+from optcal.core.problem import CalibrationProblem
+from optcal.core.simulate import simulate
 
 
 @functools.cache

@@ -10,7 +10,7 @@ solver of the ``compare`` study.
 extra_info: evaluations per second and seconds per iteration of the solve (the benchmark's best
 round; under ``--benchmark-disable`` one ``time.perf_counter`` run), and the fraction of a solve
 spent in the compiled kernel, from one more run with the kernel's entry points
-(``optcal.kernels.evaluate.cost_one`` and ``evaluate_batch``) wrapped in a timer as
+(``optcal.core.kernels.evaluate.cost_one`` and ``evaluate_batch``) wrapped in a timer as
 docs/scripts/profile_study.py does (that run is a little slower than the others: about 0.3 µs of timer
 per call). Run with `make bench`; under `make test` each runs once untimed, and checks what every run
 must satisfy: the budget used exactly, a final cost below the start's, and the same result again
@@ -30,14 +30,14 @@ import time
 import numpy as np
 import pytest
 
-import solvers
-from optcal.kernels import evaluate
-from optcal.presets import PAPER_TRUTH, manufacturer_presets
-from optcal.problem import CalibrationProblem, Counter
-from optcal.simulate import simulate
-from solvers._unitbox import unit_rows
-from solvers.bas import DrawAhead
-from solvers.bsas import _Draws
+from optcal import solvers
+from optcal.core.kernels import evaluate
+from optcal.core.presets import PAPER_TRUTH, manufacturer_presets
+from optcal.core.problem import CalibrationProblem, Counter
+from optcal.core.simulate import simulate
+from optcal.solvers._unitbox import unit_rows
+from optcal.solvers.bas import DrawAhead
+from optcal.solvers.bsas import _Draws
 
 BUDGET = 20_000
 SEED = 1
@@ -62,7 +62,7 @@ def problem() -> CalibrationProblem:
 
 def solve(name: str):
     view = copy.copy(problem())
-    view.counter = Counter()  # a counter of this run's own, as studies.trial gives every trial
+    view.counter = Counter()  # a counter of this run's own, as optcal.studies.trial gives every trial
     return solvers.get(name, **CASES[name]).solve(view, budget=BUDGET, rng=np.random.default_rng(SEED))
 
 

@@ -1,13 +1,13 @@
-"""Benchmarks of static navigation (optcal.nav): one 5-hour and one 24-hour run at the default 10 s
+"""Benchmarks of static navigation (optcal.core.nav): one 5-hour and one 24-hour run at the default 10 s
 output step, a 5-hour run at 100 Hz (1.8·10⁶ samples), and a 5-hour run with the per-site matrix
 exponential recomputed (cold cache). The error model is linear and time-invariant, so a run is one
 (cached) matrix exponential plus log2(n) vectorised products; extra_info holds the errors."""
 
 import pytest
 
-from optcal import nav
-from optcal.gravity import G0, normal_gravity
-from optcal.nav import radii, static_navigation
+from optcal.core import nav
+from optcal.core.gravity import G0, normal_gravity
+from optcal.core.nav import radii, static_navigation
 
 DF = 100e-6 * G0  # a 100 µg north accelerometer error
 PEAK = radii(45.0)[0] * 2 * DF / normal_gravity(45.0) / 1852.0  # the Schuler peak R·2δf/g, nmi

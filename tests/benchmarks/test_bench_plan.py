@@ -5,9 +5,9 @@ core; extra_info holds the criteria against the papers' 24-position scheme."""
 
 import numpy as np
 
-from optcal.plan.design import make_criterion, plan
-from optcal.plan.solve import solve_design
-from optcal.schemes import scheme
+from optcal.app.workflows.plan import solve_design
+from optcal.core.plan.design import make_criterion, plan
+from optcal.core.schemes import scheme
 
 
 def test_bench_plan_24_nonlinear12(benchmark):

@@ -1,7 +1,7 @@
 """Benchmark of a study's report (issue #22: `make run` spent 41-58 s writing the compare study's report, most
 of it drawing figures): the report of a 40-group study (ten fast solvers × two models × two schemes, three
 runs) with every figure drawn in the report's own process, and with the figures drawn by worker processes
-(one per CPU; studies.figures.Renderer), which is what `optcal study report` does from 40 groups on.
+(one per CPU; optcal.studies.figures.Renderer), which is what `optcal study report` does from 40 groups on.
 
 Run with `make bench`; under `make test` each runs once with timing disabled. extra_info: the groups, the
 figures, the workers, the seconds (the fastest round), and the CPU seconds of the report's own process.
@@ -13,10 +13,10 @@ import time
 
 import pytest
 
-from studies import figures
-from studies.execute import run_study
-from studies.report import write_report
-from studies.spec import parse, tomllib
+from optcal.studies import figures
+from optcal.studies.execute import run_study
+from optcal.studies.report import write_report
+from optcal.studies.spec import parse, tomllib
 
 SOLVERS = ["scipy-lm", "scipy-trf", "nlopt-lbfgs", "nlopt-slsqp", "nlopt-bobyqa", "nlopt-neldermead", "bsas", "pso",
            "casadi-ipopt", "ellipsoid"]

@@ -11,8 +11,8 @@ intervals found go to extra_info.
 import numpy as np
 import pytest
 
-from optcal.recording import detect_static, interval_scores, segment_static
-from optcal.synthetic_recording import poses_recording
+from optcal.core.recording import detect_static, interval_scores, segment_static
+from optcal.core.synthetic_recording import poses_recording
 
 N_HOUR = 360_000
 

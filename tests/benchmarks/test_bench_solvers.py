@@ -20,10 +20,10 @@ import functools
 import numpy as np
 import pytest
 
-import solvers
-from optcal.presets import draw_truth, manufacturer_presets
-from optcal.problem import CalibrationProblem
-from optcal.simulate import simulate
+from optcal import solvers
+from optcal.core.presets import draw_truth, manufacturer_presets
+from optcal.core.problem import CalibrationProblem
+from optcal.core.simulate import simulate
 
 SEED = 20240611
 CAP = 20_000

@@ -1,5 +1,5 @@
 """Benchmarks of start-up: ``optcal --help`` and ``optcal calibrate --help`` as a user runs them, one fresh
-process per round (the console script beside the interpreter, or ``python -c`` running optcal.cli.main when
+process per round (the console script beside the interpreter, or ``python -c`` running optcal.app.cli.main when
 there is none). extra_info holds the best time in seconds and the heavy libraries the same help imports
 (tests/test_startup.py's list; it should be empty), found in a separate process so that the timed one does
 nothing but start. No timed assertions.
@@ -32,7 +32,7 @@ def _command() -> list[str]:
     script = Path(sys.executable).parent / "optcal"
     if script.is_file():
         return [str(script)]
-    return [sys.executable, "-c", "import sys; from optcal.cli import main; sys.exit(main())"]
+    return [sys.executable, "-c", "import sys; from optcal.app.cli import main; sys.exit(main())"]
 
 
 def _env(cache: Path) -> dict[str, str]:
@@ -55,7 +55,7 @@ def _run(argv: list[str], env: dict | None = None) -> float:
 
 def _heavy_imported(argv: list[str]) -> list[str]:
     code = ("import contextlib, io, json, sys\n"
-            "from optcal.cli import main\n"
+            "from optcal.app.cli import main\n"
             "with contextlib.redirect_stdout(io.StringIO()):\n"
             "    try:\n"
             f"        main({argv!r})\n"

@@ -18,7 +18,7 @@ import numpy as np
 from test_bench_startup import _command, _env
 
 from optcal import simulate
-from optcal.presets import draw_truth
+from optcal.core.presets import draw_truth
 
 TARGET_S = 2.0
 

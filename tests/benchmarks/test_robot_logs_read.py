@@ -1,6 +1,6 @@
 """Reading robot logs (issue #33 asks for 1 hour of 200 Hz IMU messages from a bag in 3 s or less): 720,000
 sensor_msgs/msg/Imu messages, with a 20 Hz topic of other messages between them, in a ROS 1 bag, a ROS 2 SQLite bag
-and a ROS 2 MCAP bag written by rosbags' writers, read whole by optcal.recording.read_recording (open, decode,
+and a ROS 2 MCAP bag written by rosbags' writers, read whole by optcal.core.recording.read_recording (open, decode,
 sort, saturation check; what every command does first).
 
 The bags are made once per storage in a temporary folder: one message is serialised by rosbags' typestore, the
@@ -8,7 +8,7 @@ The bags are made once per storage in a temporary folder: one message is seriali
 by deserialising messages back with rosbags), and rosbags' writer writes them. extra_info holds the seconds
 of the fastest read, messages per second, the ratio to the 3 s asked for, and, when timing is on (make bench),
 the CPU seconds of one more read (wall time on the shared machine depends on the other load) and the seconds of
-rosbags' own message-by-message reading for comparison (the bulk paths of optcal.recording.bags switched off).
+rosbags' own message-by-message reading for comparison (the bulk paths of optcal.core.recording.bags switched off).
 """
 
 from __future__ import annotations
@@ -20,8 +20,8 @@ import numpy as np
 import pytest
 import robot_logs_files as R
 
-from optcal.recording import bags
-from optcal.recording.reading import read_recording
+from optcal.core.recording import bags
+from optcal.core.recording.reading import read_recording
 
 N_HOUR = 720_000  # 1 hour at 200 Hz
 TARGET_S = 3.0

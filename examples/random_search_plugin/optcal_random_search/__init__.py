@@ -18,7 +18,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from solvers.base import Option, Solver, positive
+from optcal.solvers.base import Option, Solver, positive
 
 __all__ = ["RandomSearch"]
 

@@ -1,0 +1,124 @@
+"""optcal imu: calibrate an IMU's accelerometer and gyroscope from one multi-position recording.
+
+A command of its own rather than an option of ``calibrate``: it reads two sensors (one file with both,
+or two files sharing their times, as imu_tk's data come), fits two problems in turn (the gyroscope's
+reference is the calibrated accelerometer), and writes one file with both; ``calibrate`` keeps its
+single-sensor options and output unchanged.
+"""
+
+from __future__ import annotations
+
+import json
+
+from optcal.app.commands._common import (
+    check_output_folder,
+    check_seed,
+    parameter_table,
+    parse_options,
+    refuse_overwrite,
+    refuse_same_file,
+)
+from optcal.app.commands._dataopts import add_data_options, gravity_from_args, load_raw_positions
+from optcal.core.errors import InputError
+
+HELP = "calibrate an IMU's accelerometer and gyroscope from one recording of rests with rotations between them"
+
+
+def add_arguments(p):
+    p.add_argument("data", metavar="DATA", help="raw recording with the accelerometer's columns and the gyroscope's "
+                   "(named by its header, or by --gyro-columns), unless --gyro gives them in a second file")
+    p.add_argument("--gyro", metavar="FILE", help="the gyroscope's samples in a second file with the same times "
+                   "(t, gx, gy, gz per row, or as --gyro-columns names them)")
+    p.add_argument("--gyro-columns", metavar="SPEC", help="the gyroscope's columns by name or 0-based index: gx,gy,gz "
+                   "in DATA (default: those its header names, e.g. gx or gyr_x), or t,gx,gy,gz in --gyro (default "
+                   "for --gyro: its first four columns)")
+    p.add_argument("--gyro-units", choices=("counts", "deg/s", "rad/s", "volts"),
+                   help="the gyroscope's output units (a ROS bag's or a ULog's are rad/s: the default there)")
+    p.add_argument("--gyro-scale", type=float, metavar="PER_RAD_S", help="nominal gyroscope scale, output units per "
+                   "rad/s (default: exact for deg/s and rad/s; for counts and volts found from the motions)")
+    p.add_argument("--gyro-bias", choices=("rests", "fit"), default="rests", help="the gyroscope's bias: from the "
+                   "rests, interpolated between them (follows a drifting bias; default), or fitted as constants")
+    p.add_argument("--g-sensitivity", action="store_true", help="also fit the gyroscope's g-sensitivity and keep it "
+                   "when a likelihood-ratio test finds it (needs --gyro-bias fit)")
+    p.add_argument("--model", help="the accelerometer's model (default as optcal calibrate's: nonlinear12, or the "
+                   "richest of linear9 and diag6 the rests determine, said in a note)")
+    p.add_argument("--solver", default="lm", help="registered solver for both sensors (default lm)")
+    p.add_argument("--option", action="append", metavar="KEY=VALUE", help="solver option (repeatable)")
+    p.add_argument("--seed", type=int, default=0, help="seed of the solver's random generator")
+    p.add_argument("--budget", type=int, help="evaluation budget of each fit (default: the solver's)")
+    p.add_argument("--json", action="store_true", help="print the result as one JSON object")
+    p.add_argument("-o", "--output", metavar="IMU.json", help="write the calibration file with both sensors")
+    p.add_argument("--force", action="store_true", help="overwrite an existing calibration file")
+    p.add_argument("--force-weak", action="store_true", help="write fits the data do not determine (too few rests, an "
+                   "unobservable parameter, a gyroscope fit the gates refuse) instead of refusing them; the file "
+                   "records that they were forced and why")
+    add_data_options(p)
+
+
+def gyro_recording(args, acc_rec):
+    """The gyroscope's samples (a Recording whose N holds them), from ``args.gyro`` or ``args.data``'s columns
+    ``args.gyro_columns`` (:func:`optcal.core.gyro.recording.read_gyro`)."""
+    from optcal.core.gyro.recording import read_gyro
+
+    return read_gyro(args.data, acc_rec, gyro=args.gyro, gyro_columns=args.gyro_columns, units=args.gyro_units,
+                     rate=args.rate, time_unit=args.time_unit)
+
+
+def run(args) -> int:
+    import numpy as np  # here: building the command line imports no numpy (tests/test_startup.py)
+
+    from optcal.app.imu import calibrate_imu, check_imu_options
+
+    check_seed(args.seed)
+    if args.gyro_units is None:
+        from optcal.core.recording.robotlogs import log_kind
+
+        if args.gyro is not None or log_kind(args.data) is None:
+            raise InputError("give the gyroscope's units with --gyro-units counts, deg/s, rad/s or volts")
+        args.gyro_units = "rad/s"  # sensor_msgs/Imu and PX4's sensor_gyro define them
+    if args.budget is not None and args.budget < 1:
+        raise InputError(f"--budget {args.budget} must be a number of evaluations of 1 or more")
+    check_imu_options(gyro_scale=args.gyro_scale, gyro_bias=args.gyro_bias, g_sensitivity=args.g_sensitivity)
+    refuse_same_file(args.output, args.data, args.gyro)
+    refuse_overwrite(args.output, args.force)
+    check_output_folder(args.output)
+    args.raw = True
+    g_local = gravity_from_args(args)
+    named = args.model is not None
+    # the rests are found as optcal calibrate finds them (for the default model, as many as its smallest fallback
+    # needs), judged on the gyroscope too
+    read = {}
+
+    def gyro_of(acc):
+        read["gyro"] = gyro_recording(args, acc)
+        return read["gyro"]
+
+    positions = load_raw_positions(args, args.data, gyro_of)
+    gyr = read["gyro"]
+    imu = calibrate_imu(positions, gyr, model=args.model if named else None, solver=args.solver,
+                        options=parse_options(args.option), g_local=g_local, seed=args.seed, budget=args.budget,
+                        gyro_units=args.gyro_units, gyro_scale=args.gyro_scale, gyro_bias=args.gyro_bias,
+                        g_sensitivity=args.g_sensitivity, force_weak=args.force_weak)
+    cal, fit, data = imu.accelerometer, imu.gyroscope, imu.data
+    block = imu.gyro_block()
+    if args.output:
+        imu.write(args.output, overwrite=args.force, source=str(args.data))
+    if args.json:
+        print(json.dumps({"accelerometer": {**cal.to_dict(), "units": cal.model.units(positions.units)},
+                          "gyroscope": block, "notes": imu.notes}, indent=2))
+        return 0
+    angles = np.rad2deg(fit.problem.motion_angles(fit.x))
+    before = np.rad2deg(fit.problem.motion_angles(fit.problem.centre))
+    print(f"accelerometer: model {cal.model.name}, {len(positions)} rests, residual RMS {cal.fit.rms_g * 1e6:.1f} µg")
+    print(parameter_table(cal.model.names, cal.x, cal.stderr, units=cal.model.units(positions.units)))
+    source = "the rests" if args.gyro_bias == "rests" else "the fit"
+    print(f"gyroscope: model {fit.problem.model.name} (bias from {source}), {data.n_motions} motions, χ²/dof "
+          f"{fit.chi2_dof:.2f}; motion residual RMS {np.sqrt(np.mean(before**2)):.3f}° at the nominal scale, "
+          f"{np.sqrt(np.mean(angles**2)):.3f}° calibrated")
+    print("observability: " + fit.observability.describe())
+    for note in imu.notes:
+        print(f"note: {note}")
+    print(parameter_table(fit.problem.model.names, fit.x, fit.stderr, units=block["units"]["parameters"]))
+    if args.output:
+        print(f"wrote {args.output}")
+    return 0

@@ -1,0 +1,362 @@
+"""Fitting a positions data set end to end: problem, solver (from the registry, by name), standard errors,
+observability and goodness of fit.
+
+Application layer (CONTRIBUTING.md, "Layers"): this module runs a solver, so it imports ``solvers``; the
+core modules it builds on (problem, analysis, data, model, presets) do not. The import is inside
+:func:`get_solver` only because importing the solver modules loads their back-ends (cvxpy, CasADi, NLopt).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from optcal.core import determination
+from optcal.core.analysis import (
+    GoodnessOfFit,
+    Observability,
+    PositionDiagnostics,
+    crlb,
+    goodness_of_fit,
+    loss_weights,
+    natural_units,
+    observability,
+    position_diagnostics,
+    position_sigma,
+)
+from optcal.core.data import PositionsData
+from optcal.core.errors import InputError
+from optcal.core.model import Model, get_model
+from optcal.core.presets import Presets
+from optcal.core.problem import CalibrationProblem
+
+# A fit whose χ² has a p-value below this does not match the stated noise (see `calibrate`).
+MISFIT_P = 1e-3
+# Weak fits (docs/design.md §7.5): fewer residual degrees of freedom than this, or than the parameters, are
+# noted; a parameter is "not determined" when its standard error exceeds half its value and this many natural
+# units (1 mrad, 1 mg, 0.1 % of the scale factor), so a small, well-measured term near zero is not reported.
+MIN_DOF = determination.MIN_DOF
+WEAK_SE = 1e-3
+# More outliers than this fraction of the positions point at the noise level or the model, not at positions.
+MANY_OUTLIERS = 0.2
+
+
+def get_solver(name: str, **options):
+    """A configured solver from the registry (``optcal.solvers.registry.get``: a name, a ``wrapper:inner`` or a
+    ``family:NAME``; docs/design.md §10)."""
+    from optcal import solvers
+
+    return solvers.get(name, **options)
+
+
+@dataclass
+class Calibration:
+    """A fitted calibration: parameters, standard errors and diagnostics (what :func:`calibrate` and
+    :func:`optcal.calibrate` return; :func:`optcal.core.calfile.write_calibration` writes it).
+
+    - ``model``: the :class:`~optcal.core.model.Model` fitted (its parameter names, units and terms).
+    - ``x`` (p,): the parameters in the model's order and units (docs/design.md §3); ``parameters``: the same
+      as {name: value}.
+    - ``stderr`` (p,): each parameter's Cramér-Rao standard error at ``x`` (Birge-scaled when the residuals
+      exceed the noise; inf for an unobservable direction), same units.
+    - ``observability``: the rank of the fit's Jacobian and the unobservable directions, by name.
+    - ``fit``: the goodness of fit (:class:`~optcal.core.analysis.GoodnessOfFit`): residual RMS (g), cost, degrees of
+      freedom, the noise it was judged against (g) and where that came from, χ² and its p-value.
+    - ``problem``: the :class:`~optcal.core.problem.CalibrationProblem` fitted (data, presets, local gravity).
+    - ``solver``: the registered solver's name; ``result``: its :class:`optcal.solvers.base.SolverResult`.
+    - ``notes``: what the user should know about these numbers, one line each.
+    - ``diagnostics``: per-position residuals, leverages and outliers (§7.5); ``positions``: them as rows.
+    - ``loss``, ``f_scale_g``: the robust loss and its scale in g (``linear``, None: plain least squares).
+    - ``forced``: the reasons a ``force_weak`` fit would have been refused for (empty: not forced).
+    - ``requested_model``: the default model when the data determined only a smaller one (the fallback).
+    """
+
+    model: Model
+    x: np.ndarray
+    stderr: np.ndarray
+    observability: Observability
+    fit: GoodnessOfFit
+    problem: CalibrationProblem
+    solver: str
+    result: object  # the SolverResult
+    notes: list = field(default_factory=list)  # what the user should know about these numbers
+    diagnostics: PositionDiagnostics | None = None  # per-position residuals and outliers (§7.5)
+    loss: str = "linear"
+    f_scale_g: float | None = None
+    forced: list = field(default_factory=list)  # the reasons a `force_weak` fit would have been refused for
+    requested_model: str | None = None  # the default model when a smaller one was fitted instead (fallback)
+
+    @property
+    def parameters(self) -> dict[str, float]:
+        return self.model.to_dict(self.x)
+
+    @property
+    def positions(self) -> list[dict]:
+        """One row per position: index, position, label, residual_ug, sigma_ug, standardised (r/σ), leverage,
+        statistic_sigma (|r|/(σ√(1−h))), p_value, weight (robust), outlier (docs/design.md §7.5)."""
+        return self.diagnostics.rows() if self.diagnostics is not None else []
+
+    def residual_table(self) -> str:
+        """The per-position residuals as fixed-width text, residuals and noise in µg."""
+        head = (f"{'#':>3} {'position':>8} {'label':<8} {'residual µg':>12} {'σ µg':>9} {'r/σ':>7} {'lever.':>6} "
+                f"{'weight':>6}  flag")
+        lines = [head, "-" * len(head)]
+        for r in self.positions:
+            def f(v, spec):
+                return format(v, spec) if v is not None else "-"
+            lines.append(f"{r['index']:>3} {r['position']:>8} {str(r['label'] or ''):<8} "
+                         f"{f(r['residual_ug'], '12.3f')} {f(r['sigma_ug'], '9.3f')} {f(r['standardised'], '7.2f')} "
+                         f"{f(r['leverage'], '6.3f')} {f(r['weight'], '6.3f')}  {'OUTLIER' if r['outlier'] else ''}")
+        return "\n".join(lines)
+
+    def to_dict(self) -> dict:
+        r = self.result
+        return {
+            "model": self.model.name,
+            "terms": list(self.model.terms),
+            "parameters": self.parameters,
+            "stderr": {n: (None if not np.isfinite(s) else float(s)) for n, s in zip(self.model.names, self.stderr)},
+            "rms_residual_g": self.fit.rms_g,
+            "cost": self.fit.cost,
+            "goodness_of_fit": self.fit.to_dict(),  # noise in g; chi2 and p-value only when the noise is known
+            "n_positions": len(self.problem.data),
+            "g_local": self.problem.g_local,
+            "solver": self.solver,
+            "observability": self.observability.to_dict(),
+            "loss": self.loss, "f_scale_g": self.f_scale_g,
+            "positions": self.positions,
+            "notes": list(self.notes),
+            "forced": list(self.forced),
+            "requested_model": self.requested_model,
+            "nfev": r.nfev, "nit": r.nit, "runtime_s": r.runtime_s, "success": r.success, "message": r.message,
+        }
+
+
+def calibrate(data: PositionsData, model: str | Model | None = None, *, solver: str = "lm",
+              options: dict | None = None, g_local: float = 1.0, reference: bool = False,
+              presets: Presets | None = None, seed: int | None = 0, budget=None, x0=None,
+              noise_g: float | None = None, force_weak: bool = False, backend: str | None = None,
+              recheck: bool = True) -> Calibration:
+    """Fit ``model`` to ``data`` with the named solver and report parameters with standard errors.
+
+    A calibration is returned only when the data determine it (:mod:`optcal.core.determination`, docs/design.md
+    §7.5): too few positions for the model, an unobservable direction, fewer than 3 residual degrees of
+    freedom, an exact fit and physically implausible parameters are an :class:`InputError` of one line with
+    the reason and the way out. ``model`` None is the default, ``nonlinear12``: when the positions do not
+    determine it, the richest model of nonlinear12 → linear9 → diag6 that they do determine is fitted, and
+    the first note says so. ``force_weak`` fits and returns a weak calibration anyway; its ``forced`` lists
+    the reasons it would have been refused for (the calibration file records them). ``backend`` is the
+    problem's evaluation (:data:`optcal.core.problem.BACKENDS`); by default NumPy for a solver that needs few
+    evaluations (``few_evaluations``: least squares), the compiled kernel otherwise. ``recheck``: positions of a
+    raw recording found off the fit of the others are re-examined sample by sample (``data.extra["recheck"]``,
+    :func:`optcal.core.recording.positions.recheck_poses`: a motion at a pose's ends cut off, a moving pose dropped)
+    and the fit is made again on what survives, said in the notes."""
+    requested = get_model(determination.DEFAULT_MODEL if model is None else model)
+    slv = get_solver(solver, **(options or {}))
+    if backend is None:
+        backend = "numpy" if getattr(slv, "few_evaluations", False) else "kernel"
+    named = model is not None
+    candidates, first = [], None
+    for name in determination.chain(model):
+        m = get_model(name)
+        problem = CalibrationProblem(m, data, g_local=g_local, reference=reference, presets=presets,
+                                     noise_g=noise_g, check=False, backend=backend)
+        obs = observability(problem)
+        refused = determination.structure(problem, obs, gauge=presets is not None or m.name == "seed15")
+        if not refused:
+            candidates.append(problem)
+        first = first or (problem, refused, obs)
+    if not candidates:
+        problem, refused, obs = first
+        if not force_weak:
+            smaller = _richest_determined(data, problem.model, g_local, reference, presets, noise_g)
+            raise InputError(determination.line(refused, problem.model, smaller, chain_tried=not named))
+        candidates = [problem]
+    # The default model falls back past a fit that its positions leave undetermined (a parameter known no better
+    # than its datasheet says, §7.5) or implausible: the data determine the smaller model, not that one. A named
+    # model is fitted as named, and refused or forced.
+    why = [] if first[1] == [] or candidates[0] is first[0] else [f"{first[1][0].reason}"]
+    for k, problem in enumerate(candidates):
+        fit = _fit(problem, slv, solver, x0, budget, seed, noise_g, refused=first[1] if problem is first[0] else [])
+        last = k == len(candidates) - 1
+        if named or last or not (fit.refused or fit.undetermined):
+            break
+        why.append(f"{problem.model.name}: " + ("; ".join(r.reason for r in fit.refused) if fit.refused else
+                                                 f"{', '.join(fit.undetermined)} known no better than a datasheet "
+                                                 "says (standard error above half its spread)"))
+    cal, refused = fit.calibration, fit.refused
+    if fit.undetermined and not named:  # the smallest model of the chain, and still undetermined
+        refused = refused + [determination.Refusal(
+            "undetermined", f"{', '.join(fit.undetermined)} of {cal.model.name} known no better than a datasheet "
+            "says (standard error above half its spread)")]
+    if refused and not force_weak:
+        raise InputError(determination.line(refused, cal.model, None))
+    if refused:
+        cal.notes.insert(0, "forced although the data do not determine it: " + "; ".join(r.reason for r in refused))
+    if cal.model.name != requested.name:
+        cal.notes.insert(0, f"{requested.name} (the default model) is not determined by these positions: "
+                            + "; ".join(why) + f"; fitted {cal.model.name} instead, the richest of "
+                            f"{' → '.join(determination.FALLBACK)} that they determine")
+        cal.requested_model = requested.name
+    cal.forced = [r.reason for r in refused]
+    if recheck and cal.diagnostics is not None and not cal.model.needs:
+        again = _rechecked(data, cal, model, solver=solver, options=options, g_local=g_local, reference=reference,
+                           presets=presets, seed=seed, budget=budget, x0=x0, noise_g=noise_g,
+                           force_weak=force_weak, backend=backend)
+        if again is not None:
+            return again
+    return cal
+
+
+def _rechecked(data: PositionsData, cal: Calibration, model, **kw) -> Calibration | None:
+    """The calibration refitted after its outlying positions were re-examined sample by sample, or None when
+    there are none (or too many to be single poses: then the model or the noise is at fault, not a pose)."""
+    recheck_poses = data.extra.get("recheck") if isinstance(data.extra, dict) else None
+    idx = np.flatnonzero(cal.diagnostics.outlier)
+    if recheck_poses is None:  # positions not from a raw recording (optcal.core.recording.positions sets it)
+        return None
+    if not idx.size or idx.size > max(2, MANY_OUTLIERS * len(idx if cal.diagnostics.index is None
+                                                               else cal.diagnostics.index)):
+        return None
+    new, notes = recheck_poses(data, cal.model, cal.x, idx, cal.diagnostics.name)
+    if new is None:
+        return None
+    again = calibrate(new, model, recheck=False, **kw)
+    again.notes = notes + again.notes
+    return again
+
+
+@dataclass
+class _Fit:
+    calibration: Calibration
+    refused: list  # determination.Refusal after the fit (exact, implausible), with the structural ones given
+    undetermined: list[str]  # parameters known no better than the datasheet (determination.undetermined)
+
+
+def _fit(problem: CalibrationProblem, slv, solver: str, x0, budget, seed, noise_g, refused) -> _Fit:
+    """One model's fit with its standard errors, notes and the post-fit judgement (:mod:`optcal.core.determination`)."""
+    model = problem.model
+    rng = seed  # the solver builds its Generator from the seed, if it draws at all (Solver.uses_rng)
+    result = slv.solve(problem, x0=x0, budget=budget, rng=rng)
+    x = problem.to_full(result.x)[0]
+    obs = observability(problem, x)
+    loss = (result.extra or {}).get("loss", "linear")
+    f_scale = (result.extra or {}).get("f_scale")
+    weights = None if loss == "linear" or f_scale is None else loss_weights(problem.position_residuals(x), loss,
+                                                                            f_scale)
+    diag = position_diagnostics(problem, x, noise_g, weights, f_scale)
+    gof = goodness_of_fit(problem, x)
+    if weights is not None and diag.outlier.any():
+        # χ² and the Birge ratio of a robust fit come from the positions it did not reject
+        gof = _gof_without(problem, x, diag.outlier, obs.rank, gof)
+    sigma, notes = gof.noise_g, []
+    if gof.p_value is not None and gof.p_value < MISFIT_P:
+        # The residuals are larger than the noise of the position means (the within-interval scatter of a
+        # recording, or the given noise): the model misses an effect, or the positions were not static.
+        # Bounds from that noise would be too small; scale them by the Birge ratio sqrt(χ²/E), which is the
+        # residual-based noise estimate (Birge 1932; the usual practice in metrology). E, the mean of χ² under
+        # the floor's correlated noise, is the dof for white noise (docs/noise.md).
+        expected = gof.expected_chi2 or gof.dof
+        birge = float(np.sqrt(gof.chi2 / expected))
+        sigma = gof.noise_g * birge
+        notes.append(f"chi2/E = {gof.chi2 / expected:.3g} (p = {gof.p_value:.2g}): the residuals exceed the noise "
+                     f"of the position means, so the standard errors are scaled by the Birge ratio {birge:.3g}; "
+                     "the model may miss an effect (try optcal discover)"
+                     + ("; or the outlying position(s) named below are the cause" if diag.outlier.any() else ""))
+    sd, _ = crlb(problem, x, sigma, weights=weights)
+    notes += _outlier_notes(diag, loss)
+    if weights is not None:
+        low = np.flatnonzero(diag.weight < 0.5)
+        notes.append(f"robust loss {loss} (f_scale = {f_scale * 1e6:.3g} µg): standard errors weight each position "
+                     "by the loss (IRLS weights)"
+                     + (f"; it gives less than half weight to {', '.join(diag.name(i) for i in low[:5])}, so the "
+                        "errors assume the noise of the positions kept" if low.size else ""))
+    notes += _weak_notes(problem, x, sd, obs, gof)
+    refused = list(refused)
+    if not any(r.kind == "exact" for r in refused):  # no residual at all says it once
+        refused += determination.exact(gof, len(problem.data))
+    refused += determination.plausibility(model, x, problem.data, problem.g_local)
+    weak = determination.undetermined(model, x, sd)
+    cal = Calibration(model, x, sd, obs, gof, problem, solver, result, notes, diag, loss,
+                      None if f_scale is None else float(f_scale), [], None)
+    return _Fit(cal, refused, weak)
+
+
+def _richest_determined(data: PositionsData, model: Model, g_local: float, reference: bool,
+                        presets: Presets | None, noise_g: float | None) -> str | None:
+    """The richest model of the fallback chain, other than ``model``, that these positions determine before
+    any fit (:func:`optcal.core.determination.structure`), for a refusal to name; None if there is none."""
+    for name in determination.FALLBACK:
+        m = get_model(name)
+        if m.name == model.name or m.n_params >= model.n_params:
+            continue
+        problem = CalibrationProblem(m, data, g_local=g_local, reference=reference, presets=presets,
+                                     noise_g=noise_g, check=False)
+        if not determination.structure(problem, observability(problem), gauge=presets is not None):
+            return m.name
+    return None
+
+
+def _gof_without(problem: CalibrationProblem, x: np.ndarray, drop: np.ndarray, rank: int,
+                 gof: GoodnessOfFit) -> GoodnessOfFit:
+    """Goodness of fit over the positions not in ``drop`` (a robust fit's rejected positions): χ² over the kept
+    positions' own floors when the noise comes from the data (as :func:`~optcal.core.analysis.goodness_of_fit`)."""
+    from optcal.core.distributions import chi2_sf
+
+    d = problem.rows_per_position
+    keep = ~np.asarray(drop, bool)
+    r = problem.position_residuals(x).reshape(-1, d)[keep].ravel()
+    dof = max(len(r) - rank, 1)
+    cost = float(r @ r)
+    if problem.noise_g is None:
+        return GoodnessOfFit(gof.rms_g, gof.cost, dof, float(np.sqrt(cost / dof)), None, None)
+    if problem.noise_from_data:
+        sig = position_sigma(problem, x).reshape(-1, d)[keep].ravel()
+        chi2 = float(np.sum((r / sig) ** 2))
+    else:
+        chi2 = cost / problem.noise_g**2
+    return GoodnessOfFit(gof.rms_g, gof.cost, dof, gof.noise_g, chi2, float(chi2_sf(chi2, dof)),
+                         gof.noise_source, gof.estimator, gof.white_noise_g)
+
+
+def _outlier_notes(diag: PositionDiagnostics, loss: str) -> list[str]:
+    """A note per outlier naming the position and the fix, or one note when too many to be positions."""
+    idx = np.flatnonzero(diag.outlier)
+    if not idx.size:
+        return []
+    if idx.size > max(2, MANY_OUTLIERS * len(diag.index)):
+        return [f"{idx.size} of {len(diag.index)} positions have residuals beyond {diag.threshold:.2f} σ "
+                f"({diag.sigma_source} noise): the noise is understated or the model misses an effect, more than "
+                "single positions are off (see the positions table; try optcal discover)"]
+    fix = ("it is down-weighted by the robust loss; re-record or remove it to be sure" if loss != "linear" else
+           "try the robust loss: --solver scipy-trf --option loss=cauchy, or re-record or remove it")
+    return [f"{diag.name(i)} is {diag.off[i] * 1e6:.4g} µg off the fit of the other positions, "
+            f"{diag.statistic[i]:.3g} σ "
+            f"({diag.sigma_source} noise {diag.noise_g[i] * 1e6:.3g} µg, threshold {diag.threshold:.2f} σ): "
+            f"displaced or moved during the position? {fix}" for i in idx]
+
+
+def _weak_notes(problem: CalibrationProblem, x: np.ndarray, sd: np.ndarray, obs: Observability,
+                gof: GoodnessOfFit) -> list[str]:
+    """Notes on what these positions do not determine (docs/design.md §7.5)."""
+    model, n_pos = problem.model, len(problem.data)
+    notes = []
+    dof = max(len(problem.position_residuals(x)) - obs.rank, 1)  # every position, a robust fit's rejected too
+    if dof < MIN_DOF or dof < obs.rank:
+        notes.append(f"only {dof} residual degree(s) of freedom ({n_pos} positions, {obs.rank} determined "
+                     "parameters): the residuals can hardly show a bad position or a missing effect and the noise "
+                     f"estimate rests on {dof} degree(s) of freedom; record more positions (at least "
+                     f"{2 * obs.rank} for {model.name})")
+    if obs.rank < model.n_params:
+        notes.append(f"{model.n_params - obs.rank} direction(s) of the parameters are not seen by these positions "
+                     "(observability): their values are those of the presets or the start, not measurements, and "
+                     "the parameters in them have no standard error")
+    units = model.units(problem.data.units)
+    nat = natural_units(problem, x)
+    for k, name in enumerate(model.names):
+        if np.isfinite(sd[k]) and sd[k] > abs(x[k]) / 2 and sd[k] / nat[k] > WEAK_SE:
+            notes.append(f"{name} = {x[k]:.3g} ± {sd[k]:.2g} {units.get(name, '')}: not determined by these "
+                         "positions (its standard error exceeds half its value); record more varied positions or "
+                         "drop the term")
+    return notes

@@ -1,0 +1,113 @@
+"""The whole IMU from one recording (application layer: it runs registered solvers): the accelerometer's fit,
+then the gyroscope's over the same rests and the rotations between them (``optcal imu``, ``optcal.calibrate_imu``;
+docs/gyroscope.md §4)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from optcal.app.workflows.gyro import GyroFit, calibrate_gyro
+from optcal.core.errors import InputError
+from optcal.core.gyro.data import GyroData
+
+
+def check_imu_options(*, gyro_scale=None, gyro_bias: str = "rests", g_sensitivity: bool = False) -> None:
+    """Refuse options of :func:`calibrate_imu` that cannot hold, before anything is read."""
+    if g_sensitivity and gyro_bias != "fit":
+        raise InputError("`g_sensitivity` needs `gyro_bias` fit: the rests' outputs hold both the bias and G")
+    if gyro_scale is not None and not (np.isfinite(gyro_scale) and gyro_scale > 0):
+        raise InputError(f"`gyro_scale` {gyro_scale} must be a positive number of output units per rad/s")
+
+
+@dataclass
+class ImuCalibration:
+    """An IMU's accelerometer and gyroscope calibrated from one recording (``optcal imu``, docs/gyroscope.md §4):
+    the accelerometer's :class:`optcal.app.fit.Calibration`, the gyroscope's :class:`GyroFit`, the gyroscope's
+    rests and motions (:class:`GyroData`), the accelerometer's raw ``units`` and the notes of both fits."""
+
+    accelerometer: object
+    gyroscope: GyroFit
+    data: GyroData
+    units: str
+    solver: str
+    notes: list = field(default_factory=list)
+
+    def gyro_block(self) -> dict:
+        """The file's ``gyroscope`` block (docs/gyroscope.md §4)."""
+        from optcal.core.gyro.calfile import gyro_block
+
+        fit = self.gyroscope
+        return gyro_block(fit.problem, fit.x, fit.stderr, solver=self.solver,
+                          observability=fit.observability.to_dict(), g_test=fit.g_test, forced=fit.forced)
+
+    def to_dict(self, source: str | None = None) -> dict:
+        """The IMU calibration file's content: the accelerometer's record with the gyroscope block."""
+        from optcal.core.calfile import calibration_to_dict
+
+        return {**calibration_to_dict(self.accelerometer, units_in="g", units_out=self.units, source=source),
+                "gyroscope": self.gyro_block()}
+
+    def write(self, path, *, overwrite: bool = False, source: str | None = None) -> None:
+        """Write the IMU calibration file (``optcal apply`` and ``optcal export`` read it); an existing file is
+        kept unless ``overwrite``."""
+        from optcal.core.jsonfile import write_json_object
+
+        write_json_object(self.to_dict(source), path, overwrite=overwrite)
+
+
+def calibrate_imu(positions, gyro, *, model=None, solver: str = "lm", options: dict | None = None,
+                  g_local: float = 1.0, seed: int = 0, budget: int | None = None, gyro_units: str,
+                  gyro_scale: float | None = None, gyro_bias: str = "rests",
+                  g_sensitivity: bool = False, force_weak: bool = False) -> ImuCalibration:
+    """Calibrate the accelerometer from ``positions`` (found in a raw recording: their ``extra["detection"]``
+    holds its rests and samples), then the gyroscope from ``gyro`` (a :class:`~optcal.core.recording.Recording`
+    whose ``N`` holds the rates, at the same times) over the same rests and the rotations between them, the
+    calibrated accelerometer giving each rest's gravity direction (Tedaldi et al., ICRA 2014). Poses the
+    accelerometer's detection took for motion are found by the gyroscope (:func:`missed_rests`) and used for
+    it, with a note. ``model`` None: the accelerometer's default with its fallback (as ``optcal calibrate``);
+    ``gyro_scale``: nominal output units per rad/s (exact for deg/s and rad/s, searched for otherwise when
+    None). A motion during which the gyroscope sits at a rail is left out, with a note; too few motions left
+    is refused by the gyroscope's fit. ``force_weak`` keeps fits the data do not determine (either sensor),
+    marked as forced, as ``optcal calibrate --force-weak`` does."""
+    from optcal.app.fit import calibrate
+    from optcal.core.gyro.calfile import NOMINAL_SCALE
+    from optcal.core.gyro.data import MISSED_REST_MIN_S, missed_rests
+    from optcal.core.gyro.recording import join_times
+
+    check_imu_options(gyro_scale=gyro_scale, gyro_bias=gyro_bias, g_sensitivity=g_sensitivity)
+    det = positions.extra.get("detection") if positions.extra else None
+    if det is None:
+        raise InputError("the IMU calibration needs the positions of a raw recording (its rests and samples); "
+                         "read the recording as a raw one")
+    acc = det.recording
+    cal = calibrate(positions, model, solver=solver, options=options, g_local=g_local, seed=seed, budget=budget,
+                    force_weak=force_weak)
+    join_times(acc.t, gyro.t)
+    F = cal.model.inverse(np.asarray(cal.x, float)[None], acc.N)[0]
+    data = GyroData(acc.t, gyro.N, F, det.intervals, units=gyro_units, saturated=gyro.saturated)
+    found = missed_rests(data)
+    notes = list(cal.notes)
+    if len(found):  # poses the accelerometer's detection took for motion: the gyroscope is still there
+        data = data.with_rests(found)
+        notes.append(f"{len(found)} rest(s) the accelerometer's detection left inside motions were found by the "
+                     f"gyroscope (still for {MISSED_REST_MIN_S:g} s or more) and used for the gyroscope only, at t = "
+                     + ", ".join(f"{acc.t[a]:.1f}-{acc.t[b - 1]:.1f} s" for a, b in found[:6])
+                     + (" …" if len(found) > 6 else ""))
+    if len(data.dropped_motions):
+        notes.append(f"{len(data.dropped_motions)} motion(s) during which the gyroscope reached a rail left out of "
+                     f"its fit ({data.n_motions} used), at t = "
+                     + ", ".join(f"{a:.1f}-{b:.1f} s" for a, b in data.dropped_motions[:6])
+                     + (" …" if len(data.dropped_motions) > 6 else "") + "; turn more slowly to keep them")
+    scale = gyro_scale if gyro_scale is not None else NOMINAL_SCALE.get(gyro_units)
+    try:
+        fit = calibrate_gyro(data, bias=gyro_bias, g_sensitivity=g_sensitivity, scale=scale, solver=solver,
+                             options=options, seed=seed, budget=budget, force_weak=force_weak)
+    except InputError as exc:
+        if not len(data.dropped_motions):
+            raise
+        raise InputError(f"{len(data.dropped_motions)} of {len(data.dropped_motions) + data.n_motions} motions "
+                         f"reach the gyroscope's rail and are left out, and the rest do not suffice: {exc}; turn "
+                         "more slowly, or record with a wider gyroscope range") from None
+    return ImuCalibration(cal, fit, data, positions.units, solver, notes + fit.notes)

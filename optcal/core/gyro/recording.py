@@ -1,0 +1,109 @@
+"""A gyroscope's samples joined to the accelerometer's recording: the same times, the rests the
+accelerometer's detection found, and the accelerometer's calibration turning its samples into specific
+force (imu_tk's data come as two files sharing times; Tedaldi et al., ICRA 2014, §V)."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from optcal.core.errors import InputError
+from optcal.core.gyro.data import GyroData
+from optcal.core.model import Context, get_model
+
+# How the gyroscope's units are given to the reader, which only labels the samples with them
+_READER_UNITS = {"counts": "counts", "deg/s": "volts", "rad/s": "volts", "volts": "volts"}
+
+# Two time columns agree when no sample differs by more than this fraction of the median step.
+TIME_TOLERANCE = 0.1
+
+
+def join_times(t_acc: np.ndarray, t_gyro: np.ndarray) -> None:
+    """Refuse two sample-time columns that are not the same times (within a tenth of a step)."""
+    t_acc, t_gyro = np.asarray(t_acc, float), np.asarray(t_gyro, float)
+    if len(t_acc) != len(t_gyro):
+        raise InputError(f"the accelerometer has {len(t_acc)} samples and the gyroscope {len(t_gyro)}: the two "
+                         "files must share their sample times; cut them to the same samples")
+    step = float(np.median(np.diff(t_acc)))
+    worst = float(np.max(np.abs(t_acc - t_gyro)))
+    if worst > TIME_TOLERANCE * step:
+        i = int(np.argmax(np.abs(t_acc - t_gyro)))
+        raise InputError(f"the accelerometer's and gyroscope's times disagree by {worst:.3g} s at sample {i} "
+                         f"(more than {TIME_TOLERANCE:g} of the {step:.3g} s step); resample them to common times")
+
+
+def _columns(spec, n: int) -> list[str] | None:
+    if spec is None:
+        return None
+    parts = [c.strip() for c in spec.split(",")] if isinstance(spec, str) else [str(c).strip() for c in spec]
+    if len(parts) != n or not all(parts):
+        raise InputError(f"`gyro_columns` {','.join(parts) if not isinstance(spec, str) else spec!r} must name {n} "
+                         "columns separated by commas")
+    return parts
+
+
+def read_gyro(data, acc, *, gyro=None, gyro_columns=None, units: str, rate: float | None = None,
+              time_unit: str | None = None):
+    """The gyroscope's samples as a :class:`~optcal.core.recording.Recording` (its ``N`` holds them), read from the
+    file ``gyro`` (times and three rates; ``gyro_columns`` names the four, "t,gx,gy,gz", or its first four
+    columns are taken) or from the accelerometer's file ``data``, whose recording ``acc`` is, in the columns
+    ``gyro_columns`` ("gx,gy,gz" or a list) beside its time column, by default those its header names as the
+    gyroscope's (gx, gyr_x, GyroX, ...: the columns ``optcal calibrate`` judges stillness on). ``units``: the
+    gyroscope's (counts, deg/s, rad/s, volts). A ROS bag's or a ULog's gyroscope was read with its
+    accelerometer: it is ``acc``'s (:func:`log_gyro`)."""
+    from optcal.core.recording.reading import read_recording
+
+    if gyro is None and acc.reading.get("topic") is not None:
+        return log_gyro(acc, units, gyro_columns)
+    label = _READER_UNITS.get(units, "volts")
+    if gyro is not None:
+        cols = _columns(gyro_columns, 4)
+        spec = None if cols is None else f"t={cols[0]},ax={cols[1]},ay={cols[2]},az={cols[3]}"
+        return read_recording(gyro, spec, rate, label, time_unit=time_unit)
+    cols = _columns(gyro_columns, 3)
+    if cols is None and all(k in acc.columns for k in ("gx", "gy", "gz")):
+        cols = [str(acc.columns[k]) for k in ("gx", "gy", "gz")]  # the header names them, as calibrate reads them
+    if cols is None:
+        raise InputError("name the gyroscope's columns in DATA with `gyro_columns` gx,gy,gz, or give them in a "
+                         "second file with `gyro`")
+    time = acc.columns.get("t")
+    spec = (f"t={time}," if time is not None else "") + f"ax={cols[0]},ay={cols[1]},az={cols[2]}"
+    return read_recording(data, spec, rate, label, time_unit=time_unit)
+
+
+def log_gyro(acc, units: str, gyro_columns=None):
+    """The gyroscope of a ROS bag or a ULog, read with its accelerometer as the Recording ``acc`` (its ``W``), as
+    a Recording of its own whose ``N`` holds the rates: what :func:`read_gyro` gives for a table's gyroscope
+    columns (labelled as it labels rad/s, saturation found as for them). The log defines the units: rad/s."""
+    from dataclasses import replace
+
+    from optcal.core.recording.reading import saturation_of
+    from optcal.core.recording.robotlogs import check_gyro_units
+
+    check_gyro_units(acc.path, units)
+    if acc.W is None:
+        raise InputError(f"{acc.path}: topic {acc.reading.get('topic')} has no gyroscope (angular_velocity); give "
+                         "the gyroscope's topic too with `topic` ACC,GYRO")
+    if gyro_columns is not None:
+        names = [c.strip() for c in gyro_columns.split(",")] if isinstance(gyro_columns, str) else list(gyro_columns)
+        if names != ["gx", "gy", "gz"]:
+            raise InputError(f"`gyro_columns` {','.join(map(str, names))}: a log's gyroscope is its columns gx,gy,gz; "
+                             "drop `gyro_columns`")
+    label = _READER_UNITS[units]
+    sat, _ = saturation_of(acc.W, label, None, None)
+    return replace(acc, N=acc.W, units=label, saturated=sat, temp=None, W=None, gyro_saturated=None,
+                   columns={"t": "t", "ax": "gx", "ay": "gy", "az": "gz"})
+
+
+def gyro_data(t, W, N_acc, intervals, acc_model, x_acc, *, units: str,
+              temp=None, rails: tuple[float, float] | None = None) -> GyroData:
+    """The gyroscope's :class:`GyroData`: samples ``W`` (n, 3) at times ``t``, the accelerometer's raw
+    samples ``N_acc`` calibrated by ``acc_model`` at ``x_acc`` into specific force (g), the rests
+    ``intervals`` (r, 2) of its detection. A motion with a gyroscope sample at one of ``rails`` is left out of the
+    motions, as ``optcal imu`` leaves it (:class:`GyroData`'s ``saturated``): its integrated rotation would be
+    wrong."""
+    model = get_model(acc_model)
+    ctx = Context.from_columns(temp=temp if "temp" in model.needs else None, t=t if "t" in model.needs else None)
+    F = model.inverse(np.asarray(x_acc, float)[None], np.asarray(N_acc, float), ctx)[0]
+    W = np.asarray(W, float)
+    saturated = None if rails is None else np.any((W <= rails[0]) | (W >= rails[1]), axis=1)
+    return GyroData(t, W, F, intervals, units=units, saturated=saturated)

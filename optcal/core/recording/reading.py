@@ -1,0 +1,432 @@
+"""Reading a raw recording (docs/design.md §9.2): one row per sample, optionally a time column ``t`` (s, ms,
+µs or ns, told apart by the sample interval), the three accelerometer outputs ``ax, ay, az`` in the sensor's
+units, optionally ``temp`` (°C). Files may be CSV (comma, semicolon or tab; decimal point or comma) or
+whitespace-separated, gzip/bz2/xz-compressed, with or without a header, and may start with ``key,value``
+lines; their layout is read by :mod:`optcal.core.recording.sniff`. MATLAB ``.mat`` files (level 5, and v7.3 through
+h5py) hold the same table as a matrix or named variables. Integer counts may be signed or unsigned
+(offset-binary); saturation is found from the ADC's rails (declared, or inferred from the data) and from runs
+at the recording's own extremes (:func:`saturation_of`). ROS bags and PX4 ULog (:mod:`optcal.core.recording.robotlogs`)
+are read as a table of the same columns (:func:`read_log`).
+"""
+
+from __future__ import annotations
+
+import io
+import re
+import warnings
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from optcal.core.data import UNITS, PositionsData, check_units
+from optcal.core.errors import InputError
+from optcal.core.recording.sniff import (
+    KIND_ROWS,
+    ROLES,
+    Layout,
+    compression,
+    is_mat,
+    mat_layout,
+    open_binary,
+    positions_file_reason,
+    rate_from_meta,
+    resolve_column,
+    role_columns,
+    sniff_layout,
+    table_kind,
+)
+from optcal.core.tablefile import COMMENT, DECODE_ERRORS, is_comment, open_text
+
+INT16_RAILS = (-32768.0, 32767.0)
+TIME_UNITS = {"s": 1.0, "ms": 1e-3, "us": 1e-6, "ns": 1e-9}  # to seconds
+RATE_RANGE = (1.0, 1e5)  # Hz: a time column's unit is the first that gives a rate above 1 Hz, up to 100 kHz
+RAIL_RUN = 10  # samples in a row at one extreme value: a rail (saturation_of)
+
+# optional: pyarrow.csv, a faster reader for large delimited files. Imported at the first read (pyarrow is
+# heavy), then kept here; None when it is not installed (or, in tests, to force the NumPy reader).
+_NOT_LOADED = object()
+_arrow_csv = _NOT_LOADED
+
+
+def _arrow_reader():
+    """pyarrow.csv, or None without pyarrow."""
+    global _arrow_csv
+    if _arrow_csv is _NOT_LOADED:
+        try:
+            import pyarrow.csv as arrow_csv
+        except ImportError:  # pragma: no cover - depends on the installation
+            arrow_csv = None
+        _arrow_csv = arrow_csv
+    return _arrow_csv
+
+
+@dataclass
+class Recording:
+    """Samples of a raw recording in the sensor's units, with time in seconds."""
+
+    t: np.ndarray  # (n,) s, strictly increasing
+    N: np.ndarray  # (n, 3) raw outputs
+    temp: np.ndarray | None
+    units: str
+    rate: float  # Hz (given, from the file's Fs line, or 1 / median step of t)
+    saturated: np.ndarray  # (n,) bool: a sample at a rail on any axis (saturation_of)
+    path: str | None = None
+    columns: dict = field(default_factory=dict)  # role -> column used
+    labels: np.ndarray | None = None  # (n,) str, from a label column
+    meta: dict = field(default_factory=dict)  # key,value lines before the data
+    reading: dict = field(default_factory=dict)  # what the reader found: format, time unit, ADC, rails
+    # (n, 3) angular rate from the gyroscope's columns gx, gy, gz, in the file's units (rad/s, °/s or counts:
+    # not converted), or None; and (n,) bool, a sample at a rail of the gyroscope (gyro_saturation_of)
+    W: np.ndarray | None = None
+    gyro_saturated: np.ndarray | None = None
+
+    def __len__(self) -> int:
+        return len(self.N)
+
+    @property
+    def duration(self) -> float:
+        return float(self.t[-1] - self.t[0]) if len(self) else 0.0
+
+
+def read_recording(path, columns=None, rate: float | None = None, units: str = "g", *,
+                   saturation: float | None = None, labels: str | None = None, need_time: bool = True,
+                   adc: str | None = None, time_unit: str | None = None,
+                   refuse_positions: bool = False, topic: str | None = None) -> Recording:
+    """Read a raw recording (docs/design.md §9.2). ``columns``: ``"t,ax,ay,az"`` (names or 0-based indices;
+    3 entries mean ax,ay,az, 5 add temp) or ``"ax=acc_x,..."``; ``rate`` (Hz) when there is no time column;
+    ``units`` of the outputs; ``saturation``: |value| at which a sample is saturated; ``adc``: the counts'
+    format (``int16``, ``uint16``, ``int12``, ...: its rails are saturation; by default inferred from the
+    data for counts, :func:`saturation_of`); ``time_unit``: s, ms, us or ns (default: inferred from the
+    median step, :func:`time_scale`); ``labels``: a column of section labels, ``COLUMN`` or
+    ``COLUMN=L1,L2`` (kept as strings; the labels after ``=`` are for
+    :func:`~optcal.core.recording.label_intervals`); ``need_time=False`` accepts a file without time or rate
+    (time is then the sample index and the rate NaN); ``refuse_positions``: a file that looks like a
+    positions file is an error that says so (calibration's path). A ROS bag or a PX4 ULog is read from its IMU
+    messages (:func:`read_log`; ``topic`` picks among them) in the units and at the stamps the log gives.
+    Every problem is an InputError."""
+    path = Path(path)
+    if units not in UNITS:
+        raise InputError(f"unknown units {units!r}; use one of {', '.join(UNITS)}")
+    if time_unit is not None and time_unit not in TIME_UNITS:
+        raise InputError(f"`time_unit` {time_unit!r}: use one of {', '.join(TIME_UNITS)}")
+    fmt = parse_adc(adc)
+    table = None
+    log = read_log(path, topic, rate=rate, labels=labels, adc=adc, time_unit=time_unit)
+    if log is not None:
+        from optcal.core.recording.robotlogs import log_layout
+
+        lay, table = log_layout(log)
+        time_unit = "s"
+    elif is_mat(path):
+        lay, table = mat_layout(path)
+        if labels is not None:
+            raise InputError(f"{path} is a MAT file, which has no text label column; drop `labels`")
+    else:
+        lay = sniff_layout(path)
+    if lay.ncol == 1:
+        raise InputError(
+            f"{path} has a single column; a raw recording needs ax, ay, az (and t, or `rate`) on each row"
+        )
+    cols = role_columns(columns, lay, path)
+    if log is not None:
+        from optcal.core.recording.robotlogs import log_units
+
+        units = log_units(lay, cols, units, path)
+    order = [r for r in ROLES if r in cols]
+    idx = [cols[r] for r in order]
+    raw = table[:, idx] if table is not None else _load_numeric(path, lay, idx)
+    data = dict(zip(order, raw.T))
+    n = len(raw)
+    if n < 2:
+        raise InputError(f"{path} has {n} sample(s); a raw recording needs many samples per static pose")
+    reason = positions_file_reason(lay, raw[:, [order.index(a) for a in ("ax", "ay", "az")]]) \
+        if refuse_positions and log is None else None
+    if reason:
+        raise InputError(f"{path} looks like a positions file, not a raw recording ({reason}); "
+                         "read it as positions (drop `raw`)")
+    bad = ~np.isfinite(raw)
+    if bad.any():
+        r, c = np.argwhere(bad)[0]
+        raise InputError(f"{path}: sample {r} has {raw[r, c]} in column {order[c]!r}; remove or fix that row")
+    meta_rate = rate_from_meta(lay.meta)
+    if rate is not None and not rate > 0:
+        raise InputError(f"`rate` {rate} must be a positive sample rate in Hz")
+    unit = None
+    if "t" in data:
+        t = data["t"]
+        steps = np.diff(t)
+        if np.any(steps <= 0):
+            i = int(np.flatnonzero(steps <= 0)[0])
+            raise InputError(
+                f"{path}: the time column does not increase from sample {i} (t = {t[i]:g}) to {i + 1} "
+                f"(t = {t[i + 1]:g}); "
+                "sort the samples, or drop the time column from `columns` and give `rate`"
+            )
+        given = rate if rate is not None else meta_rate
+        unit = time_unit or time_scale(float(np.median(steps)), given, path)
+        t = t * TIME_UNITS[unit]
+        fs = 1.0 / float(np.median(np.diff(t)))
+    else:
+        fs = rate if rate is not None else meta_rate
+        if fs is None and need_time:
+            raise InputError(f"{path} has no time column; give the sample rate in Hz with `rate`")
+        t = np.arange(n) / (fs or 1.0)
+        fs = np.nan if fs is None else fs
+    N = np.column_stack([data["ax"], data["ay"], data["az"]])
+    step = max(1, n // 20000)
+    check_units(PositionsData(N=N[::step], units=units), units)
+    sat, how = saturation_of(N, units, saturation, fmt)
+    lab = None
+    if labels is not None:
+        lab = _read_labels(path, lay, labels.split("=", 1)[0], n)
+    W = gyro_sat = None
+    if "gx" in data:
+        W = np.column_stack([data["gx"], data["gy"], data["gz"]])
+        gyro_sat, gyro_how = gyro_saturation_of(W, units, fmt)
+        how.update(gyro_how)
+    names = {r: (lay.header[j] if lay.header else j) for r, j in cols.items()}
+    if log is not None:
+        how.update(log.how)
+    else:
+        how.update(format="MAT file" if table is not None else "text", compression=compression(path),
+                   delimiter=None if table is not None else (lay.delimiter or "whitespace"), decimal=lay.decimal,
+                   time_unit=unit, header=_header_kind(lay, table is not None))
+    return Recording(t, N, data.get("temp"), units, float(fs), sat, str(path), names, lab, lay.meta, how, W, gyro_sat)
+
+
+def read_log(path: Path, topic: str | None, **options):
+    """The IMU samples of a robot or drone log (:class:`~optcal.core.recording.robotlogs.LogSamples`: a ROS bag,
+    :func:`~optcal.core.recording.bags.read_bag`, or a PX4 ULog, :func:`~optcal.core.recording.ulog.read_ulog`), or None
+    for any other file. The reading ``options`` a log has no use for (rate, labels, adc, time_unit) are refused
+    when given, and so is ``topic`` for another file."""
+    from optcal.core.recording.robotlogs import log_kind, refuse_options
+
+    kind = log_kind(path)
+    if kind is None:
+        if topic is not None:
+            raise InputError(f"`topic` picks the IMU's topic of a ROS bag or a PX4 ULog; {path} is neither: drop "
+                             "`topic`")
+        return None
+    refuse_options(path, **options)
+    if kind == "bag":
+        from optcal.core.recording.bags import read_bag
+
+        return read_bag(path, topic)
+    from optcal.core.recording.ulog import read_ulog
+
+    return read_ulog(path, topic)
+
+
+def _header_kind(lay: Layout, mat: bool) -> str:
+    """Where the columns' names came from, for the report: MAT variables, a header line, a comment line
+    (``# t ax ay az``), or none (columns by position)."""
+    if lay.header is None:
+        return "none"
+    return "variables" if mat else "comment line" if lay.commented_header else "line"
+
+
+def time_scale(step: float, rate: float | None, path) -> str:
+    """The unit of a time column from its median ``step``: the one that gives ``rate`` (Hz) when a rate is
+    known (within 5 %), else the first of s, ms, µs, ns that gives a plausible sample rate, above
+    :data:`RATE_RANGE`'s 1 Hz and at most its 100 kHz."""
+    rates = {u: 1.0 / (step * f) for u, f in TIME_UNITS.items()}
+    said = ", ".join(f"{r:.4g} Hz in {u}" for u, r in rates.items())
+    if rate is not None:
+        for u, r in rates.items():
+            if abs(r / rate - 1) <= 0.05:
+                return u
+        raise InputError(f"{path}: the time column's median step {step:g} gives {said}, none of them the rate "
+                         f"{rate:g} Hz; fix the rate, set `time_unit`, or drop the time column from `columns`")
+    for u, r in rates.items():
+        if RATE_RANGE[0] < r <= RATE_RANGE[1]:
+            return u
+    raise InputError(f"{path}: the time column's median step {step:g} gives {said}, none between 1 Hz and 100 kHz; "
+                     "set `time_unit`, or drop the time column from `columns` and give `rate`")
+
+
+def parse_adc(adc: str | None) -> tuple[bool, int] | None:
+    """``int12`` → (signed, 12 bits); ``uint16`` → (unsigned, 16); None stays None."""
+    if adc is None:
+        return None
+    m = re.fullmatch(r"(u?)int(\d+)", str(adc).strip().lower())
+    if not m or not 2 <= int(m[2]) <= 32:
+        raise InputError(f"`adc` {adc!r}: give the counts' format as intB or uintB with B bits, e.g. int16, "
+                         "uint16, int12")
+    return m[1] == "", int(m[2])
+
+
+def rails_of(signed: bool, bits: int) -> tuple[float, float]:
+    """The lowest and highest code of a signed (two's complement) or unsigned (offset-binary) ADC."""
+    return (-(2.0 ** (bits - 1)), 2.0 ** (bits - 1) - 1) if signed else (0.0, 2.0 ** bits - 1)
+
+
+def infer_adc(N: np.ndarray) -> tuple[bool, int]:
+    """Signed or unsigned counts, and a width of 16, 24 or 32 bits, from the data: counts that are never
+    negative are unsigned (offset-binary, zero g near mid-range: a recording of several poses has an axis
+    pointing down, which a signed ADC reports below 0); the width is the narrowest that holds them."""
+    lo, hi = float(N.min()), float(N.max())
+    signed = lo < 0
+    for bits in (16, 24, 32):
+        a, b = rails_of(signed, bits)
+        if a <= lo and hi <= b:
+            return signed, bits
+    return signed, 64
+
+
+def stuck_runs(x: np.ndarray) -> list[float]:
+    """The recording's own extreme values (min, max) that ``x`` sits on for :data:`RAIL_RUN` samples or
+    more in a row, where no other value is held that long: a clipped output is constant while the noise
+    moves every other reading (a quantised sensor too quiet to move, whose poses all read constant, has no
+    such contrast and so no rail found this way)."""
+    n = len(x)
+    starts = np.concatenate([[0], np.flatnonzero(np.diff(x) != 0) + 1])
+    lens = np.diff(np.concatenate([starts, [n]]))
+    vals = x[starts]
+    ext = (vals == x.min()) | (vals == x.max())
+    if lens[~ext].max(initial=0) >= RAIL_RUN:
+        return []
+    return sorted({float(v) for v in vals[ext & (lens >= RAIL_RUN)]})
+
+
+def saturation_of(N: np.ndarray, units: str, saturation: float | None,
+                  fmt: tuple[bool, int] | None, axes=("ax", "ay", "az")) -> tuple[np.ndarray, dict]:
+    """Which samples are saturated, and how that was decided (a dict for the report). ``saturation``
+    given: |output| at or beyond it. Otherwise a sample at an ADC rail (of ``fmt``, or for counts of the
+    format :func:`infer_adc` reads from the data) or at a value an axis sticks to at its extreme
+    (:func:`stuck_runs`) on any axis."""
+    if saturation is not None:
+        return np.any(np.abs(N) >= saturation, axis=1), {"saturation": float(saturation)}
+    how: dict = {}
+    sat = np.zeros(N.shape, bool)
+    if fmt is None and units == "counts":
+        fmt = infer_adc(N)
+        how["adc_inferred"] = True
+    if fmt is not None:
+        lo, hi = rails_of(*fmt)
+        how.update(adc=f"{'' if fmt[0] else 'u'}int{fmt[1]}", rails=[lo, hi])
+        sat |= (N <= lo) | (N >= hi)
+    stuck = [stuck_runs(N[:, j]) for j in range(3)]
+    for j, vals in enumerate(stuck):
+        if vals:
+            sat[:, j] |= np.isin(N[:, j], vals)
+    if any(stuck):
+        how["stuck"] = {a: v for a, v in zip(axes, stuck) if v}
+    return sat.any(axis=1), how
+
+
+def gyro_saturation_of(W: np.ndarray, units: str, fmt: tuple[bool, int] | None) -> tuple[np.ndarray, dict]:
+    """Which samples of the angular rate ``W`` (n, 3) are at a rail of the gyroscope, and how that was
+    decided (``gyro_`` keys for the report). The rate's units are not known, so the rails are found as the
+    accelerometer's are without a declared saturation: an ADC's when the accelerometer is read in counts
+    and the rates are whole numbers too (the ``adc`` format, else the one :func:`infer_adc` reads from the
+    rates), and in any units an axis's extreme held for :data:`RAIL_RUN` samples (:func:`stuck_runs`)."""
+    integer = units == "counts" and bool(np.all(W == np.round(W)))
+    sat, how = saturation_of(W, "counts" if integer else "g", None, fmt if integer else None, ("gx", "gy", "gz"))
+    return sat, {f"gyro_{k}": v for k, v in how.items()}
+
+
+def _text(path: Path):
+    """The file as text, decompressed, without a UTF-8 byte-order mark."""
+    return io.TextIOWrapper(open_binary(path), encoding="utf-8-sig")
+
+
+def _load_numeric(path: Path, lay: Layout, usecols: list[int], max_rows: int | None = None) -> np.ndarray:
+    """The chosen columns as floats, (n, len(usecols)). Delimited files go through Arrow's multithreaded
+    CSV reader when pyarrow is installed (several times faster than NumPy's); anything it does not read
+    cleanly (comment lines, ragged rows, text in a number column, whitespace-separated files) goes through
+    numpy.loadtxt, a C reader too, whose messages name the offending row. A column asked for twice is read
+    once (Arrow refuses a repeated column)."""
+    cols, back = np.unique(np.asarray(usecols, int), return_inverse=True)
+    if len(cols) < len(usecols):
+        return _load_numeric(path, lay, cols.tolist(), max_rows)[:, back.ravel()]
+    if lay.delimiter is not None and max_rows is None and _arrow_reader() is not None:
+        out = _load_arrow(path, lay, usecols)
+        if out is not None:
+            return out
+    comma = {j: (lambda s: float(s.replace(",", "."))) for j in usecols} if lay.decimal == "," else None
+    try:
+        with _text(path) as fh, warnings.catch_warnings():
+            # with max_rows, NumPy notes that blank lines do not count as rows: that is how they are meant
+            warnings.filterwarnings("ignore", message=".*max_rows", category=UserWarning)
+            return np.loadtxt(fh, delimiter=lay.delimiter, skiprows=lay.skiprows, usecols=usecols, ndmin=2,
+                              comments=_comment_marks(path), dtype=float, converters=comma, max_rows=max_rows)
+    except ValueError as exc:
+        msg = str(exc).splitlines()[0].rstrip(".")
+        raise InputError(f"{path}: {msg} (data start on line {lay.skiprows + 1}); fix or remove that row") from None
+
+
+def _comment_marks(path: Path, chunk: int = 1 << 20):
+    """The comment marks (:data:`COMMENT`) that occur in the file: with none or one, numpy.loadtxt parses in C
+    alone; with two it filters every line in Python first (0.08 s for 51,000 lines). Found in one pass over
+    the bytes, a chunk at a time."""
+    marks = [c.encode() for c in COMMENT]
+    found: set[bytes] = set()
+    with open_binary(path) as fh:
+        while len(found) < len(marks) and (block := fh.read(chunk)):
+            found.update(m for m in marks if m in block)
+    used = tuple(m.decode() for m in marks if m in found)
+    return used[0] if len(used) == 1 else (used or None)
+
+
+def _load_arrow(path: Path, lay: Layout, usecols: list[int]) -> np.ndarray | None:
+    import pyarrow as pa
+
+    arrow_csv = _arrow_reader()
+    names = [f"c{j}" for j in range(lay.ncol)]
+    try:
+        with open_binary(path) as fh:
+            table = arrow_csv.read_csv(
+                fh,
+                read_options=arrow_csv.ReadOptions(skip_rows=lay.skiprows, column_names=names),
+                parse_options=arrow_csv.ParseOptions(delimiter=lay.delimiter),
+                convert_options=arrow_csv.ConvertOptions(include_columns=[names[j] for j in usecols],
+                                                          column_types={names[j]: pa.float64() for j in usecols},
+                                                          decimal_point=lay.decimal),
+            )
+        out = np.column_stack([table.column(names[j]).to_numpy() for j in usecols]).astype(float, copy=False)
+    except (pa.ArrowException, ValueError, OSError):
+        return None
+    first = [float(lay.first[j].replace(",", ".")) for j in usecols]
+    if len(out) == 0 or not np.array_equal(out[0], first, equal_nan=True):
+        return None  # it did not start on the first data row (e.g. blank lines in the preamble, a BOM)
+    return out
+
+
+def _read_labels(path: Path, lay: Layout, column: str, n: int) -> np.ndarray:
+    j = resolve_column(column, lay, path)
+    with _text(path) as fh:
+        lab = np.loadtxt(fh, delimiter=lay.delimiter, skiprows=lay.skiprows, usecols=[j], dtype=str,
+                         comments=COMMENT, ndmin=1)
+    if len(lab) != n:  # pragma: no cover - the same rows were read as numbers
+        raise InputError(f"{path}: label column {column!r} has {len(lab)} rows, the data {n}")
+    return lab
+
+
+def raw_file_reason(path) -> tuple[str, bool] | None:
+    """Why a file given as a positions file (docs/design.md §9.1) is a raw recording, and whether it has a
+    time column (else reading it needs a rate), or None: the decision of
+    :func:`~optcal.core.recording.sniff.table_kind` on its ax, ay, az columns as :func:`read_recording` finds
+    them without `columns` (the first :data:`~optcal.core.recording.sniff.KIND_ROWS` rows are read). A file whose
+    layout or columns cannot be found is left to the positions reader, whose message names the problem."""
+    path = Path(path)
+    from optcal.core.recording.robotlogs import log_kind
+
+    kind = log_kind(path)
+    if kind is not None:
+        return f"it is a {'ROS bag' if kind == 'bag' else 'PX4 ULog'}, which holds samples", True
+    try:
+        if is_mat(path):
+            lay, table = mat_layout(path)
+            cols = role_columns(None, lay, path)
+            N, nrows = table[:KIND_ROWS, [cols[a] for a in ("ax", "ay", "az")]], len(table)
+        else:
+            lay = sniff_layout(path)
+            cols = role_columns(None, lay, path)
+            with open_text(path) as fh:
+                nrows = sum(1 for i, ln in enumerate(fh) if i >= lay.skiprows and ln.strip() and not is_comment(ln))
+            N = _load_numeric(path, lay, [cols[a] for a in ("ax", "ay", "az")], max_rows=KIND_ROWS)
+    except (InputError, ValueError, *DECODE_ERRORS):
+        return None
+    kind, why = table_kind(lay.header, N, nrows, None if lay.header else lay.ncol)
+    return (why, "t" in cols) if kind == "samples" else None
