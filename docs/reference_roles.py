@@ -1,5 +1,5 @@
 """A Griffe extension for the API reference (docs/reference.md): the docstrings name objects with Sphinx's
-roles (:func:`calibrate`, :class:`~optcal.app.fit.Calibration`), which Markdown would print as they are; this
+roles (:func:`calibrate`, :class:`~optcal.core.calibration.Calibration`), which Markdown would print as they are; this
 turns each into code that links to the object where the reference renders it, and stays plain code where it
 does not (an optional mkdocs-autorefs reference, which the strict build does not count as broken).
 """

@@ -107,4 +107,5 @@ def test_reference_covers_the_front_door(reference):
                 for h in re.findall(r"<h3 id=[^>]*>(.*?)</h3>", reference, re.S)}
     front_door = ["calibrate", "apply", "read_recording", "noise", "calibrate_imu", "apply_gyro", "study"]
     assert {f"optcal.{name}" for name in front_door} <= headings, sorted(headings)
-    assert {"optcal.app.fit.Calibration", "optcal.solvers.base.Solver", "optcal.solvers.base.SolverResult"} <= headings
+    assert {"optcal.core.calibration.Calibration", "optcal.solvers.base.Solver",
+            "optcal.solvers.base.SolverResult"} <= headings

@@ -16,8 +16,8 @@ from optcal.core.errors import InputError
 if TYPE_CHECKING:
     import numpy as np
 
-    from optcal.app.fit import Calibration
     from optcal.core.calfile import CalibrationFile
+    from optcal.core.calibration import Calibration
     from optcal.core.data import PositionsData
     from optcal.core.noise import NoiseReport
     from optcal.core.presets import Presets
@@ -83,7 +83,7 @@ def calibrate(data, model=None, *, solver: str = "lm", units: str | None = None,
               presets: Presets | None = None, seed: int | None = 0, budget=None, noise_g: float | None = None,
               force_weak: bool = False, **reading) -> Calibration:
     """Fit ``model`` (a named model, a sum of terms, docs/design.md §3.3, or a Model) to ``data`` and return
-    an :class:`optcal.app.fit.Calibration` (parameters, standard errors, observability, goodness of fit).
+    an :class:`optcal.core.calibration.Calibration` (parameters, standard errors, observability, goodness of fit).
 
     ``data``: a :class:`~optcal.core.data.PositionsData`; an (n, 3) array of position means in ``units``; or a
     path (str or pathlib.Path) to a positions CSV (§9.1), or, with ``raw=True``, to a raw recording whose
@@ -200,18 +200,18 @@ def apply_gyro(calibration, rates, force=None) -> np.ndarray:
 
 
 def _calibration_file(calibration) -> CalibrationFile:
-    from optcal.app.fit import Calibration
-    from optcal.core.calfile import CalibrationFile, calibration_to_dict, read_calibration
+    from optcal.core.calfile import CalibrationFile
+    from optcal.core.calibration import Calibration
 
     if isinstance(calibration, CalibrationFile):
         return calibration
     if isinstance(calibration, Calibration):
         # the file's record of the fit carries the context (T0, t0) that applying it needs (design.md §3.4)
-        meta = calibration_to_dict(calibration)
+        meta = calibration.file_record()
         return CalibrationFile(calibration.model, calibration.x, calibration.stderr, calibration.problem.g_local,
                                "g", calibration.problem.data.units, meta)
     if _is_path(calibration):
-        return read_calibration(calibration)
+        return Calibration.read(calibration)
     raise InputError(f"calibration must be an optcal calibration (from optcal.calibrate), a CalibrationFile or "
                      f"a calibration-file path; got {type(calibration).__name__}")
 

@@ -24,7 +24,7 @@ def check_imu_options(*, gyro_scale=None, gyro_bias: str = "rests", g_sensitivit
 @dataclass
 class ImuCalibration:
     """An IMU's accelerometer and gyroscope calibrated from one recording (``optcal imu``, docs/gyroscope.md §4):
-    the accelerometer's :class:`optcal.app.fit.Calibration`, the gyroscope's :class:`GyroFit`, the gyroscope's
+    the accelerometer's :class:`optcal.core.calibration.Calibration`, the gyroscope's :class:`GyroFit`, the gyroscope's
     rests and motions (:class:`GyroData`), the accelerometer's raw ``units`` and the notes of both fits."""
 
     accelerometer: object

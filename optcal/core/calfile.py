@@ -80,7 +80,8 @@ def upgrade(d: dict) -> dict:
 
 
 def calibration_to_dict(cal, *, units_in: str = "g", units_out: str | None = None, source=None) -> dict:
-    """The JSON-ready dictionary of a fitted :class:`optcal.app.fit.Calibration`. ``units_out`` is the raw output
+    """The JSON-ready dictionary of a fitted :class:`optcal.core.calibration.Calibration` (its
+    :meth:`~optcal.core.calibration.Calibration.file_record`). ``units_out`` is the raw output
     units (the data's by default), written as ``units.raw``; ``units_in`` the calibrated units, always g."""
     model: Model = cal.model
     data = cal.problem.data

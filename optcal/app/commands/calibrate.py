@@ -112,10 +112,7 @@ def run(args) -> int:
 
         figure = fit_figure(cal)
     if args.output:
-        from optcal.core.calfile import write_calibration
-
-        write_calibration(cal, args.output, units_in="g", units_out=args.units, source=str(args.data),
-                          overwrite=args.force)
+        cal.write(args.output, units_out=args.units, source=str(args.data), overwrite=args.force)
     if figure is not None:
         from optcal.core.plots import save_figure
 

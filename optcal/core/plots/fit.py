@@ -43,8 +43,9 @@ def _white_band(cal) -> np.ndarray | None:
 
 
 def fit_figure(cal, path=None) -> Figure:
-    """Residual per position of the calibration ``cal`` (an :class:`optcal.app.fit.Calibration`) against its noise;
-    written to ``path`` (its suffix names the format, :func:`optcal.core.plots.save_figure`) when given."""
+    """Residual per position of the calibration ``cal`` (an :class:`optcal.core.calibration.Calibration`)
+    against its noise; written to ``path`` (its suffix names the format, :func:`optcal.core.plots.save_figure`)
+    when given."""
     from matplotlib.figure import Figure
 
     diag = cal.diagnostics
