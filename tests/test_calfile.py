@@ -1,4 +1,5 @@
-"""The calibration file (docs/design.md §9.3): exact round trip, refusal to overwrite, clear errors for other
+"""The calibration file (docs/design.md, "Calibration file"): exact round trip, refusal to overwrite, clear errors for
+other
 versions and missing fields, and `apply` (Python API and `optcal apply`) inverting the model."""
 
 import json
@@ -240,7 +241,7 @@ def test_calibrate_cli_writes_a_readable_file(tmp_path, capsys):
 
 def test_a_version_1_file_is_read_with_its_units_mapped(counts_cal, tmp_path):
     """Version 1 named the units input ("g") and output (the raw units); they are read as units.calibrated and
-    units.raw, and the parameters are the same to the bit (docs/design.md §9.3)."""
+    units.raw, and the parameters are the same to the bit (docs/design.md, "Calibration file")."""
     d = calibration_to_dict(counts_cal, units_out="counts")
     assert d["units"]["raw"] == "counts" and d["units"]["calibrated"] == "g"
     assert d["units"]["parameters"]["K_x"] == "counts/g" and d["units"]["parameters"]["K2_x"] == "counts/g²"

@@ -1,4 +1,4 @@
-"""Conformance suite: every registered solver against the Solver contract (docs/design.md §10).
+"""Conformance suite: every registered solver against the Solver contract (docs/design.md, "The solver contract").
 
 Parametrised over ``solvers.names()`` (built-in modules, ``register_variant`` names and entry-point
 plugins alike) plus two wrapper compositions, two members of the ``ng:`` family (nevergrad's NGOpt and
@@ -360,7 +360,8 @@ def test_reports_failure_when_every_cost_is_nan(name):
 
 
 def test_every_problem_a_solver_meets_is_the_protocols():
-    """optcal.solvers.base.Problem is what every solver may use (docs/design.md §10): the accelerometer's, the
+    """optcal.solvers.base.Problem is what every solver may use (docs/design.md, "The solver contract"): the
+    accelerometer's, the
     gyroscope's and the planner's problems provide it, the two least-squares ones LeastSquaresProblem too; an
     object missing a member is not one."""
     from optcal.core.gyro import GyroProblem, draw_truth, get_gyro_model, simulate_imu

@@ -55,7 +55,8 @@ def _params(out, names):
 
 
 def _unit_rows_linear9(p):
-    """The sensitivity directions of a linear9 fit: the rows of T (docs/design.md §3.2), normalised."""
+    """The sensitivity directions of a linear9 fit: the rows of T (docs/design.md, "The installation matrix T"),
+    normalised."""
     T = np.eye(3)
     T[1, 0], T[2, 0], T[2, 1] = p["S_yz"], p["S_zy"], p["S_zx"]
     return T / np.linalg.norm(T, axis=1, keepdims=True)

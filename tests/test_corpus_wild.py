@@ -78,7 +78,8 @@ def _rows(M):
 
 
 def _ours(p):
-    """The same three quantities from optcal's parameters: M = diag(K)·T (docs/design.md §2), offset K·b."""
+    """The same three quantities from optcal's parameters: M = diag(K)·T (docs/design.md, "Units and frames"), offset
+    K·b."""
     T = np.eye(3)
     T[1, 0], T[2, 0], T[2, 1] = p.get("S_yz", 0.0), p.get("S_zy", 0.0), p.get("S_zx", 0.0)
     K = np.array([p["K_x"], p["K_y"], p["K_z"]])

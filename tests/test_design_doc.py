@@ -55,7 +55,8 @@ def test_named_models_list_their_parameters_in_vector_order(name):
 
 
 def test_term_table_is_in_the_codes_term_order():
-    """Parameter vectors are ordered term by term in this order (§3.3), so the table must follow it."""
+    """Parameter vectors are ordered term by term in this order (design.md, "Named models and parameter order"), so
+    the table must follow it."""
     order = [ticked(ln.split("|")[1])[0] for ln in section("3.1").splitlines()
              if ln.startswith("| `") and ticked(ln.split("|")[1])[0] in TERMS]
     assert order == list(TERMS)
@@ -65,7 +66,7 @@ def test_positions_csv_columns_are_documented():
     text = section("9.1")
     documented = set(ticked(text))
     missing = [c for c in data.REQUIRED + data.OPTIONAL if c not in documented]
-    assert not missing, f"positions CSV columns missing from docs/design.md §9.1: {missing}"
+    assert not missing, f"positions CSV columns missing from docs/design.md, 'Positions CSV': {missing}"
     for c in data.REQUIRED:  # the required columns are marked so
         assert any(ln.startswith("|") and f"`{c}`" in ln and "| yes |" in ln for ln in text.splitlines()), c
 
@@ -97,7 +98,7 @@ def test_calibration_file_fields_are_documented():
     text = section("9.3")
     documented = set(ticked(text))
     missing = sorted(keys - documented)
-    assert not missing, f"calibration-file fields missing from docs/design.md §9.3: {missing}"
+    assert not missing, f"calibration-file fields missing from docs/design.md, 'Calibration file': {missing}"
     assert set(calfile_schema.REQUIRED_FIELDS) <= documented
     assert f"format version {calfile.FORMAT_VERSION}" in text and f"`\"{calfile.FORMAT}\"`" in text
 

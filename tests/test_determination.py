@@ -1,5 +1,6 @@
 """A calibration only when the data determine it (issue #20, items 3 and 7; optcal/core/determination.py,
-docs/design.md §7.5): each class of refusal with its one line, the default model's fallback and its note,
+docs/design.md, "Per-position residuals, outliers, the robust loss, what the data determine and weak fits"): each
+class of refusal with its one line, the default model's fallback and its note,
 the expert's override recorded in the calibration file and announced by optcal apply, and well-posed fits
 (simulated, counts with an unsigned offset, seed15's gauge) left alone."""
 
@@ -43,7 +44,8 @@ def _refused(*args, **kw) -> str:
 
 # -- each class of refusal -------------------------------------------------------------------------------------
 def test_rank_deficient_positions_are_refused_naming_the_directions_and_a_smaller_model():
-    """The six ±axis poses, twice: the norm sees no misalignment (docs/design.md §6.5), so linear9 has rank 6 of
+    """The six ±axis poses, twice: the norm sees no misalignment (docs/design.md, "What a fit refuses"), so linear9
+    has rank 6 of
     9; diag6 is determined by the same 12 positions (6 residual degrees of freedom) and the line names it."""
     data = _sim(L9, TRUTH9, scheme="6")
     twice = replace(data, N=np.vstack([data.N, data.N + 1e-5 * np.random.default_rng(0).standard_normal((6, 3))]),

@@ -49,7 +49,8 @@ def cal_file(tmp_path, model: str, x, units: str, name="cal.json", g_local=1.0, 
 
 
 def test_the_cell_map_is_the_models():
-    """(M, o) from the parameters reproduce the model's own forward map: N = M·A + o (design.md §3.1-3.2)."""
+    """(M, o) from the parameters reproduce the model's own forward map: N = M·A + o (design.md, "Terms and
+    parameters"-3.2)."""
     rng = np.random.default_rng(1)
     A = rng.standard_normal((50, 3))
     for model in LINEAR:

@@ -1,4 +1,5 @@
-"""The gyroscope's gates (issue #29 item 5; docs/gyroscope.md §11): a fit with a scale factor not positive or
+"""The gyroscope's gates (issue #29 item 5; docs/gyroscope.md, "The gates: fits refused, scales noted (issue #29)"): a
+fit with a scale factor not positive or
 far from the declared units' factor, axes' scales far apart, a misalignment beyond a board's, parameters the
 data determine no better than a datasheet, or χ²/dof far above the noise with motions carried degrees off, is
 refused in one line with the likely cause and the way out (exit 2, nothing written); a scale more than 10 %

@@ -102,7 +102,7 @@ def test_imucal_ferraris_session_end_to_end(tmp_path, capsys, corpus):
     """imucal's session (another source: deg/s, 102.4 Hz, one file): calibrated by the command, the file's
     gyroscope applied to the three 360° turns about the vertical (which tell the fit nothing about their
     own axis's scale) gives angles nearer 360° than the nominal scale, within 1.5 % on every axis; the
-    motions' residual drops fourfold (docs/gyroscope.md §6)."""
+    motions' residual drops fourfold (docs/gyroscope.md, "imucal's Ferraris session, end to end")."""
     out = tmp_path / "imucal.json"
     code, text, err = run_cli(["imu", str(IMUCAL), *IMUCAL_ARGS, "-o", str(out)], capsys)
     assert code == 0, err

@@ -1,7 +1,7 @@
 """imu_tk's Xsens MTi recording (the real corpus's imu_tk/, beside the project: tests/corpus.py): optcal's
 gyroscope calibration against imu_tk's own result on the same pair of files (issue #23). imu_tk's numbers are
 constants of docs/scripts/gyro_imu_tk.py, printed by its own test_imu_calib run on the same files
-(docs/gyroscope.md §5; imu_tk is not part of the test suite)."""
+(docs/gyroscope.md, "imu_tk's Xsens recording, against imu_tk"; imu_tk is not part of the test suite)."""
 
 from __future__ import annotations
 

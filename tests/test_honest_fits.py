@@ -1,4 +1,5 @@
-"""Honest fits (issue #13, item 3; docs/design.md §7.5): per-position residuals, outliers named with their fix,
+"""Honest fits (issue #13, item 3; docs/design.md, "Per-position residuals, outliers, the robust loss, what the data
+determine and weak fits"): per-position residuals, outliers named with their fix,
 the robust loss of scipy-trf, and weak fits flagged.
 
 The displaced-position setting: 24 simulated `nonlinear12` positions (PAPER_TRUTH, 10 µg per axis), position 7's

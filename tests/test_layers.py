@@ -1,4 +1,5 @@
-"""The layers (CONTRIBUTING.md, "Layers"; docs/design.md §1), one folder each: optcal.core ← optcal.solvers ←
+"""The layers (CONTRIBUTING.md, "Layers"; docs/design.md, "Scope, layout and the direction of imports"), one folder
+each: optcal.core ← optcal.solvers ←
 optcal.studies ← optcal.app, and no import cycles. pyproject.toml states them in two contracts (a ``layers``
 contract over the folders and an acyclic one with no exception); this file checks
 

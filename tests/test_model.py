@@ -41,7 +41,7 @@ def test_bad_model_names_are_clear_errors(spec, fragment):
 
 
 def test_forward_matches_the_seed_equation():
-    """2020 paper Eq. 10: N = diag(K)(T·A + b) + K2 ⊙ A², with T as in docs/design.md §3.2."""
+    """2020 paper Eq. 10: N = diag(K)(T·A + b) + K2 ⊙ A², with T as in docs/design.md, "The installation matrix T"."""
     m = get_model("seed15")
     rng = np.random.default_rng(0)
     x = m.default_vector(1.0) + 1e-3 * rng.standard_normal(15)
@@ -122,7 +122,7 @@ def test_every_term_changes_the_output():
 @pytest.mark.parametrize("model_name", ["diag6", "linear9", "seed15", ALL_TERMS])
 def test_array_form_equals_the_term_table(model_name):
     """forward/inverse run on (S, n, 3) arrays; `components` (used by CasADi and the complex step) is the
-    term-by-term table of docs/design.md §3.1. Both must give the same outputs, real and complex."""
+    term-by-term table of docs/design.md, "Terms and parameters". Both must give the same outputs, real and complex."""
     m = get_model(model_name)
     rng = np.random.default_rng(11)
     S, n = 4, 13

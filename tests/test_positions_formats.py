@@ -1,4 +1,4 @@
-"""Positions files as other labs write them (issue #20, docs/design.md §9.1): the same 24 positions with a
+"""Positions files as other labs write them (issue #20, docs/design.md, "Positions CSV"): the same 24 positions with a
 comma, semicolon, tab or spaces between the numbers, a decimal comma, a byte-order mark, a commented header
 line (``#``, ``%``), no header at all, compressed; the checks and messages of the comma-separated reader kept;
 and a positions file and a raw recording given for each other, told apart by their data, with advice that,

@@ -1,4 +1,4 @@
-"""Raw recordings as real sensors write them (issue #13; docs/design.md §9.2): unsigned and narrow integer
+"""Raw recordings as real sensors write them (issue #13; docs/design.md, "Raw recordings"): unsigned and narrow integer
 counts and their saturation found from the data, time columns in s, ms, µs or ns, delimiters, decimal
 commas, byte-order marks, duplicate names, compressed and MATLAB files, a positions file and a recording
 given for each other, detection without a rest at the start and the diagnosis of too few intervals."""

@@ -1,4 +1,5 @@
-"""Units (issue #13, docs/design.md §2, §9.3): every parameter's unit from one table (Model.units), in the printed
+"""Units (issue #13, docs/design.md, "Units and frames", "Calibration file"): every parameter's unit from one table
+(Model.units), in the printed
 table, the --json outputs and the calibration file; apply and nav refuse a calibration whose units are not the
 data's or the truth's."""
 

@@ -30,8 +30,8 @@ def _is_path(obj) -> bool:
 
 def _positions(data, units: str | None, raw: bool, g_local: float, model, reading: dict) -> PositionsData:
     """``data`` as positions: a PositionsData as it is, an (n, 3) array of position means, or a file read as a
-    positions CSV (docs/design.md §9.1) or, with ``raw``, a raw recording whose static intervals become the
-    positions (§9.2)."""
+    positions CSV (docs/design.md, "Positions CSV") or, with ``raw``, a raw recording whose static intervals become the
+    positions (design.md, "Raw recordings")."""
     import numpy as np
 
     from optcal.core.data import PositionsData, check_units
@@ -82,12 +82,15 @@ def calibrate(data, model=None, *, solver: str = "lm", units: str | None = None,
               g_local: float = 1.0, options: dict | None = None, reference: bool = False,
               presets: Presets | None = None, seed: int | None = 0, budget=None, noise_g: float | None = None,
               force_weak: bool = False, **reading) -> Calibration:
-    """Fit ``model`` (a named model, a sum of terms, docs/design.md §3.3, or a Model) to ``data`` and return
+    """Fit ``model`` (a named model, a sum of terms, docs/design.md, "Named models and parameter order", or a Model)
+    to ``data`` and return
     an :class:`optcal.core.calibration.Calibration` (parameters, standard errors, observability, goodness of fit).
 
     ``data``: a :class:`~optcal.core.data.PositionsData`; an (n, 3) array of position means in ``units``; or a
-    path (str or pathlib.Path) to a positions CSV (§9.1), or, with ``raw=True``, to a raw recording whose
-    static intervals are found as ``optcal calibrate --raw`` finds them (§9.2). ``units``: the outputs'
+    path (str or pathlib.Path) to a positions CSV (design.md, "Positions CSV"), or, with ``raw=True``, to a raw
+    recording whose
+    static intervals are found as ``optcal calibrate --raw`` finds them (design.md, "Raw recordings"). ``units``: the
+    outputs'
     units (g, m/s2, counts, volts, mg; default g). Keyword arguments for a raw recording, as
     :func:`optcal.core.recording.positions_from_raw` takes them: ``columns``, ``rate`` (Hz), ``saturation``, ``adc``
     (the counts' format, e.g. "uint16"), ``time_unit`` (of the time column), ``topic`` (a ROS bag's or a PX4
@@ -99,7 +102,8 @@ def calibrate(data, model=None, *, solver: str = "lm", units: str | None = None,
     the registered solver and its options, turntable ``reference``, ``presets``, the solver's ``seed``, the
     evaluation ``budget`` and the noise SD of a position mean ``noise_g`` (g).
 
-    The rules of ``optcal calibrate`` hold (docs/design.md §7.5): a fit the data do not determine (too few
+    The rules of ``optcal calibrate`` hold (docs/design.md, "Per-position residuals, outliers, the robust loss, what
+    the data determine and weak fits"): a fit the data do not determine (too few
     positions for the model, an unobservable direction, fewer than 3 residual degrees of freedom, an exact
     fit, physically implausible parameters) raises :class:`~optcal.core.errors.InputError` with the CLI's line;
     ``model`` None (the default, nonlinear12) falls back to the richest of linear9 and diag6 that the data
@@ -206,7 +210,8 @@ def _calibration_file(calibration) -> CalibrationFile:
     if isinstance(calibration, CalibrationFile):
         return calibration
     if isinstance(calibration, Calibration):
-        # the file's record of the fit carries the context (T0, t0) that applying it needs (design.md §3.4)
+        # the file's record of the fit carries the context (T0, t0) that applying it needs (design.md, "Context:
+        # temperature and time offsets")
         meta = calibration.file_record()
         return CalibrationFile(calibration.model, calibration.x, calibration.stderr, calibration.problem.g_local,
                                "g", calibration.problem.data.units, meta)
@@ -219,14 +224,16 @@ def _calibration_file(calibration) -> CalibrationFile:
 def apply(calibration, samples, *, temp=None, t=None) -> np.ndarray:
     """Calibrated specific force in g (units of g0 = 9.80665 m/s²) of raw ``samples``: an (n, 3) array (or
     one sample of 3) in the calibration's output units. ``calibration``: what :func:`calibrate` returns, a
-    :class:`~optcal.core.calfile.CalibrationFile` or the path of a calibration file (docs/design.md §9.3). The
-    model is inverted exactly as ``optcal apply`` does (§3.5); models with temperature or drift terms need
+    :class:`~optcal.core.calfile.CalibrationFile` or the path of a calibration file (docs/design.md, "Calibration
+    file"). The
+    model is inverted exactly as ``optcal apply`` does (design.md, "The inverse: specific force from outputs"); models
+    with temperature or drift terms need
     the samples' ``temp`` (°C) or ``t`` (s). A forced calibration (``force_weak``) is applied with a warning on
     the ``optcal`` logger naming its reasons."""
     import numpy as np
 
     cal = _calibration_file(calibration)
-    if cal.forced:  # as optcal apply says it (docs/design.md §9.3)
+    if cal.forced:  # as optcal apply says it (docs/design.md, "Calibration file")
         import logging
 
         logging.getLogger("optcal").warning("applying a forced calibration (written with force_weak although the "
@@ -240,7 +247,7 @@ def apply(calibration, samples, *, temp=None, t=None) -> np.ndarray:
 def read_recording(path, columns=None, rate: float | None = None, units: str = "g", *,
                    saturation: float | None = None, labels: str | None = None, need_time: bool = True,
                    adc: str | None = None, time_unit: str | None = None, topic: str | None = None) -> Recording:
-    """A raw recording (docs/design.md §9.2) as a :class:`~optcal.core.recording.Recording`: samples ``N``
+    """A raw recording (docs/design.md, "Raw recordings") as a :class:`~optcal.core.recording.Recording`: samples ``N``
     (n, 3) in ``units``, time ``t`` (s), ``rate`` (Hz), optional ``temp`` (°C) and the ``saturated`` flags.
     ``columns``: "t,ax,ay,az", "ax,ay,az" (with ``rate``) or role=column items, names or 0-based indices
     (default: from the header); ``labels``: a column of section labels; ``need_time=False`` accepts a

@@ -34,7 +34,8 @@ from optcal.core.problem import CalibrationProblem
 
 # A fit whose χ² has a p-value below this does not match the stated noise (see `calibrate`).
 MISFIT_P = 1e-3
-# Weak fits (docs/design.md §7.5): fewer residual degrees of freedom than this, or than the parameters, are
+# Weak fits (docs/design.md, "Per-position residuals, outliers, the robust loss, what the data determine and weak
+# fits"): fewer residual degrees of freedom than this, or than the parameters, are
 # noted; a parameter is "not determined" when its standard error exceeds half its value and this many natural
 # units (1 mrad, 1 mg, 0.1 % of the scale factor), so a small, well-measured term near zero is not reported.
 MIN_DOF = determination.MIN_DOF
@@ -45,7 +46,7 @@ MANY_OUTLIERS = 0.2
 
 def get_solver(name: str, **options):
     """A configured solver from the registry (``optcal.solvers.registry.get``: a name, a ``wrapper:inner`` or a
-    ``family:NAME``; docs/design.md §10)."""
+    ``family:NAME``; docs/design.md, "The solver contract")."""
     from optcal import solvers
 
     return solvers.get(name, **options)
@@ -58,8 +59,9 @@ def calibrate(data: PositionsData, model: str | Model | None = None, *, solver: 
               recheck: bool = True) -> Calibration:
     """Fit ``model`` to ``data`` with the named solver and report parameters with standard errors.
 
-    A calibration is returned only when the data determine it (:mod:`optcal.core.determination`, docs/design.md
-    §7.5): too few positions for the model, an unobservable direction, fewer than 3 residual degrees of
+    A calibration is returned only when the data determine it (:mod:`optcal.core.determination`, docs/design.md,
+    "Per-position residuals, outliers, the robust loss, what the data determine and weak fits"): too few positions for
+    the model, an unobservable direction, fewer than 3 residual degrees of
     freedom, an exact fit and physically implausible parameters are an :class:`InputError` of one line with
     the reason and the way out. ``model`` None is the default, ``nonlinear12``: when the positions do not
     determine it, the richest model of nonlinear12 → linear9 → diag6 that they do determine is fitted, and
@@ -92,7 +94,8 @@ def calibrate(data: PositionsData, model: str | Model | None = None, *, solver: 
             raise InputError(determination.line(refused, problem.model, smaller, chain_tried=not named))
         candidates = [problem]
     # The default model falls back past a fit that its positions leave undetermined (a parameter known no better
-    # than its datasheet says, §7.5) or implausible: the data determine the smaller model, not that one. A named
+    # than its datasheet says, design.md, "Per-position residuals, outliers, the robust loss, what the data determine
+    # and weak fits") or implausible: the data determine the smaller model, not that one. A named
     # model is fitted as named, and refused or forced.
     why = [] if first[1] == [] or candidates[0] is first[0] else [f"{first[1][0].reason}"]
     for k, problem in enumerate(candidates):
@@ -257,7 +260,8 @@ def _outlier_notes(diag: PositionDiagnostics, loss: str) -> list[str]:
 
 def _weak_notes(problem: CalibrationProblem, x: np.ndarray, sd: np.ndarray, obs: Observability,
                 gof: GoodnessOfFit) -> list[str]:
-    """Notes on what these positions do not determine (docs/design.md §7.5)."""
+    """Notes on what these positions do not determine (docs/design.md, "Per-position residuals, outliers, the robust
+    loss, what the data determine and weak fits")."""
     model, n_pos = problem.model, len(problem.data)
     notes = []
     dof = max(len(problem.position_residuals(x)) - obs.rank, 1)  # every position, a robust fit's rejected too

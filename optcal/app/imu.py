@@ -1,6 +1,6 @@
 """The whole IMU from one recording (application layer: it runs registered solvers): the accelerometer's fit,
 then the gyroscope's over the same rests and the rotations between them (``optcal imu``, ``optcal.calibrate_imu``;
-docs/gyroscope.md §4)."""
+docs/gyroscope.md, "The command")."""
 
 from __future__ import annotations
 
@@ -23,7 +23,8 @@ def check_imu_options(*, gyro_scale=None, gyro_bias: str = "rests", g_sensitivit
 
 @dataclass
 class ImuCalibration:
-    """An IMU's accelerometer and gyroscope calibrated from one recording (``optcal imu``, docs/gyroscope.md §4):
+    """An IMU's accelerometer and gyroscope calibrated from one recording (``optcal imu``, docs/gyroscope.md, "The
+    command"):
     the accelerometer's :class:`optcal.core.calibration.Calibration`, the gyroscope's :class:`GyroFit`, the gyroscope's
     rests and motions (:class:`GyroData`), the accelerometer's raw ``units`` and the notes of both fits."""
 
@@ -35,7 +36,7 @@ class ImuCalibration:
     notes: list = field(default_factory=list)
 
     def gyro_block(self) -> dict:
-        """The file's ``gyroscope`` block (docs/gyroscope.md §4)."""
+        """The file's ``gyroscope`` block (docs/gyroscope.md, "The command")."""
         from optcal.core.gyro.calfile import gyro_block
 
         fit = self.gyroscope

@@ -1,7 +1,8 @@
 """Observability, Cramér-Rao bounds and goodness of fit of a calibration problem.
 
 The norm ‖A‖ does not change when the body frame rotates, so with the norm cost only six of the nine
-entries of diag(K)·T are observable (docs/design.md §6): ``seed15`` holds three unobservable directions, which
+entries of diag(K)·T are observable (docs/design.md, "Observability and the gauge"): ``seed15`` holds three
+unobservable directions, which
 only the small nonlinear terms tie down. They show up here as near-zero singular values of the Jacobian,
 after each column is put in natural units (relative scale change, g, rad, ...), so that the threshold
 does not depend on the sensor's output units (the linear algebra is in :mod:`optcal.core.gauge`, which the
@@ -77,12 +78,14 @@ def observability(problem: CalibrationProblem, x_full: np.ndarray | None = None,
 def projected_crlb(problem: CalibrationProblem, x_full: np.ndarray, noise_g: float, rtol: float = RTOL,
                    weights: np.ndarray | None = None):
     """Cramér-Rao SDs of every parameter's observable part, the projector onto the observable subspace (in
-    natural units), the natural units and the observability (docs/design.md §7.1; studies score against it).
+    natural units), the natural units and the observability (docs/design.md, "Cramér-Rao bound"; studies score against
+    it).
 
     Fisher information JᵀJ/σ² of the position residuals (gauge rows excluded) in natural units; with
     unobservable directions it is projected, P·F·P with P = I − N N⁺ (N the null space), and
     pseudo-inverted (rcond = rtol²), so every SD is finite: that of the parameter's component outside the
-    null directions. ``weights`` (one per position residual) weight the information, JᵀWJ/σ² (§7.5).
+    null directions. ``weights`` (one per position residual) weight the information, JᵀWJ/σ² (design.md, "Per-position
+    residuals, outliers, the robust loss, what the data determine and weak fits").
     """
     x = np.asarray(x_full, float)
     obs = observability(problem, x, rtol)
@@ -108,7 +111,8 @@ def crlb(problem: CalibrationProblem, x_full: np.ndarray | None = None, noise_g:
     residual has SD noise_g. The bound is :func:`projected_crlb`'s (the gauge the presets fix); parameters
     with weight in an unobservable direction are marked not observable and their SD is NaN. ``weights``
     (one per position residual, e.g. a robust fit's :func:`loss_weights`) weight the Fisher information,
-    JᵀWJ/σ²: the covariance that iteratively reweighted least squares reports (docs/design.md §7.5).
+    JᵀWJ/σ²: the covariance that iteratively reweighted least squares reports (docs/design.md, "Per-position
+    residuals, outliers, the robust loss, what the data determine and weak fits").
     """
     x = problem.centre if x_full is None else np.asarray(x_full, float)
     sigma = noise_g if noise_g is not None else problem.noise_g
@@ -237,7 +241,8 @@ def chi2_moments(problem: CalibrationProblem, x_full: np.ndarray, sigma: np.ndar
     return expected, float(2.0 * expected**2 / (2.0 * np.sum(Q * Q.T)))
 
 
-# -- per-position residuals, outliers and robust weights (docs/design.md §7.5) -----------------------------
+# -- per-position residuals, outliers and robust weights (docs/design.md, "Per-position residuals, outliers, the
+# robust loss, what the data determine and weak fits") -----------------------------
 
 # SciPy least_squares' robust losses ρ(z), z = (r / f_scale)², and their derivative ρ'(z), which is the weight
 # of a residual in the iteratively reweighted least-squares view of the fit (Holland & Welsch 1977).
@@ -301,7 +306,8 @@ def _residual_sigma(problem: CalibrationProblem, x_full: np.ndarray, sm: np.ndar
 def position_sigma(problem: CalibrationProblem, x_full: np.ndarray) -> np.ndarray | None:
     """Noise SD (g) of each position residual from the data's standard error of each mean
     (:meth:`~optcal.core.data.PositionsData.noise_of_mean`: se_x, se_y, se_z, correlated noise included, or else
-    sx, sy, sz over √n; docs/design.md §7, docs/noise.md) through :func:`_residual_sigma`. None when the data
+    sx, sy, sz over √n; docs/design.md, "Uncertainty: Cramér-Rao bounds, goodness of fit, standard errors",
+    docs/noise.md) through :func:`_residual_sigma`. None when the data
     lack them."""
     sm = problem.data.noise_of_mean()
     return None if sm is None else _residual_sigma(problem, x_full, sm)
@@ -317,7 +323,8 @@ def white_sigma(problem: CalibrationProblem, x_full: np.ndarray) -> np.ndarray |
 
 @dataclass(frozen=True)
 class PositionDiagnostics:
-    """Per-position residuals with their noise, leverage and outlier test (docs/design.md §7.5)."""
+    """Per-position residuals with their noise, leverage and outlier test (docs/design.md, "Per-position residuals,
+    outliers, the robust loss, what the data determine and weak fits")."""
 
     index: np.ndarray  # (n,) row of the data, from 0
     position: np.ndarray  # (n,) the data's position numbers
@@ -478,7 +485,8 @@ def position_diagnostics(problem: CalibrationProblem, x_full: np.ndarray, noise_
 def noise_scale(problem: CalibrationProblem, x_full: np.ndarray, alpha: float = OUTLIER_ALPHA) -> float:
     """The noise SD (g) of the position residuals estimated from a plain fit at ``x_full`` with its outliers
     set aside (:func:`_scan`, σ unknown): √(RSS/dof) of the fit without them; the robust loss's default
-    ``f_scale`` when no noise is known (docs/design.md §7.5)."""
+    ``f_scale`` when no noise is known (docs/design.md, "Per-position residuals, outliers, the robust loss, what the
+    data determine and weak fits")."""
     x = np.asarray(x_full, float)
     r = problem.position_residuals(x)
     d = problem.rows_per_position

@@ -1,5 +1,6 @@
 """The evaluation budget of a calibration problem and the counter that every view of it shares
-(docs/design.md §5.4 and §10.3): the problem counts each evaluation here, refuses candidates past the
+(docs/design.md, "Views, the shared counter and the budget" and "Budget"): the problem counts each evaluation here,
+refuses candidates past the
 budget, and keeps the best point ever evaluated, so that no solver can lose it. :mod:`optcal.core.problem`
 re-exports both names.
 """

@@ -1,4 +1,5 @@
-"""The calibration file (docs/design.md §9.3): a versioned JSON record of a fitted calibration that can be applied
+"""The calibration file (docs/design.md, "Calibration file"): a versioned JSON record of a fitted calibration that can
+be applied
 to new raw data to give calibrated specific force.
 
 Content: ``format``, ``format_version`` (2, or 3 with user-defined terms), ``model``, ``terms``, ``parameters``
@@ -8,7 +9,8 @@ unit}},
 ``g_local`` (in g), ``data`` {``n_positions``, ``rms_residual_g``, ``source``}, ``solver``, ``created``
 (ISO-8601 UTC), ``observability`` {rank, n_parameters, unobservable}, for models with temperature or drift
 terms, ``context`` {``T0``, ``t0``}: the reference temperature and time of the calibration data
-(docs/design.md §3.4), which applying the file to new data must reuse, and, for a fit written with
+(docs/design.md, "Context: temperature and time offsets"), which applying the file to new data must reuse, and, for a
+fit written with
 ``--force-weak`` although the data did not determine it (:mod:`optcal.core.determination`), ``forced`` (true) and
 ``forced_reasons`` (the one-line reasons it would have been refused for).
 
@@ -39,7 +41,7 @@ FORMAT = "optcal-calibration"
 FORMAT_VERSION = 2
 USER_TERMS_VERSION = 3  # a file with user-defined terms (user_terms)
 READ_VERSIONS = (1, 2, 3)  # version 1 is mapped to 2 on reading (upgrade)
-CALIBRATED_UNITS = "g"  # what apply() gives: specific force in units of g0 (docs/design.md §2)
+CALIBRATED_UNITS = "g"  # what apply() gives: specific force in units of g0 (docs/design.md, "Units and frames")
 CHUNK = 65_536  # samples per inverse call in apply(): temporaries stay in cache-friendly sizes (measured fastest)
 
 
@@ -117,7 +119,8 @@ def calibration_to_dict(cal, *, units_in: str = "g", units_out: str | None = Non
     if context:
         out["context"] = context
     forced = list(getattr(cal, "forced", None) or [])
-    if forced:  # written only then, so that files of determined fits read as before (docs/design.md §9.3)
+    if forced:  # written only then, so that files of determined fits read as before (docs/design.md, "Calibration
+                # file")
         out["forced"] = True
         out["forced_reasons"] = [str(r) for r in forced]
     return out
@@ -165,7 +168,7 @@ class CalibrationFile:
 
     @property
     def parameter_units(self) -> dict[str, str]:
-        """{parameter name: unit} (docs/design.md §3.1) for the raw units."""
+        """{parameter name: unit} (docs/design.md, "Terms and parameters") for the raw units."""
         return self.model.units(self.units_out)
 
     def context(self, n: int, temp=None, t=None) -> Context | None:
@@ -187,7 +190,8 @@ class CalibrationFile:
 
     def apply(self, N, temp=None, t=None, *, chunk: int = CHUNK) -> np.ndarray:
         """Specific force A (n, 3) in g from raw outputs N (n, 3) in ``units_out``: the model's inverse
-        (docs/design.md §3.5), vectorised over samples and done in chunks to bound memory."""
+        (docs/design.md, "The inverse: specific force from outputs"), vectorised over samples and done in chunks to
+        bound memory."""
         N = np.asarray(N, float)
         if N.ndim != 2 or N.shape[1] != 3:
             raise InputError(f"raw outputs must have three columns ax, ay, az; got shape {N.shape}")

@@ -1,4 +1,4 @@
-"""The calibration file's schema (format version 2, docs/design.md §9.3) as pydantic models, and one-line
+"""The calibration file's schema (format version 2, docs/design.md, "Calibration file") as pydantic models, and one-line
 messages from pydantic's errors. Its own module so that writing a file (optcal calibrate -o, optcal imu -o)
 does not import pydantic (a tenth of a second or more): :func:`optcal.core.calfile.read_calibration` imports it."""
 
@@ -41,7 +41,7 @@ class _Context(_Record):
 
 
 class CalibrationRecord(_Record):
-    """Format version 2 (docs/design.md §9.3), in the order the reader checks it."""
+    """Format version 2 (docs/design.md, "Calibration file"), in the order the reader checks it."""
 
     format: Literal["optcal-calibration"]
     format_version: Literal[2, 3]
@@ -82,7 +82,7 @@ class CalibrationRecord(_Record):
         if self.units.parameters is not None and self.units.parameters != model.units(self.units.raw):
             wrong = sorted(n for n, u in model.units(self.units.raw).items() if self.units.parameters.get(n) != u)
             raise _problem(f"units.parameters disagree with units.raw {self.units.raw!r} for "
-                           f"{', '.join(wrong) or 'extra names'} (docs/design.md §3.1); {_RECREATE}")
+                           f"{', '.join(wrong) or 'extra names'} (docs/design.md, 'Terms and parameters'); {_RECREATE}")
         if bool(self.forced) != bool(self.forced_reasons):
             raise _problem("a forced calibration has both forced: true and its forced_reasons, and only it has "
                            f"them; {_RECREATE}")
@@ -113,7 +113,7 @@ class CalibrationRecord(_Record):
                            f"{'; '.join(f'{t}: {want[t]}' for t in bad if t in want) or 'none'}); {_RECREATE}")
 
 
-# the fields every file must have besides format and format_version (docs/design.md §9.3 lists them)
+# the fields every file must have besides format and format_version (docs/design.md, "Calibration file" lists them)
 REQUIRED_FIELDS = tuple(n for n, f in CalibrationRecord.model_fields.items()
                         if f.is_required() and n not in ("format", "format_version"))
 _KINDS = {"int_type": "an integer", "float_type": "a number", "string_type": "a string",

@@ -24,7 +24,8 @@ class Calibration:
     applies it (the file holds the record, not the fit's data and diagnostics).
 
     - ``model``: the :class:`~optcal.core.model.Model` fitted (its parameter names, units and terms).
-    - ``x`` (p,): the parameters in the model's order and units (docs/design.md §3); ``parameters``: the same
+    - ``x`` (p,): the parameters in the model's order and units (docs/design.md, "The sensor model"); ``parameters``:
+    the same
       as {name: value}.
     - ``stderr`` (p,): each parameter's Cramér-Rao standard error at ``x`` (Birge-scaled when the residuals
       exceed the noise; inf for an unobservable direction), same units.
@@ -34,7 +35,8 @@ class Calibration:
     - ``problem``: the :class:`~optcal.core.problem.CalibrationProblem` fitted (data, presets, local gravity).
     - ``solver``: the registered solver's name; ``result``: its :class:`optcal.solvers.base.SolverResult`.
     - ``notes``: what the user should know about these numbers, one line each.
-    - ``diagnostics``: per-position residuals, leverages and outliers (§7.5); ``positions``: them as rows.
+    - ``diagnostics``: per-position residuals, leverages and outliers (design.md, "Per-position residuals, outliers,
+    the robust loss, what the data determine and weak fits"); ``positions``: them as rows.
     - ``loss``, ``f_scale_g``: the robust loss and its scale in g (``linear``, None: plain least squares).
     - ``forced``: the reasons a ``force_weak`` fit would have been refused for (empty: not forced).
     - ``requested_model``: the default model when the data determined only a smaller one (the fallback).
@@ -49,7 +51,9 @@ class Calibration:
     solver: str
     result: object  # the SolverResult
     notes: list = field(default_factory=list)  # what the user should know about these numbers
-    diagnostics: PositionDiagnostics | None = None  # per-position residuals and outliers (§7.5)
+    diagnostics: PositionDiagnostics | None = None  # per-position residuals and outliers (design.md, "Per-position
+                                                    # residuals, outliers, the robust loss, what the data determine
+                                                    # and weak fits")
     loss: str = "linear"
     f_scale_g: float | None = None
     forced: list = field(default_factory=list)  # the reasons a `force_weak` fit would have been refused for
@@ -62,7 +66,8 @@ class Calibration:
     @property
     def positions(self) -> list[dict]:
         """One row per position: index, position, label, residual_ug, sigma_ug, standardised (r/σ), leverage,
-        statistic_sigma (|r|/(σ√(1−h))), p_value, weight (robust), outlier (docs/design.md §7.5)."""
+        statistic_sigma (|r|/(σ√(1−h))), p_value, weight (robust), outlier (docs/design.md, "Per-position residuals,
+        outliers, the robust loss, what the data determine and weak fits")."""
         return self.diagnostics.rows() if self.diagnostics is not None else []
 
     def residual_table(self) -> str:
@@ -100,7 +105,8 @@ class Calibration:
             "nfev": r.nfev, "nit": r.nit, "runtime_s": r.runtime_s, "success": r.success, "message": r.message,
         }
 
-    # -- its file (docs/design.md §9.3: the versioned JSON record, optcal.core.calfile) -----------------------
+    # -- its file (docs/design.md, "Calibration file": the versioned JSON record, optcal.core.calfile)
+    # -----------------------
     def file_record(self, *, units_out: str | None = None, source=None) -> dict:
         """The calibration file's content: ``format``, ``format_version``, model, parameters, standard errors,
         units (``raw``: ``units_out``, the data's by default; ``calibrated``: g), local gravity, ...

@@ -1,4 +1,4 @@
-"""Positions data sets and the positions CSV of docs/design.md §9.1 (any delimiter, decimal mark, header
+"""Positions data sets and the positions CSV of docs/design.md, "Positions CSV" (any delimiter, decimal mark, header
 form or compression :mod:`optcal.core.tablefile` reads).
 
 One row per static position: ``position``, the mean raw output ``ax, ay, az``, and optionally ``t`` (s),
@@ -40,7 +40,8 @@ MANY_POSITIONS = 1000
 
 
 def residuals_per_position(reference: bool) -> int:
-    """Residuals each position contributes (docs/design.md §5): one, ‖A‖ − g, in the field; three, A − ref
+    """Residuals each position contributes (docs/design.md, "The calibration problem"): one, ‖A‖ − g, in the field;
+    three, A − ref
     per axis, against a turntable's reference."""
     return 3 if reference else 1
 
@@ -144,7 +145,7 @@ def _fmt(v) -> str:
 
 
 def read_positions(path: str | Path, units: str = "g") -> PositionsData:
-    """Read and validate a positions CSV (docs/design.md §9.1). Every problem is an :class:`InputError`.
+    """Read and validate a positions CSV (docs/design.md, "Positions CSV"). Every problem is an :class:`InputError`.
 
     The layout is read as the raw reader reads it (:mod:`optcal.core.tablefile`): a comma, semicolon, tab or
     whitespace between the cells (from the last line), a decimal comma with the last three, compression by
@@ -277,7 +278,8 @@ UNITS = ("g", "m/s2", "counts", "volts", "mg")
 
 
 def guess_units(magnitude: float) -> str | None:
-    """The output units a static sensor's typical output magnitude suggests (docs/design.md §2): about 1 is
+    """The output units a static sensor's typical output magnitude suggests (docs/design.md, "Units and frames"):
+    about 1 is
     g, 9.8 m/s², 1000 mg, and a power of two from 128 up (16384 for a ±2 g 16-bit ADC) counts; else None."""
     m = float(magnitude)
     if not math.isfinite(m) or m <= 0:
@@ -299,7 +301,7 @@ _PLAUSIBLE = {"mg": (500.0, 2000.0)}
 
 def check_units(data: PositionsData, units: str) -> None:
     """Refuse data whose output magnitudes contradict the units declared: norms that look like m/s², g, mg
-    or counts (a power of two per g) while other units are declared (docs/design.md §2)."""
+    or counts (a power of two per g) while other units are declared (docs/design.md, "Units and frames")."""
     if units not in UNITS:
         raise InputError(f"unknown units {units!r}; use one of {', '.join(UNITS)}")
     with np.errstate(over="ignore"):  # a wild value overflows to inf: the problem names that position later

@@ -1,4 +1,5 @@
-"""Whether the data determine a fit (issue #20; docs/design.md §7.5, "What the data determine"): one place that
+"""Whether the data determine a fit (issue #20; docs/design.md, "Per-position residuals, outliers, the robust loss,
+what the data determine and weak fits", "What the data determine"): one place that
 judges a calibration before anything is written, for any model and any output units.
 
 Four classes of refusal, each one line naming the reason and the way out:
@@ -39,7 +40,8 @@ ROUNDING_G = 1e-9
 # ... or, with the noise of the position means known, χ²/dof below this: with 3 or more degrees of freedom the
 # chance of so small a χ² from noise of the stated size is below 1e-8, so the data are not noisy measurements.
 EXACT_CHI2 = 1e-6
-# Plausibility (docs/design.md §7.5). Scale factors within ±30 % of the nominal: MEMS datasheets state their
+# Plausibility (docs/design.md, "Per-position residuals, outliers, the robust loss, what the data determine and weak
+# fits"). Scale factors within ±30 % of the nominal: MEMS datasheets state their
 # sensitivity to a few per cent (the MPU-6050's 16384 LSB/g ±3 %), so 30 % is ten times that and more.
 SCALE_TOL = 0.30
 # Offsets within ±0.5 g: datasheet zero-g offsets are tens of mg (the MPU-6050's ±50 mg, ±80 mg on z); an axis
@@ -52,7 +54,8 @@ ANGLE_MAX_RAD = math.radians(5.0)
 # scale that MEMS datasheets state as nonlinearity. Temperature and drift terms: their effect over the data's
 # own temperature and time spans within the same bounds as an offset (0.5 g) or a scale factor (30 %).
 NONLINEAR_MAX = 0.05
-# The fallback chain of the default model: each drops the last term of the one before (docs/design.md §3.3).
+# The fallback chain of the default model: each drops the last term of the one before (docs/design.md, "Named models
+# and parameter order").
 DEFAULT_MODEL = "nonlinear12"
 FALLBACK = ("nonlinear12", "linear9", "diag6")
 
@@ -60,7 +63,8 @@ FALLBACK = ("nonlinear12", "linear9", "diag6")
 def first_found(find, model=None, raw: bool = True):
     """``find(name)`` for ``model``; for the default (None), for each model of :data:`FALLBACK` in turn until one
     is found: a raw recording's detection may find too few intervals for nonlinear12, and then looks again for
-    linear9, then diag6, whose fit says so (docs/design.md §7.5). The last model's error is the one raised;
+    linear9, then diag6, whose fit says so (docs/design.md, "Per-position residuals, outliers, the robust loss, what
+    the data determine and weak fits"). The last model's error is the one raised;
     positions that are not a raw recording (``raw`` False) are read once, for the first model. The one fallback
     loop of ``optcal calibrate`` and :func:`optcal.calibrate`."""
     names = (model,) if model is not None else FALLBACK
@@ -71,7 +75,8 @@ def first_found(find, model=None, raw: bool = True):
             if not raw or k == len(names) - 1:
                 raise
     raise AssertionError("unreachable")  # pragma: no cover - the loop returns or raises
-# The nominal scale factor (output units per g) of units with a physical zero and gain (docs/design.md §2).
+# The nominal scale factor (output units per g) of units with a physical zero and gain (docs/design.md, "Units and
+# frames").
 NOMINAL_SCALE = {"g": 1.0, "mg": 1000.0, "m/s2": G0}
 
 
@@ -88,7 +93,8 @@ class Refusal:
 
 def structure(problem: CalibrationProblem, obs: Observability, *, gauge: bool = False) -> list[Refusal]:
     """What the positions leave undetermined before anything is fitted: too few positions for the model, an
-    unobservable direction (not when ``gauge``: presets or seed15's rotations hold them, docs/design.md §6.4),
+    unobservable direction (not when ``gauge``: presets or seed15's rotations hold them, docs/design.md,
+    "Minimum-constraint gauge rows"),
     fewer than :data:`MIN_DOF` residual degrees of freedom, or none (an exact fit)."""
     model, n_pos = problem.model, len(problem.data)
     m, p = problem.n_position_residuals, model.n_params
@@ -154,7 +160,8 @@ def nominal_scale(data: PositionsData, g_local: float = 1.0) -> tuple[float | No
 
 
 def plausibility(model: Model, x: np.ndarray, data: PositionsData, g_local: float = 1.0) -> list[Refusal]:
-    """The fitted parameters against physical bounds (docs/design.md §7.5): scale factors within
+    """The fitted parameters against physical bounds (docs/design.md, "Per-position residuals, outliers, the robust
+    loss, what the data determine and weak fits"): scale factors within
     :data:`SCALE_TOL` of the nominal (:func:`nominal_scale`), offsets within :data:`BIAS_MAX_G` (for counts
     and volts: the zero-g output K·b within 0.5 g of the outputs' sphere centre), angles within
     :data:`ANGLE_MAX_RAD`, nonlinear terms' effect at 1 g within :data:`NONLINEAR_MAX` of the scale, and
@@ -227,7 +234,8 @@ def undetermined(model: Model, x: np.ndarray, sd: np.ndarray) -> list[str]:
 
 
 def span(values, *, centred: bool) -> float:
-    """The largest distance of ``values`` from their mean (temperature, §3.4's T0) or first value (time, t0)."""
+    """The largest distance of ``values`` from their mean (temperature, design.md, "Context: temperature and time
+    offsets"'s T0) or first value (time, t0)."""
     if values is None:
         return 0.0
     v = np.asarray(values, float)

@@ -1,4 +1,5 @@
-"""The linear algebra of observability and the gauge rows (docs/design.md §6.2 and §6.4).
+"""The linear algebra of observability and the gauge rows (docs/design.md, "How the code finds them" and
+"Minimum-constraint gauge rows").
 
 The Jacobian of the position residuals, each column in natural units, has near-zero singular values along
 the directions the norm cost cannot see; their null space, in a sparse basis, names those directions
@@ -17,7 +18,7 @@ import numpy as np
 from optcal.core.presets import family
 
 # Relative singular value below which a direction is unobservable (Fisher information below RTOL² of the
-# best-determined direction; docs/design.md §6.2).
+# best-determined direction; docs/design.md, "How the code finds them").
 RTOL = 1e-3
 
 

@@ -1,6 +1,6 @@
 """Local gravity: WGS84 normal gravity (Somigliana's closed form) with the free-air height correction.
 
-Values in m/s²; the problem works in units of standard gravity G0 (docs/design.md §2).
+Values in m/s²; the problem works in units of standard gravity G0 (docs/design.md, "Units and frames").
 Constants from NIMA TR8350.2 (WGS84), Table 3.4 and Eq. 4-1 / 4-3.
 """
 
@@ -43,7 +43,8 @@ PLAUSIBLE_MS2 = (9.76, 9.84)
 
 def local_gravity_g(gravity_ms2: float | None = None, latitude_deg: float | None = None,
                     height_m: float | None = 0.0) -> float:
-    """g_local in units of G0 (docs/design.md §2): from ``gravity_ms2`` in m/s², or from ``latitude_deg``
+    """g_local in units of G0 (docs/design.md, "Units and frames"): from ``gravity_ms2`` in m/s², or from
+    ``latitude_deg``
     and ``height_m`` (WGS84 normal gravity), or 1.0. A value that looks like g instead of m/s², or a height
     without a latitude (it would be ignored), is refused."""
     if gravity_ms2 is not None and latitude_deg is not None:

@@ -1,4 +1,4 @@
-"""Reading a JSON object from a file a user gave, with one-line errors (docs/design.md §9): the one reader
+"""Reading a JSON object from a file a user gave, with one-line errors (docs/design.md, "File formats"): the one reader
 behind presets, truths, calibration files, noise analyses, intervals and imported calibrations; and the one
 writer of the calibration files (accelerometer and IMU), which keeps an existing file unless told and replaces
 one whole or not at all (:mod:`optcal.core.atomicfile`)."""

@@ -2,7 +2,8 @@
 (turntable reference), turned into ``scale``, ``bias`` and gauge ``misalignment`` parameters.
 
 With the norm cost, the position means lie on the ellipsoid (N − o)ᵀ MᵀM (N − o) = g², where
-M = (diag(K)·T)⁻¹ and o = diag(K)·b. In the gauge of docs/design.md §6.3, T is lower triangular, so M is too, and
+M = (diag(K)·T)⁻¹ and o = diag(K)·b. In the gauge of docs/design.md, "The gauge of `misalignment`", T is lower
+triangular, so M is too, and
 MᵀM is factorised by a Cholesky decomposition of the index-reversed matrix.
 """
 

@@ -1,4 +1,4 @@
-"""The accelerometer sensor model as a sum of named terms (docs/design.md §3).
+"""The accelerometer sensor model as a sum of named terms (docs/design.md, "The sensor model").
 
 The seeds' model (2020 paper, Eq. 10) is ``N = diag(K)·(T·A + b) + K2 ⊙ A²``. Here it is one instance
 of a general sum of terms; each term owns named parameters and says which data columns it needs.
@@ -44,7 +44,8 @@ class NumpyOps:
 
 @dataclass(frozen=True)
 class Context:
-    """Per-position inputs besides A: temperature and time offsets (docs/design.md §3.4: T0 = mean, t0 = first)."""
+    """Per-position inputs besides A: temperature and time offsets (docs/design.md, "Context: temperature and time
+    offsets": T0 = mean, t0 = first)."""
 
     dtemp: np.ndarray | None = None
     dt: np.ndarray | None = None
@@ -88,7 +89,8 @@ class Model:
         return all(TERMS[t].affine for t in self.terms)
 
     def units(self, output_units: str) -> dict[str, str]:
-        """{parameter name: its unit} for data whose outputs are in ``output_units`` (docs/design.md §2, §3.1):
+        """{parameter name: its unit} for data whose outputs are in ``output_units`` (docs/design.md, "Units and
+        frames", "Terms and parameters"):
         K in output units per g, b in g, angles in rad, K2 per g², K3 per g³, temperature terms per °C,
         drift per s. The one statement of the parameters' units: printed tables and files take them from here."""
         out = UNIT_NAMES.get(output_units, output_units)
@@ -172,7 +174,8 @@ class Model:
         """Outputs (N_x, N_y, N_z) from parameters ``P`` {name: value} and inputs ``A = (A_x, A_y, A_z)``.
 
         Written once for every backend: values in ``P`` and ``A`` may be broadcastable NumPy arrays
-        (real or complex) or CasADi expressions. This is the table of docs/design.md §3.1, term by term.
+        (real or complex) or CasADi expressions. This is the table of docs/design.md, "Terms and parameters", term by
+        term.
         """
         Ax, Ay, Az = A
         get = P.get
@@ -182,7 +185,8 @@ class Model:
             v = get(name)
             return zero if v is None else v
 
-        # Installation matrix T (docs/design.md §3.2): unit diagonal, the angles in the cells of T_CELLS;
+        # Installation matrix T (docs/design.md, "The installation matrix T"): unit diagonal, the angles in the cells
+        # of T_CELLS;
         # absent angles are zero (the gauge of `misalignment`). Row by row, u_i = t_i0 + t_i1 + t_i2.
         A3 = (Ax, Ay, Az)
         u = []
@@ -282,7 +286,8 @@ class Model:
 
     @staticmethod
     def _apply(pk: dict, A, ctx: Context | None):
-        """Outputs F(A) (S, n, 3) for packed parameters and A (n, 3) or (S, n, 3): docs/design.md §3.1."""
+        """Outputs F(A) (S, n, 3) for packed parameters and A (n, 3) or (S, n, 3): docs/design.md, "Terms and
+        parameters"."""
         lin = A @ pk["T"].transpose(0, 2, 1)
         if pk["b"] is not None:
             lin = lin + pk["b"]
@@ -389,7 +394,8 @@ class Model:
 
 def get_model(spec: str | Model) -> Model:
     """A model from a name (``diag6``, ``linear9``, ``nonlinear12``, ``seed15``) or a sum of terms
-    (``scale+bias+misalignment+cubic``, ``linear9+ax.ay@z``). Terms are put in docs/design.md §3.1's order, and
+    (``scale+bias+misalignment+cubic``, ``linear9+ax.ay@z``). Terms are put in docs/design.md, "Terms and
+    parameters"'s order, and
     user-defined terms (:func:`optcal.core.terms.user_term`) after them in the order of their names."""
     if isinstance(spec, Model):
         return spec

@@ -1,4 +1,5 @@
-"""Static navigation: the position error a calibration causes in a strapdown INS at rest (docs/design.md §13).
+"""Static navigation: the position error a calibration causes in a strapdown INS at rest (docs/design.md, "Static
+navigation").
 
 The papers judge a calibration by a static navigation run (2020 paper §5.2, Eq. 23, Table 6 and
 Figure 11; 2015 paper §7): the accelerometer errors the calibration leaves, seen at a fixed attitude,
@@ -285,7 +286,8 @@ def calibration_error_body(model: Model, x_true, x_est, attitude_deg=(0.0, 0.0, 
     The truth specific force at the fixed attitude is f^b = C_n^b·(0, 0, −g) with g the normal gravity
     of the site; the sensor's outputs are generated with the true parameters (``model.forward``) and
     converted back with the estimated ones (``model.inverse``); the result is that minus f^b. For a
-    bias error only (diag6, equal K) it is −(b_est − b_true)·g0: the model's biases are in g (docs/design.md §3.1).
+    bias error only (diag6, equal K) it is −(b_est − b_true)·g0: the model's biases are in g (docs/design.md, "Terms
+    and parameters").
     ``x_true``/``x_est``: parameter vectors of ``model`` or {name: value} dicts.
     """
     _check_site(latitude_deg, height_m)

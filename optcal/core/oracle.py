@@ -1,6 +1,7 @@
 """The NumPy evaluation of a calibration problem: the test oracle that the compiled kernel is checked
-against (docs/design.md §3.6), with the same residuals (§5.1 norm, §5.2 reference, §6.4 gauge rows) and
-Jacobian (§5.5: the implicit function theorem at the inverse) written on arrays through
+against (docs/design.md, "One table, three evaluators"), with the same residuals (design.md, "Norm residuals
+and cost", "Reference (turntable) residuals" and "Minimum-constraint gauge rows") and Jacobian (design.md,
+"Evaluation paths and the Jacobian": the implicit function theorem at the inverse) written on arrays through
 :class:`optcal.core.model.Model`. :class:`optcal.core.problem.CalibrationProblem` exposes them as
 ``residuals_full_numpy`` and ``jacobian_full_numpy``.
 """

@@ -117,7 +117,7 @@ def load_presets(path: str | Path) -> Presets:
     bad = sorted(k for k in list(values) + list(halfwidth) if k not in known)
     if bad:
         raise InputError(f"presets {path}: unknown parameter name(s) {', '.join(bad)} "
-                         "(see docs/design.md §3.1 for names)")
+                         "(see docs/design.md, 'Terms and parameters' for names)")
     try:
         return Presets({k: float(v) for k, v in values.items()}, {k: float(v) for k, v in halfwidth.items()})
     except (TypeError, ValueError):

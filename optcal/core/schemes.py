@@ -1,4 +1,4 @@
-"""Static position schemes (docs/design.md §4): unit gravity directions in the body frame.
+"""Static position schemes (docs/design.md, "Position schemes"): unit gravity directions in the body frame.
 
 Group x turns about the horizontal x axis: A = (0, sin θ, cos θ); group y: A = (cos θ, 0, sin θ);
 group z: A = (sin θ, cos θ, 0). The 24-position scheme uses 45° steps (2020 paper §3.3, 2015 paper §7.1),

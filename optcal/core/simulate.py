@@ -51,7 +51,8 @@ def simulate(
 ) -> Simulation:
     """Simulate position means.
 
-    ``truth`` holds the model's parameters in their units (docs/design.md §3.1); None draws one from ``rng``
+    ``truth`` holds the model's parameters in their units (docs/design.md, "Terms and parameters"); None draws one
+    from ``rng``
     as ``optcal simulate`` does without ``--truth`` (:func:`optcal.core.presets.draw_truth`, before the data's
     draws). ``rng`` is a ``numpy.random.Generator`` or an integer seed for one; the drawn truth is the
     result's ``truth``.

@@ -1,5 +1,6 @@
 """The terms of the sensor model, their parameters and units, the named models and the cell map of the
-installation matrix (docs/design.md §3.1-§3.3): the table every numeric back end reads. The equations the
+installation matrix (docs/design.md, "Terms and parameters" to "Named models and parameter order"): the table every
+numeric back end reads. The equations the
 terms stand for are written once, in :meth:`optcal.core.model.Model.components`.
 """
 
@@ -27,7 +28,7 @@ class Term:
     # The term's output is affine in the specific force and needs no data column: a model made only of
     # such terms is inverted in closed form.
     affine: bool = False
-    # The unit of each parameter (docs/design.md §3.1 "unit"), "{out}" standing for the output units.
+    # The unit of each parameter (docs/design.md, "Terms and parameters" "unit"), "{out}" standing for the output units.
     param_unit: str = "1"
     # A user-defined term (:func:`user_term`): its feature, and the output axes it adds to (0, 1, 2).
     feature: Feature | None = None
@@ -129,11 +130,12 @@ NAMED_MODELS: dict[str, tuple[str, ...]] = {
 
 TERM_ORDER = list(TERMS)
 
-# How each output unit of optcal.core.data.UNITS is written beside a number (docs/design.md §2).
+# How each output unit of optcal.core.data.UNITS is written beside a number (docs/design.md, "Units and frames").
 UNIT_NAMES = {"g": "g", "m/s2": "m/s²", "counts": "counts", "volts": "V", "mg": "mg"}
 
-# The installation matrix T's off-diagonal cells (row i, column j) and the angle in each (docs/design.md
-# §3.2): T = I + these cells, u = T·A. The one statement of this map: every module that builds T or reads
+# The installation matrix T's off-diagonal cells (row i, column j) and the angle in each (docs/design.md,
+# "The installation matrix T"): T = I + these cells, u = T·A. The one statement of this map: every module that builds
+# T or reads
 # angles from a matrix uses it.
 T_CELLS = {(0, 1): "S_xz", (0, 2): "S_xy", (1, 0): "S_yz", (1, 2): "S_yx", (2, 0): "S_zy", (2, 1): "S_zx"}
 
@@ -157,7 +159,8 @@ T_CELLS = {(0, 1): "S_xz", (0, 2): "S_xy", (1, 0): "S_yz", (1, 2): "S_yx", (2, 0
 # Numbers in names write their decimal point as 'p' (osc2p5: a period of 2.5 s), since '.' joins the factors.
 # The scales make every factor of order one on the data it was found on, so that the parameter's Jacobian
 # column is commensurate with the others (observability works in the parameters' natural units, which are 1
-# for these: docs/design.md §6.2); the coefficient in physical units is c/scale^power (:meth:`Feature.physical`).
+# for these: docs/design.md, "How the code finds them"); the coefficient in physical units is c/scale^power
+# (:meth:`Feature.physical`).
 
 PREV_DEADZONE_G = 0.25  # a previous pose loading an axis by less than this (g) leaves no sign on it
 SAME_POSE_DEG = 2.0  # consecutive positions whose directions lie within this angle are one pose
@@ -238,7 +241,8 @@ class Feature:
 
     @property
     def group(self) -> str:
-        """The parameter group (docs/design.md §3.1) the staged solver and the fish swarms treat it in."""
+        """The parameter group (docs/design.md, "Terms and parameters") the staged solver and the fish swarms treat it
+        in."""
         if self.temp is not None:
             return "temperature"
         return "drift" if self.needs else "nonlinear"

@@ -1,4 +1,5 @@
-"""Views of a problem over its parameters, and its shared evaluation counter (docs/design.md §5.4): the part
+"""Views of a problem over its parameters, and its shared evaluation counter (docs/design.md, "Views, the shared
+counter and the budget"): the part
 of the problem interface the solvers use that does not depend on what is being calibrated. The
 accelerometer's problem (:class:`optcal.core.problem.CalibrationProblem`) and the gyroscope's
 (:class:`optcal.core.gyro.problem.GyroProblem`) both offer it through :class:`ParameterViews`.

@@ -4,7 +4,8 @@ of the ``ellipsoid`` solver (:mod:`optcal.solvers.ellipsoid`) and the default st
 ``optcal/solvers/base.py`` can use it without importing a solver module (which imports the contract).
 
 With the norm cost the position means lie on the ellipsoid (N − o)ᵀ Q (N − o) = g² (2020 paper Eq. 12 with
-the linear part of Eq. 10: Q = MᵀM, M = (diag(K)·T)⁻¹, o = diag(K)·b; docs/design.md §3.2). In homogeneous
+the linear part of Eq. 10: Q = MᵀM, M = (diag(K)·T)⁻¹, o = diag(K)·b; docs/design.md, "The installation matrix T"). In
+homogeneous
 coordinates h = (N, 1) every point satisfies hᵀ 𝐌 h = 0 with the 4×4 symmetric 𝐌 = [[Q, q], [qᵀ, c]], which
 is linear in the ten entries v of 𝐌: D·v = 0 for the n×10 design matrix D. The fit is
 
@@ -22,7 +23,8 @@ that of the equality-constrained least-squares problem, whose KKT system is then
 singular), or one whose quadric has no real points, means the data are not an ellipsoid: refused.
 
 The ellipsoid gives the centre o and Q = MᵀM; :func:`optcal.core.linfit.ellipsoid_to_params` factors Q in the
-gauge of docs/design.md §6.3 (lower-triangular T: S_xz = S_xy = S_yx = 0). Terms beyond ``linear9`` (nonlinear,
+gauge of docs/design.md, "The gauge of `misalignment`" (lower-triangular T: S_xz = S_xy = S_yx = 0). Terms beyond
+``linear9`` (nonlinear,
 temperature, drift) are set to zero: for those models the fit is a one-shot initialiser, not an
 optimiser. It is the default starting point of the local methods (:func:`ellipsoid_start`).
 """
@@ -155,7 +157,8 @@ def _conic(n: int, misalignment: bool):
 
 def fit_ellipsoid(N: np.ndarray, g_local: float = 1.0, *, misalignment: bool = True, solver: str = "auto",
                   polish: bool = True) -> dict:
-    """The convex fit: returns K, b, T (gauge of docs/design.md §6.3), the centre o, Q (radius g_local) and
+    """The convex fit: returns K, b, T (gauge of docs/design.md, "The gauge of `misalignment`"), the centre o, Q
+    (radius g_local) and
     solver details. Raises InputError for data that cannot be an ellipsoid."""
     mu, s, P, D, keep = _prepare(N, misalignment)
     name = _solver_name(solver)

@@ -4,7 +4,8 @@ Every behaviour acts on the whole school at once: positions are an (N, D) array,
 and every point a behaviour needs is evaluated in one call of the problem's batched cost. The only
 Python loop is over the prey *tries* (at most ``try_number`` per behaviour), never over fish.
 
-Conventions (docs/algorithms.md §1 and §5, written for minimisation):
+Conventions (docs/algorithms.md, "Conventions shared by the search methods" and "Standard artificial fish swarm
+(`afsa`)", written for minimisation):
 - the search runs in the problem's normalised coordinates, a unit box z ∈ [−1, 1]^D; ``clip`` keeps
   every point (probes included) inside it;
 - a non-finite cost is treated as +inf, so a fish never moves to such a point by comparison;
@@ -114,7 +115,7 @@ def prey(ev: Evaluator, X: np.ndarray, f: np.ndarray, visual, try_number: int,
 
 def afsa_generation(ev: Evaluator, X: np.ndarray, f: np.ndarray, visual: float, step: float, crowd: float,
                     try_number: int, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
-    """One generation of standard AFSA (Li Xiaolei 2002; docs/algorithms.md §5).
+    """One generation of standard AFSA (Li Xiaolei 2002; docs/algorithms.md, "Standard artificial fish swarm (`afsa`)").
 
     Every fish performs swarm and follow; each falls back on prey (and prey on a free move) when its
     condition fails; the fish keeps the better of the two results (it moves even if both are worse

@@ -2,7 +2,8 @@
 optimizing method based on autonomous animats: fish-swarm algorithm", Systems Engineering — Theory &
 Practice 22(11), 2002; the 2015 seed paper §2 as SAFSA).
 
-Update rules: docs/algorithms.md §5, in the problem's normalised coordinates (the unit box
+Update rules: docs/algorithms.md, "Standard artificial fish swarm (`afsa`)", in the problem's normalised coordinates
+(the unit box
 around the presets or the initialiser; 2020 paper §3.4). The behaviours are in :mod:`optcal.solvers._fish`.
 """
 

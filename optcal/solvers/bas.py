@@ -1,5 +1,5 @@
 """Beetle antennae search, BAS (Jiang & Li, "BAS: beetle antennae search algorithm for optimization
-problems", arXiv:1710.10724, 2017), for minimisation, as in ``docs/algorithms.md`` §2.
+problems", arXiv:1710.10724, 2017), for minimisation, as in ``docs/algorithms.md``, "Beetle antennae search (`bas`)".
 
 The helpers every search method shares (the unit-box view and start, non-finite costs) are in
 ``optcal.solvers._unitbox``.

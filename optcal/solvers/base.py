@@ -1,4 +1,4 @@
-"""The solver contract (docs/design.md §10).
+"""The solver contract (docs/design.md, "The solver contract").
 
 A solver is constructed with its options (an unknown option or a bad value is an error) and has
 ``solve(problem, *, x0=None, budget, rng, callback=None) -> SolverResult``. The result uses SciPy's field
@@ -149,7 +149,8 @@ class Stagnation:
     each stage's, inside ``staged:``). It is checked once per iteration (at the solver's callback), so a
     solve ends at the first iteration boundary after the rule holds. Only solvers that set
     :attr:`Solver.stops_on_stagnation` take it: those without a termination of their own that ends a run
-    once it has converged (docs/algorithms.md §1, "Stopping"). Without an evaluation limit it never fires.
+    once it has converged (docs/algorithms.md, "Conventions shared by the search methods", "Stopping"). Without an
+    evaluation limit it never fires.
 
     The best cost at evaluation e − W is read from the problem's trace (every improvement, with the
     evaluation count at which it happened), so the rule does not depend on how often the solver calls back.

@@ -1,5 +1,6 @@
 """Beetle swarm antennae search, BSAS (Wang & Chen, "BSAS: Beetle Swarm Antennae Search Algorithm for
-Optimization Problems", arXiv:1807.10470, 2018), as in ``docs/algorithms.md`` §3, with the parameters
+Optimization Problems", arXiv:1807.10470, 2018), as in ``docs/algorithms.md``, "Beetle swarm antennae search
+(`bsas`)", with the parameters
 the 2020 calibration paper names (m, p_pos, p_st, η, s0, d0)."""
 
 from __future__ import annotations
@@ -88,7 +89,8 @@ class BSAS(Solver):
     m = 10 is the beetle count whose convergence the 2020 paper's Fig. 3 shows best. ``step_init`` and
     ``d_init`` are optcal's choices for the unit box, the same as ``bas``'s (the paper's Table 2 did not
     survive in the stored copy). With ``c`` set, the variant that ties the antenna to the step,
-    d = δ/c (rBAS ``BSAS_WPT``; docs/algorithms.md §3), replaces d's own schedule: ``d_init``
+    d = δ/c (rBAS ``BSAS_WPT``; docs/algorithms.md, "Beetle swarm antennae search (`bsas`)"), replaces d's own
+    schedule: ``d_init``
     and ``d0`` are then unused.
 
     The search runs in the problem's unit-box coordinates z ∈ [-1, 1]^n from ``x0`` (the presets or the

@@ -25,7 +25,7 @@ class CMAES(Solver):
     Evolutionary Computation 9(2)) as implemented by pycma (N. Hansen et al., ``cma`` on PyPI,
     https://github.com/CMA-ES/pycma, doi:10.5281/zenodo.2559634), driven through its ask/tell interface
     (``cma.CMAEvolutionStrategy``): each generation's λ candidates are one ``problem.cost_batch`` call
-    (docs/algorithms.md §15).
+    (docs/algorithms.md, "CMA-ES (`cmaes`)").
 
     The search runs in the problem's unit box z ∈ [-1, 1]^n (2020 paper §3.4) with pycma's own boundary
     handling (``bounds=[-1, 1]``, its default ``BoundTransform``), and every run starts its mean at ``x0``

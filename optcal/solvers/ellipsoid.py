@@ -1,5 +1,5 @@
 """The ``ellipsoid`` solver: the convex (SDP) ellipsoid fit of the position means, turned into ``linear9``
-parameters (docs/design.md §3.2; the fit itself, its equations and its checks are in
+parameters (docs/design.md, "The installation matrix T"; the fit itself, its equations and its checks are in
 :mod:`optcal.solvers._ellipsoid_fit`, which the solver contract also uses for the local methods' default start).
 
 Terms beyond ``linear9`` (nonlinear, temperature, drift) are set to zero: for those models the fit is a

@@ -1,5 +1,6 @@
 """Levenberg-Marquardt in NumPy with the problem's exact Jacobian: the one-off fit of ``optcal calibrate`` and
-``optcal imu`` (docs/design.md §7.5, docs/performance.md "One calibration from a raw recording").
+``optcal imu`` (docs/design.md, "Per-position residuals, outliers, the robust loss, what the data determine and weak
+fits", docs/performance.md "One calibration from a raw recording").
 
 Why not SciPy's (``scipy-lm``, MINPACK's lmder, which stays registered and is what the studies run): importing
 ``scipy.optimize`` costs 0.3–0.4 s on the project's machine, most of the 0.5 s that a whole ``optcal calibrate

@@ -4,7 +4,8 @@
 ``mealpy:DevSMA``, ...: the suffix is the name of an optimiser class of mealpy 3 (Van Thieu & Mirjalili 2023,
 "MEALPY: An open-source library for latest meta-heuristic algorithms in Python", Journal of Systems
 Architecture 139, 102871), or of its module, which names the algorithm's original version (``GWO`` is
-``OriginalGWO``). docs/algorithms.md §17. mealpy is GPL-3.0: it is imported when a ``mealpy:`` solver runs,
+``OriginalGWO``). docs/algorithms.md, "mealpy's optimisers (`mealpy:<NAME>`)". mealpy is GPL-3.0: it is imported when
+a ``mealpy:`` solver runs,
 never copied; ``make`` installs it without its declared dependencies (its pin numpy<=1.26 excludes the NumPy
 that nlopt and cvxpy need; pyproject.toml, ``[tool.optcal] install-without-deps``).
 """

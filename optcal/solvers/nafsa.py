@@ -2,7 +2,8 @@
 coefficients identification with a novel artificial fish swarm algorithm", Journal of Sensors 2015,
 509143, §4; after Yazdani et al. 2013).
 
-docs/algorithms.md §7, in the problem's normalised coordinates. Step and crowd factor are gone;
+docs/algorithms.md, "Novel artificial fish swarm (`nafsa`)", in the problem's normalised coordinates. Step and crowd
+factor are gone;
 the visual is a vector with one entry per dimension, set per parameter group (§4.1 and §6.1: the paper
 gives each category of coefficients its own visual). One generation:
 
@@ -17,7 +18,8 @@ gives each category of coefficients its own visual). One generation:
    is better than the best, it becomes the best (Eq. 14). Fish always move; the bulletin board is
    never overwritten with a worse point (§4.2.1).
 3. Contraction (§4.1, Eqs. 8-9): CF ~ U(CF_min, CF_max) drawn once per generation, and
-   visual ← CF · visual (reading chosen: recursive, as docs/algorithms.md §7 states, not CF · visual_0;
+   visual ← CF · visual (reading chosen: recursive, as docs/algorithms.md, "Novel artificial fish swarm (`nafsa`)"
+   states, not CF · visual_0;
    the geometric mean of U(0, 1) is 1/e, so the visual shrinks by about e per generation and the late
    generations are driven by the group behaviour). The paper's CF_min, CF_max = 1e-6, 0.999999.
 

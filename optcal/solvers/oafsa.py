@@ -1,7 +1,8 @@
 """Optimal artificial fish swarm algorithm, ``oafsa``: standard AFSA with attenuated visual and step and
 an automatic secondary initialisation (the 2015 seed paper §3, after Gao et al. [18-20] and Wang et al. [26]).
 
-Schedule (docs/algorithms.md §6; the 2015 paper §3.1, whose equation did not survive in
+Schedule (docs/algorithms.md, "Optimal artificial fish swarm (`oafsa`)"; the 2015 paper §3.1, whose equation did not
+survive in
 the stored copy): at generation t = 1..T,
 
     α(t) = exp(−30·(t/T)^s),  visual_t = visual_0·α(t) + visual_min,  step_t = step_0·α(t) + step_min

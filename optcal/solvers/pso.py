@@ -1,5 +1,5 @@
 """Global-best particle swarm optimisation with Clerc-Kennedy constriction, synchronous and vectorised
-(``docs/algorithms.md`` §4)."""
+(``docs/algorithms.md``, "Particle swarm optimisation (`pso`)")."""
 
 from __future__ import annotations
 

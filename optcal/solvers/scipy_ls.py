@@ -1,6 +1,6 @@
 """SciPy ``least_squares`` with the problem's exact Jacobian: Levenberg-Marquardt (MINPACK) and the
 trust-region-reflective method (Branch, Coleman & Li 1999), the latter optionally with a robust loss
-(docs/design.md §7.5)."""
+(docs/design.md, "Per-position residuals, outliers, the robust loss, what the data determine and weak fits")."""
 
 from __future__ import annotations
 

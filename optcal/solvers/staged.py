@@ -4,7 +4,8 @@
 optimised first with every other parameter held at its preset, then the biases (scale factors loaded
 from stage 1), then the installation angles, then the second-order terms; "the above steps can be
 repeated until the requirements are met". Here the stages are the model's parameter groups
-(``model.groups()``: scale, bias, misalignment, nonlinear, temperature, drift, in docs/design.md §3.1 order), so
+(``model.groups()``: scale, bias, misalignment, nonlinear, temperature, drift, in docs/design.md, "Terms and
+parameters" order), so
 the procedure works on any model, and the cycles repeat until a cycle lowers the cost by less than the
 fraction ``rtol`` or ``max_cycles`` cycles have run.
 
@@ -131,7 +132,8 @@ class Staged(Solver):
     Each stage solves ``problem.restrict(group, at=current)`` with the inner solver, the other groups
     held at the current values; its start is the current values of its group, and its result (the best
     point the stage found, never worse than its start once that was evaluated) becomes the current
-    point. A cycle runs every group in ``groups`` order (default: all the model's groups, docs/design.md §3.1
+    point. A cycle runs every group in ``groups`` order (default: all the model's groups, docs/design.md, "Terms and
+    parameters"
     order, which is the papers' order: scale factors, biases, installation angles, nonlinear terms).
     Cycles repeat until one lowers the best cost by less than ``rtol`` relative, or ``max_cycles``. A
     stochastic inner solver with a small stage budget can fail to improve in a cycle by chance (a
@@ -160,7 +162,7 @@ class Staged(Solver):
         "split": Option("equal", str, "stage budgets: 'equal' share of what is left, or the 'inner' "
                         "solver's default per stage", choices=("equal", "inner")),
         "groups": Option("", str, "comma-separated stage order, e.g. 'scale,bias'; empty: every group of the "
-                         "model in docs/design.md §3.1 order"),
+                         "model in docs/design.md, 'Terms and parameters' order"),
     }
 
     def __init__(self, inner: Solver, **options):

@@ -1,8 +1,9 @@
-"""Metrics per solver × scheme × model over a study's Monte-Carlo runs (docs/design.md §11.6).
+"""Metrics per solver × scheme × model over a study's Monte-Carlo runs (docs/design.md, "Metrics").
 
 Accuracy is scored against the Cramér-Rao bound at the truth with the simulation's noise
 (:func:`optcal.studies.trial.projected_crlb`): per parameter, RMSE / CRLB over runs (1 is an efficient
-estimator). With the norm cost some directions are unobservable (seed15 has three; docs/design.md §6.1): the
+estimator). With the norm cost some directions are unobservable (seed15 has three; docs/design.md, "Three directions
+the norm cannot see"): the
 error's component along them is set by the presets, not by the data, so it is reported per direction
 and not scored; parameters that have weight in those directions are scored by their observable part.
 The one-number summary ``accuracy`` is the RMS over parameters of RMSE / CRLB.

@@ -1,8 +1,8 @@
 """Parts of a study's ``report.md`` (:func:`optcal.studies.report.write_report`): the markdown helpers the report
 shares (numbers with their bootstrap interval, tables, a group's label, a scheme's name with its size, the
 accuracy per position), the report's head (the study and how to read its tables), and the sections a
-report has only when the study calls for them: traditional against in-field calibration (docs/design.md
-§11.7), static navigation (2020 paper, Eq. 23 and Table 6) and anytime performance (runtime ECDFs, data and
+report has only when the study calls for them: traditional against in-field calibration (docs/design.md,
+"Report"), static navigation (2020 paper, Eq. 23 and Table 6) and anytime performance (runtime ECDFs, data and
 performance profiles; :mod:`optcal.studies.anytime`).
 """
 
@@ -50,7 +50,8 @@ def label_of(g: Group) -> str:
 
 
 def positions_of(scheme: str) -> int | None:
-    """How many positions a scheme name holds (docs/design.md §4): 6, 24 and 36 by name, N in plan:<D|A|E>N
+    """How many positions a scheme name holds (docs/design.md, "Position schemes"): 6, 24 and 36 by name, N in
+    plan:<D|A|E>N
     and random:N, the rows of a scheme file; None when not known (a scheme file no longer there)."""
     name = str(scheme)
     if name.isdigit():
@@ -356,7 +357,8 @@ def anytime_section(rows: list[dict], order: list[str], spec: dict, figdir: Path
 
 def search_methods(spec: dict, present: list[str]) -> list[str]:
     """The labels of the spec's in-field configurations whose solver belongs to the metaheuristic or global
-    family (docs/design.md §10: a solver's ``family``), in the spec's order: the derivative-free searches
+    family (docs/design.md, "The solver contract": a solver's ``family``), in the spec's order: the derivative-free
+    searches
     that the anytime figures put side by side (a wrapper, such as staged:, has its own family and is left
     out). A configuration that can no longer be built (a solver since removed) is left out."""
     from optcal import solvers

@@ -1,9 +1,9 @@
-"""Scoring a trial (docs/design.md §11.6): the Cramér-Rao bounds its estimate is scored against, the
+"""Scoring a trial (docs/design.md, "Metrics"): the Cramér-Rao bounds its estimate is scored against, the
 per-trial accuracy, and the best cost (and accuracy) so far on the evaluation grid shared by every trial.
 
 The bounds: :func:`optcal.core.analysis.projected_crlb` (the data alone, the error's observable part, with the
-projector and natural units a study needs to score every parameter; docs/design.md §7.1), used here as it
-is, and :func:`crlb_with_presets` (data and presets together, §7.2).
+projector and natural units a study needs to score every parameter; docs/design.md, "Cramér-Rao bound"), used here as it
+is, and :func:`crlb_with_presets` (data and presets together, design.md, "The bound with presets").
 """
 
 from __future__ import annotations

@@ -1,4 +1,4 @@
-"""Study specs (docs/design.md §11.1): a TOML file, validated completely before anything runs.
+"""Study specs (docs/design.md, "The spec"): a TOML file, validated completely before anything runs.
 
 A spec names the problem (the accelerometer's, or the gyroscope's with its simulated recording in
 ``[gyroscope]``), the truth (the fixed ``paper`` values, ``draw`` per run, or a table of values), the models,

@@ -1,4 +1,4 @@
-"""The study spec's schema (docs/design.md §11.1) as pydantic models, and the translation of pydantic's
+"""The study spec's schema (docs/design.md, "The spec") as pydantic models, and the translation of pydantic's
 errors into one line naming the key in the spec file's own terms (``solvers[2].name``, ``verification.scheme``).
 
 Types and bounds are the models' fields (strict: a string is never read as a number, nor a number as a

@@ -1,6 +1,6 @@
 """One trial of a study: simulate run i's data, solve it with one configured solver, score the result.
 
-Seeds (docs/design.md §11.2). Every random stream is a child of the spec's base seed through
+Seeds (docs/design.md, "Seeds and streams"). Every random stream is a child of the spec's base seed through
 ``numpy.random.SeedSequence(seed, spawn_key=(stream, run, ...))``: the truth and presets depend on
 (run, model), the data on (run, model, scheme), the solver's generator on (run, model, scheme, solver
 label). Run i of every solver therefore sees the same data, and no result depends on the executor, the

@@ -12,7 +12,8 @@
   linear9, threshold k = 3 as imu_tk's own search settles near). The issue quotes imu_tk at 0.52 s of
   whole-process time for the same pair, and ``imu_tk_ratio`` is the best round over that figure. With
   ``OPTCAL_IMU_TK`` naming an executable of imu_tk's own ``test_imu_calib`` (not part of this repository;
-  docs/gyroscope.md §5), both programs also run in turn, paired rounds with the order alternating
+  docs/gyroscope.md, "imu_tk's Xsens recording, against imu_tk"), both programs also run in turn, paired rounds with
+  the order alternating
   (test_bench_startup.py's ``paired_with_imu_tk``), and ``imu_tk_paired_median_ratio`` is the median of the
   rounds' ratios optcal / imu_tk.
 """

@@ -43,7 +43,8 @@ def refuse_overwrite(path: str | None, force: bool) -> None:
 
 def parameter_table(names, values, stderr=None, truth: dict | None = None, units: dict | None = None) -> str:
     """A fixed-width table: name, estimate, standard error, the unit of both (``units``: {name: unit}, from
-    :meth:`optcal.core.model.Model.units`, docs/design.md §2), and the truth and error in SEs when given."""
+    :meth:`optcal.core.model.Model.units`, docs/design.md, "Units and frames"), and the truth and error in SEs when
+    given."""
     import numpy as np
 
     uw = max([4] + [len(units.get(n, "")) for n in names]) if units else 0

@@ -43,7 +43,7 @@ def add_data_options(p: argparse.ArgumentParser, *, units_default: str | None = 
     units_help += f" (default {units_default})" if units_default else " (default: the calibration file's)"
     d.add_argument("--units", default=units_default, help=units_help)
     d.add_argument("--raw", action="store_true", help="DATA is a raw recording (t, ax, ay, az per sample)")
-    r = p.add_argument_group("raw recordings (with --raw; docs/design.md §9.2)")
+    r = p.add_argument_group("raw recordings (with --raw; docs/design.md, 'Raw recordings')")
     r.add_argument("--topic", metavar="NAME[,GYRO]", help="a ROS bag's or PX4 ULog's IMU topic (default: its one IMU "
                    "topic); ACC,GYRO for an accelerometer and a gyroscope on topics of their own (docs/real_data.md)")
     r.add_argument("--columns", help="columns by name or 0-based index: t,ax,ay,az or ax,ay,az (with --rate), "

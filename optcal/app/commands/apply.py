@@ -98,7 +98,7 @@ DETECTOR_OPTIONS = {"raw": ("--raw", False), "intervals": ("--intervals", None),
                     "init_s": ("--init-s", None), "threshold_k": ("--threshold-k", None),
                     "method": ("--method", None), "window": ("--window", None), "min_static": ("--min-static", None)}
 # The median magnitude of the calibrated specific force against the calibration's local gravity: beyond this
-# factor either way the data are not in the calibration's units (docs/design.md §9.3).
+# factor either way the data are not in the calibration's units (docs/design.md, "Calibration file").
 MAGNITUDE_FACTOR = 4.0
 
 

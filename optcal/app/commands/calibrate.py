@@ -24,7 +24,8 @@ HELP = "calibrate an accelerometer from static positions (default model nonlinea
 
 class NamedModel(argparse.Action):
     """``--model`` as given: sets the model and notes that the user named one. Only the default model falls back
-    to a smaller one when the positions do not determine it (docs/design.md §7.5); a named one is refused."""
+    to a smaller one when the positions do not determine it (docs/design.md, "Per-position residuals, outliers, the
+    robust loss, what the data determine and weak fits"); a named one is refused."""
 
     def __call__(self, parser, namespace, values, option_string=None):
         setattr(namespace, self.dest, values)
@@ -118,7 +119,8 @@ def run(args) -> int:
 
         save_figure(figure, args.plot)
     if args.json:
-        units = cal.model.units(data.units)  # beside "parameters", in the same order (docs/design.md §2)
+        units = cal.model.units(data.units)  # beside "parameters", in the same order (docs/design.md, "Units and
+                                             # frames")
         extra = {"noise_from": noise} if noise else {}
         floor = data.extra.get("noise_floor") if isinstance(data.extra, dict) else None
         if floor is not None:

@@ -83,7 +83,7 @@ def run(args) -> int:
     if args.diagnostics:
         report.plot_diagnostics(args.diagnostics)
     if args.json:
-        final = report.final_model  # units beside final_parameters (docs/design.md §2)
+        final = report.final_model  # units beside final_parameters (docs/design.md, "Units and frames")
         print(json.dumps({**report.to_dict(), "units": final.units(data.units), "output_units": data.units},
                          indent=2))
     else:

@@ -61,7 +61,8 @@ def run(args) -> int:
     x = sim.truth_vector(model)
     obs = observability(problem, x)
     sd, mask = crlb(problem, x, args.noise_ug * 1e-6)
-    # the representative truth's outputs are in g (K = 1): the bounds are in those parameter units (§2)
+    # the representative truth's outputs are in g (K = 1): the bounds are in those parameter units (design.md, "Units
+    # and frames")
     units = model.units("g")
     if args.json:
         out = {"scheme": args.scheme, "model": model.name, "noise_ug": args.noise_ug, "n_positions": len(sim.data),

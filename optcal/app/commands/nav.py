@@ -21,7 +21,8 @@ HELP = "position error of a 5-hour static navigation run with a calibration, aga
 @functools.cache
 def _owners() -> dict[str, str]:
     """{parameter name: the term that owns it}. A name shared by `misalignment` and `misalignment6` goes to
-    the 3-angle gauge unless a six-angle-only name is present (docs/design.md §3.1); every other name has exactly one
+    the 3-angle gauge unless a six-angle-only name is present (docs/design.md, "Terms and parameters"); every other
+    name has exactly one
     owning term."""
     from optcal.core.model import TERMS
 
@@ -83,7 +84,7 @@ def _load_truth(path: str) -> tuple[dict[str, float], tuple[str, ...], str | Non
     unknown = sorted(k for k in obj if k not in _owners())
     if unknown:
         raise InputError(f"truth {path} has unknown parameter name(s) {', '.join(unknown)}; "
-                         f"known names are those of docs/design.md §3.1, e.g. K_x, b_x, S_yz, K2_x")
+                         f"known names are those of docs/design.md, 'Terms and parameters', e.g. K_x, b_x, S_yz, K2_x")
     values = {}
     for k, v in obj.items():
         if isinstance(v, bool) or not isinstance(v, int | float) or not math.isfinite(v):
@@ -98,7 +99,7 @@ SCALE_FACTOR_RATIO = 4.0
 
 def _check_plain_truth_units(path, truth: dict, K_true, cal) -> None:
     """A plain {name: value} truth states no units: its scale factors (1 where it has none) must be of the
-    calibration's size, else the two are in different output units (docs/design.md §9.3)."""
+    calibration's size, else the two are in different output units (docs/design.md, "Calibration file")."""
     import numpy as np
 
     from optcal.core.data import guess_units

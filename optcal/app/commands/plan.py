@@ -164,7 +164,7 @@ def run(args) -> int:
                 f"{design.value:.6g}, noise {crit.info.noise_g * 1e6:g} µg, fixture {args.fixture}, {design.method}, "
                 f"seed {args.seed}",
                 "dx, dy, dz: unit specific-force direction in the sensor frame; face_down, alpha_deg, beta_deg: "
-                "docs/planning.md §4"]
+                "docs/planning.md, 'For a person: fixtures, faces and tilts, order, files, figure'"]
     if args.output:
         from optcal.core.atomicfile import EXISTS_OUTPUT, write_atomic
 

@@ -1,4 +1,4 @@
-"""optcal simulate: a simulated positions data set (docs/design.md §4, §9.1)."""
+"""optcal simulate: a simulated positions data set (docs/design.md, "Position schemes", "Positions CSV")."""
 
 from __future__ import annotations
 
@@ -72,7 +72,7 @@ def parse_effects(items: list[str]) -> dict[str, dict[str, float]]:
 
 
 # The SD of a position mean: a navigation-grade sensor averaged for seconds gives 1 to 100 µg; above 1 mg
-# is warned about, above 1 g (a position mean noisier than gravity itself) refused (docs/design.md §2).
+# is warned about, above 1 g (a position mean noisier than gravity itself) refused (docs/design.md, "Units and frames").
 # Below 1 ng is no sensor's noise but a value in g given in µg (1e-5 for 10 µg).
 NOISE_WARN_UG, NOISE_MAX_UG, NOISE_MIN_UG = 1_000.0, 1_000_000.0, 1e-3
 
@@ -172,7 +172,7 @@ def run(args) -> int:
     bad = [k for k, v in truth.items() if isinstance(v, bool) or not isinstance(v, int | float) or not math.isfinite(v)]
     if bad:
         raise InputError(f"truth {args.truth}: {', '.join(bad)} must be finite numbers (the model's parameters in "
-                         "their units, docs/design.md §3.1)")
+                         "their units, docs/design.md, 'Terms and parameters')")
     unknown = sorted(set(truth) - set(model.names))
     if unknown:
         raise InputError(f"truth has parameter(s) {', '.join(unknown)} that model {model.name} lacks; use --effect "

@@ -1,4 +1,5 @@
-"""``optcal study run SPEC`` and ``optcal study report DIR``: Monte-Carlo comparison studies (docs/design.md §11).
+"""``optcal study run SPEC`` and ``optcal study report DIR``: Monte-Carlo comparison studies (docs/design.md,
+"Studies").
 
 One file in ``optcal/app/commands/``, found by the command line like every other; the work is in
 :mod:`optcal.app.study_cli`, imported when the command runs.

@@ -5,7 +5,8 @@ Standard errors are the Cramér-Rao bound of the whitened residuals (:func:`optc
 unit noise), scaled by √(χ²/dof) when the fit's χ²/dof exceeds 1 (Birge): the whitening assumes white
 noise, and real rests hold more (bias instability, a hand that is not quite still).
 
-A fit is returned only when it is plausible (:func:`optcal.core.gyro.analysis.plausibility`, docs/gyroscope.md §11):
+A fit is returned only when it is plausible (:func:`optcal.core.gyro.analysis.plausibility`, docs/gyroscope.md, "The
+gates: fits refused, scales noted (issue #29)"):
 scale factors positive, near the declared units' factor and one another, misalignments small and determined,
 χ²/dof and the motions' residual not far above the noise; otherwise an :class:`InputError` of one line with
 the likely cause and the way out, or with ``force_weak`` the fit marked as forced. A scale more than 10 %

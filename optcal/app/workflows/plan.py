@@ -1,4 +1,4 @@
-"""Planning with a registered solver (application layer: it imports the solver registry; docs/planning.md §3).
+"""Planning with a registered solver (application layer: it imports the solver registry; docs/planning.md, "Method").
 
 The design problem (:class:`optcal.core.plan.problem.DesignProblem`) is solved by any solver that needs only costs
 (and, for gradient methods, ``gradient``), from ``starts`` independent random points of the unit box drawn

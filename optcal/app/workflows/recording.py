@@ -1,5 +1,6 @@
 """The parts of the raw-recording path that fit a model, and so run a solver (application layer,
-CONTRIBUTING.md "Layers"; docs/design.md §9.2): the search over the variance detector's threshold multiplier
+CONTRIBUTING.md "Layers"; docs/design.md, "Raw recordings"): the search over the variance detector's threshold
+multiplier
 k, and a recording file to positions in one call. The default detector, change-point segmentation
 (:mod:`optcal.core.recording.segment`, docs/segmentation.md), fits no model: the threshold search runs only
 when the variance detector is asked for (``method="variance"``, or its ``threshold_k`` or ``init_s``).

@@ -1,5 +1,5 @@
 """Model discovery: find where a fitted model and the measurements disagree, name the missing effect, add
-it, and show the gap shrink (docs/design.md §12; docs/discovery.md).
+it, and show the gap shrink (docs/design.md, "Model discovery"; docs/discovery.md).
 
 The core of it: :mod:`.statistics` (regressors, the F-test and ΔBIC, the noise of each residual),
 :mod:`.dictionary` (the generated features the term table lacks and their linearised screening),

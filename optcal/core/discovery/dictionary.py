@@ -13,7 +13,8 @@ columns than the residuals have degrees of freedom, so a joint least-squares fit
 
 Screening is linear and joint with the sensor model. A term adding c·φ to output i moves the norm residual
 e_j = ‖A_j‖ − g by −w_ji·K_i·φ_j·c, with (∂F/∂A)ᵀ w_j = A_j/‖A_j‖ (the implicit-function Jacobian of
-docs/design.md §5.5). Every feature's column is built at once from arrays of exponents and context factors,
+docs/design.md, "Evaluation paths and the Jacobian"). Every feature's column is built at once from arrays of exponents
+and context factors,
 its part in the span of the model's own Jacobian (what the fit absorbs by moving its parameters) is removed,
 and the reduction of the residual sum of squares, RSS₀ − RSS₁ = ‖P r‖² with P the projection on the feature's
 remaining columns, gives F = ((RSS₀ − RSS₁)/q) / (RSS₁/(m − p − q)) for every feature in a few matrix products
@@ -42,7 +43,8 @@ from optcal.core.terms import OUTPUTS, Feature, previous_signs
 MONOMIAL_ORDERS = (2, 3)  # products and powers of the axes on an output (the issue's "up to order 3")
 CONTEXT_POWERS = (1, 2, 3)  # powers of the temperature and time offsets
 # A feature column with less than this share of its size left outside the model's span adds nothing: the
-# observability analysis's threshold (docs/design.md §6.2). Far smaller leftovers are not rounding but the
+# observability analysis's threshold (docs/design.md, "How the code finds them"). Far smaller leftovers are not
+# rounding but the
 # model's own nonlinearity (|A| − g is the residual itself), which lines up with the residual and would
 # look like a perfect fit.
 RANK_RTOL = RTOL
@@ -230,7 +232,8 @@ def generate(model: Model, data, periods=(), n_independent: int = 0) -> Dictiona
 
 
 def feature_context(data) -> Context:
-    """The temperature and time offsets of every position (docs/design.md §3.4), whatever the model needs."""
+    """The temperature and time offsets of every position (docs/design.md, "Context: temperature and time offsets"),
+    whatever the model needs."""
     return Context.from_columns(temp=data.temp, t=data.t)
 
 

@@ -1,4 +1,4 @@
-"""What model discovery found (docs/design.md §12): each added term with the test that chose it
+"""What model discovery found (docs/design.md, "Model discovery"): each added term with the test that chose it
 (:class:`Step`) and the whole search (:class:`DiscoveryReport`: the final model, its χ² against the noise
 floor, the verdict, the JSON form). Core: built by :func:`optcal.app.workflows.discovery.discover`, read by
 anything; the plain text is :mod:`optcal.core.discovery.text`'s and the figure :mod:`optcal.core.plots.discovery`'s.

@@ -1,6 +1,6 @@
 """The plain-text report of model discovery (what ``optcal discover`` prints; docs/discovery.md shows
 examples): the base fit, each step with its test and fitted parameters, the candidates of each round, the
-final model against the noise floor and the verdict (docs/design.md §12).
+final model against the noise floor and the verdict (docs/design.md, "Model discovery").
 
 The functions read a :class:`optcal.core.discovery.results.DiscoveryReport` by its attributes; of discovery they import
 only :func:`optcal.core.discovery.dictionary.list_part`, so the report can call them without a cycle.

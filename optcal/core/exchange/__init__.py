@@ -7,7 +7,7 @@ cannot hold is refused, never dropped.
 :func:`export_files` renders a calibration (an :class:`optcal.core.calfile.CalibrationFile`) in a format: one
 text, and imu_tk's second file for the gyroscope (:func:`export_text` when there is one file);
 :func:`import_calibration` reads a tool's file (and imu_tk's gyroscope file) into the dictionary of an
-optcal calibration file (docs/design.md §9.3). None writes anything; the commands ``optcal export`` and
+optcal calibration file (docs/design.md, "Calibration file"). None writes anything; the commands ``optcal export`` and
 ``optcal import`` do.
 """
 

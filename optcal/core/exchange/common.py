@@ -1,10 +1,13 @@
-"""The linear part of a calibration, shared by every exchange format (docs/exchange.md §1).
+"""The linear part of a calibration, shared by every exchange format (docs/exchange.md, "The linear part, units and
+gauge").
 
-optcal's affine terms (docs/design.md §3.1) give, for specific force A in g (units of g0, §2),
+optcal's affine terms (docs/design.md, "Terms and parameters") give, for specific force A in g (units of g0, "Units
+and frames"),
 
     N = diag(K)·(T·A + b) = M·A + o,    M = diag(K)·T  (output units per g),   o = K ⊙ b  (output units)
 
-with T's off-diagonal cells as docs/design.md §3.2 maps them. Each format module converts (M, o) to its own
+with T's off-diagonal cells as docs/design.md, "The installation matrix T" maps them. Each format module converts (M,
+o) to its own
 matrices and back; this module converts (M, o) to and from optcal's parameters, chooses the model an import
 needs (diag6, linear9 or scale+bias+misalignment6: the smallest that holds the matrix exactly) and refuses
 what no format can hold (nonlinear, temperature and drift terms).
@@ -23,12 +26,15 @@ from optcal.core.gravity import G0
 from optcal.core.jsonfile import parse_json_object
 from optcal.core.model import T_CELLS, TERMS, Model, get_model
 
-# T's off-diagonal cells, (row, column) -> parameter name (docs/design.md §3.2), as the model states them.
+# T's off-diagonal cells, (row, column) -> parameter name (docs/design.md, "The installation matrix T"), as the model
+# states them.
 CELLS = T_CELLS
-UPPER = ((0, 1), (0, 2), (1, 2))  # the cells the gauge of `misalignment` sets to zero (docs/design.md §6.3)
+UPPER = ((0, 1), (0, 2), (1, 2))  # the cells the gauge of `misalignment` sets to zero (docs/design.md, "The gauge of
+                                  # `misalignment`")
 LOWER = ((1, 0), (2, 0), (2, 1))
 
-# Calibrated output units a format may hold: units per g (optcal's g is g0 = 9.80665 m/s², design.md §2).
+# Calibrated output units a format may hold: units per g (optcal's g is g0 = 9.80665 m/s², design.md, "Units and
+# frames").
 CALIBRATED_UNITS = {"g": 1.0, "m/s2": G0}
 # Raw output units with a fixed SI value (Kalibr's measurements are in m/s²): m/s² per unit.
 SI_PER_UNIT = {"m/s2": 1.0, "g": G0, "mg": G0 / 1000.0}
@@ -52,7 +58,8 @@ class LinearPart:
 
 def inverse(M) -> np.ndarray:
     """The inverse of a 3×3 matrix; a triangular one is inverted by substitution, so that its zero cells stay
-    exactly zero (an import then recognises optcal's lower-triangular gauge, docs/design.md §6.3)."""
+    exactly zero (an import then recognises optcal's lower-triangular gauge, docs/design.md, "The gauge of
+    `misalignment`")."""
     from scipy.linalg import solve_triangular
 
     M = np.asarray(M, float)
@@ -74,7 +81,7 @@ def inverse(M) -> np.ndarray:
 
 
 def matrix_of(model: Model, x) -> tuple[np.ndarray, np.ndarray]:
-    """(M, o) of an affine model's parameter vector x (docs/design.md §3.1-3.2)."""
+    """(M, o) of an affine model's parameter vector x (docs/design.md, "Terms and parameters"-3.2)."""
     p = model.to_dict(x)
     K = np.array([p[f"K_{a}"] for a in "xyz"])
     b = np.array([p.get(f"b_{a}", 0.0) for a in "xyz"])
@@ -135,7 +142,7 @@ def parameters_of(lin: LinearPart, model: str | None = None) -> tuple[Model, np.
 
 
 def calibration_dict(lin: LinearPart, *, fmt: str, source, g_local: float = 1.0, model: str | None = None) -> dict:
-    """An optcal calibration file (docs/design.md §9.3) for an imported linear part: every parameter from
+    """An optcal calibration file (docs/design.md, "Calibration file") for an imported linear part: every parameter from
     :func:`parameters_of`, no standard errors (optcal did not fit it), ``data.n_positions`` 0 (no positions
     were fitted; ``rms_residual_g`` is then 0, as the file's schema requires a number), ``solver``
     "import:FORMAT" and ``data.source`` the imported file."""

@@ -6,7 +6,8 @@ The text is the accelerometer's (:mod:`optcal.core.exchange.imu_tk`: T 3×3, K 3
 gyroscope (:mod:`optcal.core.gyro.model`) without g-sensitivity is the same map: T·K = M = T_o⁻¹·diag(1/K_o), and
 B the output offset, K_o·b (bias fitted) or the rests' mean output (bias from the rests). A calibration with
 g-sensitivity is refused: imu_tk's file cannot hold it. Both tools' misalignments are relative to their own
-accelerometer frame (docs/gyroscope.md §5), so a file moved between them keeps the frame it was made in.
+accelerometer frame (docs/gyroscope.md, "imu_tk's Xsens recording, against imu_tk"), so a file moved between them
+keeps the frame it was made in.
 """
 
 from __future__ import annotations

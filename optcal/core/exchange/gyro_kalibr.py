@@ -1,5 +1,5 @@
 """Kalibr's gyroscope intrinsics, model ``scale-misalignment`` (Rehder, Nikolic, Schneider, Hinzmann &
-Siegwart, ICRA 2016, Eq. 3; docs/exchange.md §4 for the accelerometer's half).
+Siegwart, ICRA 2016, Eq. 3; docs/exchange.md, "Kalibr" for the accelerometer's half).
 
 Kalibr predicts a gyroscope measurement as ω_m = M·C_gyro_i·ω + A·a + b(t): M lower triangular, C_gyro_i
 the rotation from the IMU frame to the gyroscope's, A the g-sensitivity in (rad/s)/(m/s²) and b a bias

@@ -1,5 +1,5 @@
 """imu_tk's calibration file (Tedaldi, Pretto & Menegatti, ICRA 2014, as imu_tk implements its sensor model;
-docs/exchange.md §2).
+docs/exchange.md, "imu_tk").
 
 imu_tk corrects a raw reading X as X' = T·K·(X − B): T a misalignment matrix with unit diagonal, K a
 diagonal scale matrix (calibrated units per raw unit), B the bias in raw units. Its ``CalibratedTriad::save``

@@ -1,5 +1,5 @@
 """imucal's Ferraris calibration file (Ferraris, Grimaldi & Parvis, Sensors and Materials 7(5), 1995, as the
-``imucal`` package implements it; docs/exchange.md §3).
+``imucal`` package implements it; docs/exchange.md, "imucal").
 
 imucal's ``FerrarisCalibrationInfo`` corrects accelerometer samples as a = R_a⁻¹·K_a⁻¹·(u − b_a), a in
 ``acc_unit`` (m/s² for a Ferraris fit), u in ``from_acc_unit``: K_a diagonal (raw units per m/s²), R_a the

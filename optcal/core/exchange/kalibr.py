@@ -1,5 +1,5 @@
 """Kalibr's IMU intrinsics, model ``scale-misalignment`` (Rehder, Nikolic, Schneider, Hinzmann & Siegwart,
-ICRA 2016, the accelerometer model; docs/exchange.md §4).
+ICRA 2016, the accelerometer model; docs/exchange.md, "Kalibr").
 
 Kalibr predicts an accelerometer measurement as a_m = M·a + b(t) with a the specific force in the IMU frame
 and a_m, a in m/s²: M a lower-triangular matrix (its design variable is initialised to I with only the cells
@@ -11,7 +11,8 @@ a gyroscope); no accelerometer bias. Its imu.yaml also holds the noise model, fo
 entry but for ``rostopic``.
 
 From optcal's N = M_o·A + o (A in g, N in units u with s m/s² per u): M = (s/g0)·M_o and the bias s·o. M is
-lower triangular exactly when T is (optcal's gauge, docs/design.md §6.3), so linear9 and diag6 fit Kalibr's
+lower triangular exactly when T is (optcal's gauge, docs/design.md, "The gauge of `misalignment`"), so linear9 and
+diag6 fit Kalibr's
 model; a T with cells above the diagonal (misalignment6) does not. The file has no constant bias: a
 non-zero bias is refused unless the caller accepts that Kalibr estimates it online (``bias_online``).
 Raw units without a fixed SI value (counts, volts) are refused: Kalibr's measurements are in m/s².

@@ -1,4 +1,4 @@
-"""The plain affine form, a JSON file any tool can apply (docs/exchange.md §5).
+"""The plain affine form, a JSON file any tool can apply (docs/exchange.md, "The affine matrix").
 
     a = C·u + d        u: raw outputs (3-vector, raw units), a: calibrated specific force (calibrated units)
 

@@ -54,7 +54,8 @@ def check_observable(problem, x_full: np.ndarray) -> analysis.Observability:
     return obs
 
 
-# == The gates: what a gyroscope fit must look like to be written (docs/gyroscope.md §11) ====================
+# == The gates: what a gyroscope fit must look like to be written (docs/gyroscope.md, "The gates: fits refused, scales
+# noted (issue #29)") ====================
 # A MEMS gyroscope's sensitivity tolerance (MPU-9250 ±3 % at 25 °C, BMI270 and ICM-20948 tighter) and its
 # cross-axis sensitivity (±2 %) plus the accelerometer's (±2 %: the angles place the gyroscope's axes in the
 # accelerometer's frame), in rad: a calibration whose standard error exceeds them tells less than the datasheet.

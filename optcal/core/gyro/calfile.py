@@ -1,5 +1,5 @@
-"""The IMU calibration file: the accelerometer's calibration record (:mod:`optcal.core.calfile`, docs/design.md
-§9.3) with a ``gyroscope`` block beside it.
+"""The IMU calibration file: the accelerometer's calibration record (:mod:`optcal.core.calfile`, docs/design.md,
+"Calibration file") with a ``gyroscope`` block beside it.
 
 The block: ``model`` (``gyro9``: scale and misalignment, bias from the rests; ``gyro12`` with the bias;
 ``gyro21`` with g-sensitivity), ``terms``, ``bias_mode`` (``rests`` or ``fit``), ``parameters`` and
@@ -31,7 +31,8 @@ from optcal.core.gyro.model import AXES, BIAS, GSENS, MISALIGNMENT, SCALE, GyroM
 GYRO_UNITS = ("counts", "deg/s", "rad/s", "volts")
 CALIBRATED = "rad/s"
 # deg/s or rad/s outputs have a known nominal scale (output units per rad/s); counts and volts do not. A fit more
-# than 10 % from it is said in a note, beyond 10 times refused (optcal.core.gyro.analysis, docs/gyroscope.md §11).
+# than 10 % from it is said in a note, beyond 10 times refused (optcal.core.gyro.analysis, docs/gyroscope.md, "The
+# gates: fits refused, scales noted (issue #29)").
 NOMINAL_SCALE = {"deg/s": 180.0 / math.pi, "rad/s": 1.0}
 
 

@@ -6,7 +6,7 @@ Raw output W (the sensor's units) of body rate ω (rad/s) under specific force f
 
 with T = I plus six off-diagonal angles (cell (i, j) is ``T_ij``: how much of the rate about body axis j
 axis i senses), K_i in output units per rad/s, b_i in rad/s (the output offset is K_i·b_i, as for the
-accelerometer's model, docs/design.md §3.1) and G the g-sensitivity, a rate bias proportional to
+accelerometer's model, docs/design.md, "Terms and parameters") and G the g-sensitivity, a rate bias proportional to
 specific force (``G_ij``: rad/s per g of f_j sensed by axis i). The body frame is the calibrated
 accelerometer's frame, so the six angles place the gyroscope's axes relative to the accelerometer's,
 as in Tedaldi, Pretto and Menegatti (ICRA 2014, Eq. 9-10), whose gyroscope model is this one without G.

@@ -44,7 +44,8 @@ def plan_csv(plan: MotionPlan, comments: list[str] = ()) -> str:
     axis = plan.rotvec / np.maximum(np.deg2rad(angle), 1e-300)[:, None]
     lines = [f"# {c}" for c in comments]
     lines += ["# dx, dy, dz: unit specific-force direction of the pose in the sensor frame; face_down, alpha_deg, "
-              "beta_deg: how it is placed (docs/planning.md §4); rest_s: its rest, s",
+              "beta_deg: how it is placed (docs/planning.md, 'For a person: fixtures, faces and tilts, order, "
+              "files, figure'); rest_s: its rest, s",
               "# axis_x, axis_y, axis_z, angle_deg: the motion to the next pose, one turn by angle_deg (right-hand "
               "rule) about that sensor-frame axis; duration_s: s; peak_dps: peak rate, °/s"]
     lines.append("position,dx,dy,dz,face_down,alpha_deg,beta_deg,rest_s," + ",".join(MOTION_COLUMNS) + ",peak_dps")

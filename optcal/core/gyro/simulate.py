@@ -1,7 +1,7 @@
 """Simulated IMU recordings with known truth: rests in the poses of a scheme, rotations between them.
 
 The body's attitude C (body to world) in pose k puts the scheme's direction u_k (the specific force in
-the body frame, docs/design.md §4) on the world's vertical, with a heading drawn uniformly. Between two
+the body frame, docs/design.md, "Position schemes") on the world's vertical, with a heading drawn uniformly. Between two
 poses the body turns about the fixed body axis of the relative rotation C_kᵀ·C_{k+1} (axis a, angle θ)
 along a rotation profile s(τ), the share of θ turned at the motion's time fraction τ (:data:`PROFILES`):
 ``smooth``, s(τ) = τ − sin(2πτ)/(2π), a raised-cosine rate that starts and ends at zero; or

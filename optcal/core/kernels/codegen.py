@@ -4,7 +4,8 @@ The model's equations are written once, in :meth:`optcal.core.model.Model.compon
 that method on symbols (:mod:`optcal.core.kernels.symbolic`) for the model that holds every term, and prints
 four numba functions of one position:
 
-* ``forward_all``: the outputs N = F(A; q) (docs/design.md §3.1's table), and ``forward_seed``, the same
+* ``forward_all``: the outputs N = F(A; q) (docs/design.md, "Terms and parameters"'s table), and ``forward_seed``, the
+same
   for the terms of the named models only (see ``VARIANTS``),
 * ``forward_dA``: ∂F/∂A, the 3×3 matrix the inverse and the implicit-function Jacobian need,
 * ``forward_dq``: the non-zero entries of ∂F/∂q, the analytic Jacobian with respect to the parameters,

@@ -1,4 +1,5 @@
-"""Design criteria (docs/planning.md §2): scalar functions of the observable information F_obs, smaller is better.
+"""Design criteria (docs/planning.md, "Criteria"): scalar functions of the observable information F_obs, smaller is
+better.
 
 With λ_1 ≤ … ≤ λ_r the eigenvalues of F_obs (natural units, noise included):
 

@@ -1,5 +1,5 @@
 """Planning N positions: the exchange algorithm over a fixture's candidates, then (hand-held) a continuous
-refinement on the sphere (docs/planning.md §3).
+refinement on the sphere (docs/planning.md, "Method").
 
 Exchange: the modified Fedorov algorithm (Cook & Nachtsheim 1980, "A comparison of algorithms for
 constructing exact D-optimal designs", Technometrics 22(3), after Fedorov 1972): each design point in turn is

@@ -4,7 +4,8 @@ A design is N unit specific-force directions a_j in the sensor frame. At nominal
 factors, everything else zero, or any point the caller gives) the norm residual of position j has the
 Jacobian row ∂e_j/∂x (2020 paper Eq. 12, the problem's analytic Jacobian through the implicit function
 theorem), and N positions with input-referred noise σ per axis give the information F = Σ_j j_jᵀ j_j / σ²
-(docs/design.md §7.1). Columns are in natural units (:func:`optcal.core.gauge.natural_units`) and, when the model
+(docs/design.md, "Cramér-Rao bound"). Columns are in natural units (:func:`optcal.core.gauge.natural_units`) and, when
+the model
 has directions that no design can see (seed15's three body-frame rotations), the information is that of the
 observable subspace: F_obs = Qᵀ F Q with Q an orthonormal basis of the complement of the null space, the
 same projection as :func:`optcal.core.analysis.projected_crlb`. Rows of every design in a population are

@@ -1,7 +1,8 @@
 """Where a sensor can be put: the candidate directions of a fixture, and each direction said as a person
 places it (which face is down, two tilt angles), in an order that needs little handling.
 
-Faces and tilts (docs/planning.md §4): the face down is the side of the case whose outward axis points at the
+Faces and tilts (docs/planning.md, "For a person: fixtures, faces and tilts, order, files, figure"): the face down is
+the side of the case whose outward axis points at the
 table, −s·k for the specific force's largest component A_k of sign s (A points up, away from the table).
 With (k, i, j) cyclic (z, x, y / x, y, z / y, z, x), the two tilts α, β satisfy
 A_i = sin β, A_j = cos β · sin α, s·A_k = cos β · cos α: tilt by α about the i axis, then by β about the

@@ -1,4 +1,4 @@
-"""The design problem in the problem interface that solvers use (docs/planning.md §3; CONTRIBUTING.md
+"""The design problem in the problem interface that solvers use (docs/planning.md, "Method"; CONTRIBUTING.md
 "Adding a solver"): candidates are points z of the unit box [-1, 1]^n, evaluated as populations with
 ``cost_batch``, counted against the shared budget, the best point kept by the counter.
 

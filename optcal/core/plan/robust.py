@@ -1,4 +1,5 @@
-"""Robustness to placement (docs/planning.md §5): a hand places a sensor degrees off the planned pose.
+"""Robustness to placement (docs/planning.md, "Robust to placement"): a hand places a sensor degrees off the planned
+pose.
 
 Reference-free calibration never needs the true directions, but the information comes from them: a design
 is scored by its criterion over M placements, each direction rotated by a random small rotation of

@@ -1,4 +1,5 @@
-"""Scheme files (docs/planning.md §4): a planned (or any) scheme as CSV, read wherever a scheme name is.
+"""Scheme files (docs/planning.md, "For a person: fixtures, faces and tilts, order, files, figure"): a planned (or
+any) scheme as CSV, read wherever a scheme name is.
 
 Comment lines start with ``#`` (the planner writes what it planned there). The header names the columns;
 ``dx, dy, dz`` are required: the unit specific-force direction of each position in the sensor frame

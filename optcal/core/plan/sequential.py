@@ -1,4 +1,4 @@
-"""Next-best pose and "enough yet?" (docs/planning.md §6).
+"""Next-best pose and "enough yet?" (docs/planning.md, "Next-best pose and "enough yet?"").
 
 Given the directions recorded so far (estimated from the data by the closed-form linear fit, which needs no
 solver), the next pose is the candidate whose information, added to what is recorded, most lowers the

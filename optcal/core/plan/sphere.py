@@ -1,6 +1,6 @@
 """Directions on the unit sphere that both the named schemes (:mod:`optcal.core.schemes`, which re-exports them)
 and the planner use: the rotation groups of the 24- and 36-position schemes, the six faces, random and
-golden-spiral spreads, and the placement error of a hand (docs/design.md §4). Here, below both, so that
+golden-spiral spreads, and the placement error of a hand (docs/design.md, "Position schemes"). Here, below both, so that
 :mod:`optcal.core.schemes` can resolve planned scheme names without an import cycle.
 """
 

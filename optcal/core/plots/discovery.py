@@ -1,7 +1,7 @@
 """The figure of model discovery (docs/discovery.md shows two): the residuals per position of the base and
 the final model against the noise band, then one panel per added term, an added-variable plot (the
 residuals against the term's fitted combination, :meth:`optcal.core.discovery.results.Step.added_variable`,
-before and after the term is added; docs/design.md §12).
+before and after the term is added; docs/design.md, "Model discovery").
 """
 
 from __future__ import annotations

@@ -1,4 +1,5 @@
-"""The figure of a fit's per-position residuals (docs/design.md §7.5): each position's residual (µg) with its
+"""The figure of a fit's per-position residuals (docs/design.md, "Per-position residuals, outliers, the robust loss,
+what the data determine and weak fits"): each position's residual (µg) with its
 noise band (±σ_i, the floor of each mean with the sensor's correlated noise when the data carry it,
 docs/noise.md; and the outlier threshold ±t·σ_i·√(1−h_i)), the white-noise floor σ/√n beside it when the two
 differ, the outliers marked and named, and for an outlier its prediction error from the other positions. For

@@ -1,4 +1,4 @@
-"""The figure of a raw recording (docs/design.md §9.2): the outputs with the static intervals shaded, the
+"""The figure of a raw recording (docs/design.md, "Raw recordings"): the outputs with the static intervals shaded, the
 variance statistic of Tedaldi et al. (2014, §IV-A) with its threshold, and each position's residual."""
 
 from __future__ import annotations

@@ -1,4 +1,4 @@
-"""Raw recordings (docs/design.md §9.2) → static intervals → positions, one job per module.
+"""Raw recordings (docs/design.md, "Raw recordings") → static intervals → positions, one job per module.
 
 The core of it, one job per module:
 

@@ -1,6 +1,6 @@
 """Static intervals of a raw recording by the variance detector of Tedaldi, Pretto & Menegatti, "A robust
 and easy to implement method for IMU calibration without external equipments" (ICRA 2014, §IV-A; the
-imu_tk implementation; docs/design.md §9.2).
+imu_tk implementation; docs/design.md, "Raw recordings").
 
 The statistic of each sample is the norm of the per-axis variances over a window centred on it,
 ς(t) = ‖(var_w(a_x), var_w(a_y), var_w(a_z))‖, and a sample is static when ς(t) < k·ς_init, where ς_init

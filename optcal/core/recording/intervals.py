@@ -1,4 +1,4 @@
-"""Static intervals given by hand (docs/design.md §9.2): from a file of [start, end) sample indices (JSON,
+"""Static intervals given by hand (docs/design.md, "Raw recordings"): from a file of [start, end) sample indices (JSON,
 imucal's section list, CSV, ImuCalibration's two-row file) or of times (a JSON object ``{"intervals": [[start,
 end], ...]}``, seconds from the recording's first sample), or from a label column of the recording."""
 

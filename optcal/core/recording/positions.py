@@ -1,5 +1,5 @@
 """Averaging static intervals into positions: each interval of a recording becomes one row of the positions
-data set of docs/design.md §9.1 (mean output, n, per-axis SD, the standard error of the mean with the
+data set of docs/design.md, "Positions CSV" (mean output, n, per-axis SD, the standard error of the mean with the
 sensor's correlated noise, middle time, mean temperature); poses that check themselves (:func:`recheck_poses`);
 and a positions file stored as a MATLAB matrix (:func:`mat_positions`).
 
@@ -125,7 +125,7 @@ def recheck_poses(data, model, x, suspects, name=None):
 
 
 def mat_positions(path, units: str = "g") -> PositionsData:
-    """Positions from a MATLAB ``.mat`` file (docs/design.md §9.1): one n × 3 (or 3 × n) matrix of the mean
+    """Positions from a MATLAB ``.mat`` file (docs/design.md, "Positions CSV"): one n × 3 (or 3 × n) matrix of the mean
     outputs ax, ay, az, one row per position, or variables named ``ax``, ``ay``, ``az``."""
     header, table = mat_table(Path(path))
     if header is not None:
@@ -141,7 +141,8 @@ def mat_positions(path, units: str = "g") -> PositionsData:
 
 
 def read_positions_file(path, units: str = "g") -> PositionsData:
-    """A positions file (a CSV or a MATLAB file of one mean per pose, docs/design.md §9.1), read the same way by
+    """A positions file (a CSV or a MATLAB file of one mean per pose, docs/design.md, "Positions CSV"), read the same
+    way by
     ``optcal calibrate`` and :func:`optcal.calibrate`: a raw recording given as positions is named as one, by the
     one decision of :func:`optcal.core.recording.sniff.table_kind`, with the option that reads it (and the sample rate
     when it has no time column)."""

@@ -1,4 +1,5 @@
-"""Reading a raw recording (docs/design.md §9.2): one row per sample, optionally a time column ``t`` (s, ms,
+"""Reading a raw recording (docs/design.md, "Raw recordings"): one row per sample, optionally a time column ``t`` (s,
+ms,
 µs or ns, told apart by the sample interval), the three accelerometer outputs ``ax, ay, az`` in the sensor's
 units, optionally ``temp`` (°C). Files may be CSV (comma, semicolon or tab; decimal point or comma) or
 whitespace-separated, gzip/bz2/xz-compressed, with or without a header, and may start with ``key,value``
@@ -93,7 +94,7 @@ def read_recording(path, columns=None, rate: float | None = None, units: str = "
                    saturation: float | None = None, labels: str | None = None, need_time: bool = True,
                    adc: str | None = None, time_unit: str | None = None,
                    refuse_positions: bool = False, topic: str | None = None) -> Recording:
-    """Read a raw recording (docs/design.md §9.2). ``columns``: ``"t,ax,ay,az"`` (names or 0-based indices;
+    """Read a raw recording (docs/design.md, "Raw recordings"). ``columns``: ``"t,ax,ay,az"`` (names or 0-based indices;
     3 entries mean ax,ay,az, 5 add temp) or ``"ax=acc_x,..."``; ``rate`` (Hz) when there is no time column;
     ``units`` of the outputs; ``saturation``: |value| at which a sample is saturated; ``adc``: the counts'
     format (``int16``, ``uint16``, ``int12``, ...: its rails are saturation; by default inferred from the
@@ -404,7 +405,7 @@ def _read_labels(path: Path, lay: Layout, column: str, n: int) -> np.ndarray:
 
 
 def raw_file_reason(path) -> tuple[str, bool] | None:
-    """Why a file given as a positions file (docs/design.md §9.1) is a raw recording, and whether it has a
+    """Why a file given as a positions file (docs/design.md, "Positions CSV") is a raw recording, and whether it has a
     time column (else reading it needs a rate), or None: the decision of
     :func:`~optcal.core.recording.sniff.table_kind` on its ax, ay, az columns as :func:`read_recording` finds
     them without `columns` (the first :data:`~optcal.core.recording.sniff.KIND_ROWS` rows are read). A file whose

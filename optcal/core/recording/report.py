@@ -1,7 +1,7 @@
 """What static detection found, as text (:func:`describe_detection`) and as a dict for JSON
 (:func:`detection_summary`): how the recording was read (format, time unit, ADC and its rails, samples set
 aside as saturated), the intervals, how they were found (segmentation's noise and rest test, or the variance
-detector's threshold and its search), the notes (docs/design.md §9.2; docs/segmentation.md)."""
+detector's threshold and its search), the notes (docs/design.md, "Raw recordings"; docs/segmentation.md)."""
 
 from __future__ import annotations
 

@@ -1,5 +1,5 @@
 """Static intervals of a raw recording by change-point segmentation and a rest test (docs/segmentation.md;
-docs/design.md §9.2). The default detector; the variance detector of Tedaldi et al. (2014) stays in
+docs/design.md, "Raw recordings"). The default detector; the variance detector of Tedaldi et al. (2014) stays in
 :mod:`optcal.core.recording.detection` (``method="variance"``). No model is fitted.
 
 1. **Blocks.** The samples are averaged in blocks of ``b`` samples (an eighth of the shortest pose,

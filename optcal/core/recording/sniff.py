@@ -1,4 +1,4 @@
-"""The layout of a raw recording's file (docs/design.md §9.2): the text table's delimiter, decimal mark,
+"""The layout of a raw recording's file (docs/design.md, "Raw recordings"): the text table's delimiter, decimal mark,
 header (a commented one too), ``key,value`` lines (an ``Fs,100`` line gives the rate), byte-order mark and
 compression are read by :mod:`optcal.core.tablefile`, which the positions reader shares; here, which column
 holds which role (time, the accelerometer's ax, ay, az, the gyroscope's gx, gy, gz, temperature: by
@@ -67,7 +67,7 @@ POSITIONAL = {3: ("ax", "ay", "az"), 4: ("t", "ax", "ay", "az"), 5: ("t", "ax", 
 KNOWN = {a for names in ALIASES.values() for a in names}  # the names a commented header line may hold
 NUMERIC_MAT_CLASSES = {"double", "single", "logical", *(f"{u}int{b}" for u in ("", "u") for b in (8, 16, 32, 64))}
 RATE_KEYS = ("fs", "rate", "sample rate", "sampling rate", "sample_rate", "sampling_rate", "fs_hz", "rate_hz")
-# columns only a positions file has (docs/design.md §9.1): a raw recording has one row per sample
+# columns only a positions file has (docs/design.md, "Positions CSV"): a raw recording has one row per sample
 POSITIONS_ONLY = ("position", "n", "sx", "sy", "sz", "ref_x", "ref_y", "ref_z")
 MANY_ROWS = MANY_POSITIONS  # a table this long is samples when its data say so, whatever its columns are called
 # Positions or samples (table_kind), from the median jump between consecutive rows as a fraction of the rows'
@@ -252,7 +252,8 @@ def jump_ratio(N: np.ndarray) -> float | None:
 
 
 def table_kind(names, N: np.ndarray, nrows: int, ncol: int | None = None) -> tuple[str | None, str]:
-    """Whether a table holds ``"positions"`` (docs/design.md §9.1) or ``"samples"`` of a raw recording (§9.2),
+    """Whether a table holds ``"positions"`` (docs/design.md, "Positions CSV") or ``"samples"`` of a raw recording
+    ("Raw recordings"),
     or None when neither is clear, with the evidence in words. The data decide first (:func:`jump_ratio`:
     :data:`POSITION_JUMP` or more is positions, :data:`SAMPLE_JUMP` or less samples); columns only a
     positions file has (:data:`POSITIONS_ONLY`) decide positions for a table of fewer than
