@@ -1,6 +1,5 @@
 """Nothing lost (issue #29, item 7; docs/design.md, "File formats"): every command that writes is killed mid-write,
-and the
-file it was writing is as it was before (an old one byte for byte, a new one absent); what is left is at
+and the file it was writing is as it was before (an old one byte for byte, a new one absent); what is left is at
 most a stray ``.NAME.XXXXXXXX.tmp`` beside it, never a partial file under the output's name.
 
 "Mid-write" is made deterministic by a runner script (test code only: nothing in optcal knows of it) that

@@ -1,6 +1,5 @@
 """The calibration file (docs/design.md, "Calibration file"): exact round trip, refusal to overwrite, clear errors for
-other
-versions and missing fields, and `apply` (Python API and `optcal apply`) inverting the model."""
+other versions and missing fields, and `apply` (Python API and `optcal apply`) inverting the model."""
 
 import json
 import math

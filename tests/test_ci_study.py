@@ -1,7 +1,6 @@
 """The CI study (optcal/studies/specs/ci.toml) against its committed baseline (optcal/studies/ci_tolerances.toml),
-checked with
-the study's own intervals (optcal/app/study_ci.py): accuracy, noise-floor share and verification error fail when the
-baseline lies outside the new run's 95 % bootstrap interval on the bad side; the run time is reported."""
+checked with the study's own intervals (optcal/app/study_ci.py): accuracy, noise-floor share and verification error
+fail when the baseline lies outside the new run's 95 % bootstrap interval on the bad side; the run time is reported."""
 
 from __future__ import annotations
 

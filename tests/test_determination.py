@@ -45,8 +45,8 @@ def _refused(*args, **kw) -> str:
 # -- each class of refusal -------------------------------------------------------------------------------------
 def test_rank_deficient_positions_are_refused_naming_the_directions_and_a_smaller_model():
     """The six ±axis poses, twice: the norm sees no misalignment (docs/design.md, "What a fit refuses"), so linear9
-    has rank 6 of
-    9; diag6 is determined by the same 12 positions (6 residual degrees of freedom) and the line names it."""
+    has rank 6 of 9; diag6 is determined by the same 12 positions (6 residual degrees of freedom) and the line names
+    it."""
     data = _sim(L9, TRUTH9, scheme="6")
     twice = replace(data, N=np.vstack([data.N, data.N + 1e-5 * np.random.default_rng(0).standard_normal((6, 3))]),
                     position=np.arange(12), n_samples=None, std=None, sem=None, t=None, temp=None)

@@ -1,6 +1,5 @@
 """Discovery (issue 7, docs/design.md, "Model discovery"): on data with a hidden effect, the workflow names the
-missing term, adds
-it, and the residual shrinks to what the true model leaves; on data without one it adds nothing."""
+missing term, adds it, and the residual shrinks to what the true model leaves; on data without one it adds nothing."""
 
 import dataclasses
 import json

@@ -1,11 +1,10 @@
 """The gyroscope's gates (issue #29 item 5; docs/gyroscope.md, "The gates: fits refused, scales noted (issue #29)"): a
-fit with a scale factor not positive or
-far from the declared units' factor, axes' scales far apart, a misalignment beyond a board's, parameters the
-data determine no better than a datasheet, or χ²/dof far above the noise with motions carried degrees off, is
-refused in one line with the likely cause and the way out (exit 2, nothing written); a scale more than 10 %
-from the declared units' factor passes with a note naming the rate or the units. On the real corpus: sdr_rev2's
-Short recording (a failed fit written with exit 0 before) is refused, its Long recording (the gyroscope reading
-half the rate) passes with the note, and imu_tk's Xsens pair, imucal's session and shen_gesture's pass."""
+fit with a scale factor not positive or far from the declared units' factor, axes' scales far apart, a misalignment
+beyond a board's, parameters the data determine no better than a datasheet, or χ²/dof far above the noise with motions
+carried degrees off, is refused in one line with the likely cause and the way out (exit 2, nothing written); a scale
+more than 10 % from the declared units' factor passes with a note naming the rate or the units. On the real corpus:
+sdr_rev2's Short recording (a failed fit written with exit 0 before) is refused, its Long recording (the gyroscope
+reading half the rate) passes with the note, and imu_tk's Xsens pair, imucal's session and shen_gesture's pass."""
 
 from __future__ import annotations
 

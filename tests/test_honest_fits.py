@@ -252,8 +252,7 @@ def test_raw_recording_with_labels_names_the_bumped_interval(tmp_path):
 @pytest.mark.parametrize("name", ["nonlinear12", "seed15", "linear9"])
 def test_projected_crlb_is_the_studies_bound_bit_for_bit(name):
     """optcal.core.analysis.projected_crlb gives optcal.studies.scoring.projected_crlb's SDs, projector and natural
-    units
-    exactly on norm problems, so studies can use it without a change in any result; crlb is it with NaN for
+    units exactly on norm problems, so studies can use it without a change in any result; crlb is it with NaN for
     parameters in an unobservable direction."""
     from optcal.core.analysis import natural_units, observability, projected_crlb
     from optcal.core.presets import manufacturer_presets

@@ -1,6 +1,5 @@
 """mealpy's optimisers as the ``mealpy:NAME`` family (optcal/solvers/mealpy_solver.py, docs/algorithms.md, "mealpy's
-optimisers (`mealpy:<NAME>`)"), beyond
-the
+optimisers (`mealpy:<NAME>`)"), beyond the
 conformance suite (which runs GWO, WOA, HHO, SHADE and PSO through every check of the solver contract): names,
 options and their one-line errors, the epochs sized from the budget, batched evaluation, seeds (mealpy's global
 NumPy draws included), the stagnation rule, the listing, and the mealpy study spec's report."""

@@ -1,6 +1,5 @@
 """Static navigation (optcal.core.nav, docs/design.md, "Static navigation"): closed-form Schuler checks, Eq. 23,
-Foucault modulation,
-self-alignment, the calibration error at a fixed attitude, and the `optcal nav` command."""
+Foucault modulation, self-alignment, the calibration error at a fixed attitude, and the `optcal nav` command."""
 
 import json
 import math

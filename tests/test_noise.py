@@ -1,6 +1,5 @@
 """optcal noise (optcal/core/noise/, optcal/core/plots/noise.py, optcal/app/commands/noise.py): the Allan-deviation
-reading
-of white noise, bias instability and bias random walk on synthetic noise of known strength, the JSON and Kalibr
+reading of white noise, bias instability and bias random walk on synthetic noise of known strength, the JSON and Kalibr
 outputs, bad input, and calibrate/info --noise-from."""
 
 from __future__ import annotations

@@ -1,6 +1,5 @@
 """The studies' stagnation rule (issue #32; optcal.studies.trial.STAGNATION, optcal.solvers.base.Stagnation): a trial
-whose
-solver takes the rule ends once its best cost has improved by no more than rtol of itself over the last share of
+whose solver takes the rule ends once its best cost has improved by no more than rtol of itself over the last share of
 its budget. Checked trial by trial against the same study without the rule: the solvers that do not take it run
 exactly as before; CMA-ES, through the four-stage procedure (the rule ends each stage), and a mealpy optimiser
 use fewer evaluations; every accuracy column stays within its bootstrap interval, every cost target a trial

@@ -1,7 +1,6 @@
 """Units (issue #13, docs/design.md, "Units and frames", "Calibration file"): every parameter's unit from one table
-(Model.units), in the printed
-table, the --json outputs and the calibration file; apply and nav refuse a calibration whose units are not the
-data's or the truth's."""
+(Model.units), in the printed table, the --json outputs and the calibration file; apply and nav refuse a calibration
+whose units are not the data's or the truth's."""
 
 import json
 

@@ -83,14 +83,13 @@ def calibrate(data, model=None, *, solver: str = "lm", units: str | None = None,
               presets: Presets | None = None, seed: int | None = 0, budget=None, noise_g: float | None = None,
               force_weak: bool = False, **reading) -> Calibration:
     """Fit ``model`` (a named model, a sum of terms, docs/design.md, "Named models and parameter order", or a Model)
-    to ``data`` and return
-    an :class:`optcal.core.calibration.Calibration` (parameters, standard errors, observability, goodness of fit).
+    to ``data`` and return an :class:`optcal.core.calibration.Calibration` (parameters, standard errors, observability,
+    goodness of fit).
 
     ``data``: a :class:`~optcal.core.data.PositionsData`; an (n, 3) array of position means in ``units``; or a
     path (str or pathlib.Path) to a positions CSV (design.md, "Positions CSV"), or, with ``raw=True``, to a raw
-    recording whose
-    static intervals are found as ``optcal calibrate --raw`` finds them (design.md, "Raw recordings"). ``units``: the
-    outputs'
+    recording whose static intervals are found as ``optcal calibrate --raw`` finds them (design.md, "Raw recordings").
+    ``units``: the outputs'
     units (g, m/s2, counts, volts, mg; default g). Keyword arguments for a raw recording, as
     :func:`optcal.core.recording.positions_from_raw` takes them: ``columns``, ``rate`` (Hz), ``saturation``, ``adc``
     (the counts' format, e.g. "uint16"), ``time_unit`` (of the time column), ``topic`` (a ROS bag's or a PX4
@@ -225,9 +224,8 @@ def apply(calibration, samples, *, temp=None, t=None) -> np.ndarray:
     """Calibrated specific force in g (units of g0 = 9.80665 m/s²) of raw ``samples``: an (n, 3) array (or
     one sample of 3) in the calibration's output units. ``calibration``: what :func:`calibrate` returns, a
     :class:`~optcal.core.calfile.CalibrationFile` or the path of a calibration file (docs/design.md, "Calibration
-    file"). The
-    model is inverted exactly as ``optcal apply`` does (design.md, "The inverse: specific force from outputs"); models
-    with temperature or drift terms need
+    file"). The model is inverted exactly as ``optcal apply`` does (design.md, "The inverse: specific force from
+    outputs"); models with temperature or drift terms need
     the samples' ``temp`` (°C) or ``t`` (s). A forced calibration (``force_weak``) is applied with a warning on
     the ``optcal`` logger naming its reasons."""
     import numpy as np

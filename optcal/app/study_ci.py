@@ -3,9 +3,8 @@ it against a committed baseline (``optcal/studies/ci_tolerances.toml`` for the C
 intervals (:mod:`optcal.studies.baseline` says how).
 
 ``python -m optcal.app.study_ci [--spec SPEC] [--baseline FILE] [--out DIR] [--junit FILE] [--propose]
-[--check-runtime]``
-runs the study, prints each metric beside its baseline and interval, writes a JUnit XML report with one test
-case per solver and metric, and with ``--propose`` prints a baseline of the values just measured (to commit
+[--check-runtime]`` runs the study, prints each metric beside its baseline and interval, writes a JUnit XML report with
+one test case per solver and metric, and with ``--propose`` prints a baseline of the values just measured (to commit
 after a deliberate change). ``optcal study export DIR --format junit`` checks a study folder already run.
 """
 

@@ -2,9 +2,8 @@
 
 The norm ‖A‖ does not change when the body frame rotates, so with the norm cost only six of the nine
 entries of diag(K)·T are observable (docs/design.md, "Observability and the gauge"): ``seed15`` holds three
-unobservable directions, which
-only the small nonlinear terms tie down. They show up here as near-zero singular values of the Jacobian,
-after each column is put in natural units (relative scale change, g, rad, ...), so that the threshold
+unobservable directions, which only the small nonlinear terms tie down. They show up here as near-zero singular values
+of the Jacobian, after each column is put in natural units (relative scale change, g, rad, ...), so that the threshold
 does not depend on the sensor's output units (the linear algebra is in :mod:`optcal.core.gauge`, which the
 problem also uses for its gauge rows).
 """

@@ -1,7 +1,6 @@
 """Output files written whole or not at all (docs/design.md, "File formats"): every file a command writes goes to a
-temporary
-file beside it (``.NAME.XXXXXXXX.tmp``, in the same folder, so on the same file system), is flushed and synced to
-disk, and only then renamed over ``NAME`` (``os.replace``, atomic on POSIX and Windows). An interrupted write
+temporary file beside it (``.NAME.XXXXXXXX.tmp``, in the same folder, so on the same file system), is flushed and
+synced to disk, and only then renamed over ``NAME`` (``os.replace``, atomic on POSIX and Windows). An interrupted write
 (an error, Ctrl-C, a full disk) removes the temporary file and leaves the old ``NAME``, or none, as it was; a
 process killed outright (SIGKILL, SIGTERM, a power cut) can leave a stray ``.NAME.XXXXXXXX.tmp`` beside it,
 never a partial ``NAME``."""

@@ -1,8 +1,7 @@
 """The evaluation budget of a calibration problem and the counter that every view of it shares
 (docs/design.md, "Views, the shared counter and the budget" and "Budget"): the problem counts each evaluation here,
-refuses candidates past the
-budget, and keeps the best point ever evaluated, so that no solver can lose it. :mod:`optcal.core.problem`
-re-exports both names.
+refuses candidates past the budget, and keeps the best point ever evaluated, so that no solver can lose it.
+:mod:`optcal.core.problem` re-exports both names.
 """
 
 from __future__ import annotations

@@ -1,18 +1,15 @@
 """The calibration file (docs/design.md, "Calibration file"): a versioned JSON record of a fitted calibration that can
-be applied
-to new raw data to give calibrated specific force.
+be applied to new raw data to give calibrated specific force.
 
 Content: ``format``, ``format_version`` (2, or 3 with user-defined terms), ``model``, ``terms``, ``parameters``
 {name: value}, ``stderr`` {name: value or null}, ``units`` {``raw``: the sensor's output units (what the data were
 in and what :meth:`CalibrationFile.apply` takes), ``calibrated``: "g" (what it gives), ``parameters``: {name:
-unit}},
-``g_local`` (in g), ``data`` {``n_positions``, ``rms_residual_g``, ``source``}, ``solver``, ``created``
+unit}}, ``g_local`` (in g), ``data`` {``n_positions``, ``rms_residual_g``, ``source``}, ``solver``, ``created``
 (ISO-8601 UTC), ``observability`` {rank, n_parameters, unobservable}, for models with temperature or drift
 terms, ``context`` {``T0``, ``t0``}: the reference temperature and time of the calibration data
 (docs/design.md, "Context: temperature and time offsets"), which applying the file to new data must reuse, and, for a
-fit written with
-``--force-weak`` although the data did not determine it (:mod:`optcal.core.determination`), ``forced`` (true) and
-``forced_reasons`` (the one-line reasons it would have been refused for).
+fit written with ``--force-weak`` although the data did not determine it (:mod:`optcal.core.determination`), ``forced``
+(true) and ``forced_reasons`` (the one-line reasons it would have been refused for).
 
 Version 1 named the units ``input`` ("g") and ``output`` (the raw units), which read backwards to users; a
 version-1 file is still read, its fields mapped by :func:`upgrade`. Version 3 is version 2 with user-defined

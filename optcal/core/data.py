@@ -41,8 +41,7 @@ MANY_POSITIONS = 1000
 
 def residuals_per_position(reference: bool) -> int:
     """Residuals each position contributes (docs/design.md, "The calibration problem"): one, ‖A‖ − g, in the field;
-    three, A − ref
-    per axis, against a turntable's reference."""
+    three, A − ref per axis, against a turntable's reference."""
     return 3 if reference else 1
 
 
@@ -279,8 +278,7 @@ UNITS = ("g", "m/s2", "counts", "volts", "mg")
 
 def guess_units(magnitude: float) -> str | None:
     """The output units a static sensor's typical output magnitude suggests (docs/design.md, "Units and frames"):
-    about 1 is
-    g, 9.8 m/s², 1000 mg, and a power of two from 128 up (16384 for a ±2 g 16-bit ADC) counts; else None."""
+    about 1 is g, 9.8 m/s², 1000 mg, and a power of two from 128 up (16384 for a ±2 g 16-bit ADC) counts; else None."""
     m = float(magnitude)
     if not math.isfinite(m) or m <= 0:
         return None

@@ -84,8 +84,7 @@ NOMINAL_SCALE = {"g": 1.0, "mg": 1000.0, "m/s2": G0}
 class Refusal:
     """Why the data do not determine a fit: ``kind`` (too_few, rank, dof, exact, exact_data, implausible, and
     undetermined: a parameter of the default chain's last model known no better than its datasheet) and
-    ``reason``,
-    one clause. :func:`way_out` gives the clause that says what to do."""
+    ``reason``, one clause. :func:`way_out` gives the clause that says what to do."""
 
     kind: str
     reason: str
@@ -94,8 +93,7 @@ class Refusal:
 def structure(problem: CalibrationProblem, obs: Observability, *, gauge: bool = False) -> list[Refusal]:
     """What the positions leave undetermined before anything is fitted: too few positions for the model, an
     unobservable direction (not when ``gauge``: presets or seed15's rotations hold them, docs/design.md,
-    "Minimum-constraint gauge rows"),
-    fewer than :data:`MIN_DOF` residual degrees of freedom, or none (an exact fit)."""
+    "Minimum-constraint gauge rows"), fewer than :data:`MIN_DOF` residual degrees of freedom, or none (an exact fit)."""
     model, n_pos = problem.model, len(problem.data)
     m, p = problem.n_position_residuals, model.n_params
     if m < p:

@@ -44,9 +44,8 @@ PLAUSIBLE_MS2 = (9.76, 9.84)
 def local_gravity_g(gravity_ms2: float | None = None, latitude_deg: float | None = None,
                     height_m: float | None = 0.0) -> float:
     """g_local in units of G0 (docs/design.md, "Units and frames"): from ``gravity_ms2`` in m/s², or from
-    ``latitude_deg``
-    and ``height_m`` (WGS84 normal gravity), or 1.0. A value that looks like g instead of m/s², or a height
-    without a latitude (it would be ignored), is refused."""
+    ``latitude_deg`` and ``height_m`` (WGS84 normal gravity), or 1.0. A value that looks like g instead of m/s², or a
+    height without a latitude (it would be ignored), is refused."""
     if gravity_ms2 is not None and latitude_deg is not None:
         raise InputError("give the local gravity either in m/s² or as a latitude (and height), not both")
     if latitude_deg is None and height_m not in (None, 0.0):

@@ -3,8 +3,7 @@
 
 With the norm cost, the position means lie on the ellipsoid (N − o)ᵀ MᵀM (N − o) = g², where
 M = (diag(K)·T)⁻¹ and o = diag(K)·b. In the gauge of docs/design.md, "The gauge of `misalignment`", T is lower
-triangular, so M is too, and
-MᵀM is factorised by a Cholesky decomposition of the index-reversed matrix.
+triangular, so M is too, and MᵀM is factorised by a Cholesky decomposition of the index-reversed matrix.
 """
 
 from __future__ import annotations

@@ -69,13 +69,11 @@ def _check_magnitudes(data: PositionsData) -> None:
 class CalibrationProblem(ParameterViews):
     """Calibration of ``model`` from static positions ``data``.
 
-    Parameters
-    ----------
-    model : name or :class:`~optcal.core.model.Model`
-    data : :class:`~optcal.core.data.PositionsData`
-    g_local : local gravity in units of g0 (1.0 by default)
-    reference : use the turntable reference ``data.ref`` (traditional calibration)
-    presets : :class:`~optcal.core.presets.Presets` giving the search centre and half-widths; without them the
+    Parameters ----------
+    model : name or :class:`~optcal.core.model.Model` data : :class:`~optcal.core.data.PositionsData`
+    g_local : local gravity in units of g0 (1.0 by default) reference : use the turntable reference ``data.ref``
+    (traditional calibration) presets : :class:`~optcal.core.presets.Presets` giving the search centre and half-widths;
+    without them the
         centre is a closed-form linear fit of the data (never the truth)
     noise_g : input-referred SD of each position's mean in g (for Cramér-Rao bounds); when not given, the RMS
         over positions and axes of the data's standard error of each mean (``se_x, se_y, se_z``, correlated

@@ -52,9 +52,8 @@ def simulate(
     """Simulate position means.
 
     ``truth`` holds the model's parameters in their units (docs/design.md, "Terms and parameters"); None draws one
-    from ``rng``
-    as ``optcal simulate`` does without ``--truth`` (:func:`optcal.core.presets.draw_truth`, before the data's
-    draws). ``rng`` is a ``numpy.random.Generator`` or an integer seed for one; the drawn truth is the
+    from ``rng`` as ``optcal simulate`` does without ``--truth`` (:func:`optcal.core.presets.draw_truth`, before the
+    data's draws). ``rng`` is a ``numpy.random.Generator`` or an integer seed for one; the drawn truth is the
     result's ``truth``.
 
     Noise is white and input-referred (in g): either ``noise_g``, the SD of each position's mean per axis,

@@ -1,6 +1,5 @@
 """The layout of a text table as instruments and other labs write it (docs/design.md, "Positions CSV", "Raw
-recordings"), shared by the
-positions reader (:func:`optcal.core.data.read_positions`) and the raw-recording reader
+recordings"), shared by the positions reader (:func:`optcal.core.data.read_positions`) and the raw-recording reader
 (:mod:`optcal.core.recording.sniff`):
 compression by suffix (``.gz``, ``.bz2``, ``.xz``), a UTF-8 byte-order mark, comment lines (``#``, and ``%`` as
 MATLAB and Octave write them) of which the last before the data may be the header (``# t ax ay az``), the

@@ -1,7 +1,6 @@
 """Views of a problem over its parameters, and its shared evaluation counter (docs/design.md, "Views, the shared
-counter and the budget"): the part
-of the problem interface the solvers use that does not depend on what is being calibrated. The
-accelerometer's problem (:class:`optcal.core.problem.CalibrationProblem`) and the gyroscope's
+counter and the budget"): the part of the problem interface the solvers use that does not depend on what is being
+calibrated. The accelerometer's problem (:class:`optcal.core.problem.CalibrationProblem`) and the gyroscope's
 (:class:`optcal.core.gyro.problem.GyroProblem`) both offer it through :class:`ParameterViews`.
 
 A view holds some parameters fixed (``restrict``: the papers' four stages) and may search in normalised

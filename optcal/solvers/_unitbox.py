@@ -1,7 +1,7 @@
 """What the search methods of this package share: the unit-box view of a problem and its start (2020 paper
 §3.4: parameters of very different magnitudes must be searched at a similar scale; docs/algorithms.md, "Conventions
-shared by the search methods"),
-the rule that a non-finite cost counts as +inf, and array helpers for populations in that box.
+shared by the search methods"), the rule that a non-finite cost counts as +inf, and array helpers for populations in
+that box.
 """
 
 from __future__ import annotations

@@ -311,9 +311,9 @@ class Solver:
     uses_rng: ClassVar[bool] = True
     # Whether a solve given a Stagnation rule ends by it: for methods without a termination of their own that
     # ends a converged run (CMA-ES, also in staged:'s stages; ng: and mealpy: set it from their option
-    # stop_on_stagnation, off by default). False for the
-    # local methods (their tolerances end them) and for the searches whose best cost stays flat for a long
-    # stretch and then improves again (the swarms, NLopt's global methods, differential evolution:
+    # stop_on_stagnation, off by default). False for the local methods (their tolerances end them) and for the searches
+    # whose best cost stays flat for a long stretch and then improves again (the swarms, NLopt's global methods,
+    # differential evolution:
     # docs/performance.md, "Stopping at convergence"), where the rule would end runs that had not converged.
     stops_on_stagnation: ClassVar[bool] = False
     stagnation: Stagnation | None = None  # the rule of the solve in progress, for a wrapper's inner solves

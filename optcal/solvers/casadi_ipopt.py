@@ -2,9 +2,8 @@
 
 The residuals are those of the 2020 paper's Eq. 12 (e_j = ‖A_j‖ − g_local, A_j the model inverted at the
 position mean N_j; docs/design.md, "Norm residuals and cost"), or the turntable misfit (N_j − F(A_j))/K0 with
-``problem.reference``, plus
-the problem's gauge rows when it has unobservable directions (seed15). They are written in CasADi symbols
-by calling the model's own term definitions, :meth:`Model.components`, with :class:`CasadiOps`: there is
+``problem.reference``, plus the problem's gauge rows when it has unobservable directions (seed15). They are written in
+CasADi symbols by calling the model's own term definitions, :meth:`Model.components`, with :class:`CasadiOps`: there is
 no second copy of the sensor equations.
 
 * **Inverse.** A(N; p) is the fixed-point iteration of :meth:`Model.inverse`,

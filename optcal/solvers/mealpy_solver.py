@@ -5,9 +5,8 @@
 "MEALPY: An open-source library for latest meta-heuristic algorithms in Python", Journal of Systems
 Architecture 139, 102871), or of its module, which names the algorithm's original version (``GWO`` is
 ``OriginalGWO``). docs/algorithms.md, "mealpy's optimisers (`mealpy:<NAME>`)". mealpy is GPL-3.0: it is imported when
-a ``mealpy:`` solver runs,
-never copied; ``make`` installs it without its declared dependencies (its pin numpy<=1.26 excludes the NumPy
-that nlopt and cvxpy need; pyproject.toml, ``[tool.optcal] install-without-deps``).
+a ``mealpy:`` solver runs, never copied; ``make`` installs it without its declared dependencies (its pin numpy<=1.26
+excludes the NumPy that nlopt and cvxpy need; pyproject.toml, ``[tool.optcal] install-without-deps``).
 """
 
 from __future__ import annotations

@@ -3,8 +3,7 @@ coefficients identification with a novel artificial fish swarm algorithm", Journ
 509143, §4; after Yazdani et al. 2013).
 
 docs/algorithms.md, "Novel artificial fish swarm (`nafsa`)", in the problem's normalised coordinates. Step and crowd
-factor are gone;
-the visual is a vector with one entry per dimension, set per parameter group (§4.1 and §6.1: the paper
+factor are gone; the visual is a vector with one entry per dimension, set per parameter group (§4.1 and §6.1: the paper
 gives each category of coefficients its own visual). One generation:
 
 1. Individual behaviour (§4.2.1, prey + free move): each fish makes up to ``try_number`` probes
@@ -19,9 +18,8 @@ gives each category of coefficients its own visual). One generation:
    never overwritten with a worse point (§4.2.1).
 3. Contraction (§4.1, Eqs. 8-9): CF ~ U(CF_min, CF_max) drawn once per generation, and
    visual ← CF · visual (reading chosen: recursive, as docs/algorithms.md, "Novel artificial fish swarm (`nafsa`)"
-   states, not CF · visual_0;
-   the geometric mean of U(0, 1) is 1/e, so the visual shrinks by about e per generation and the late
-   generations are driven by the group behaviour). The paper's CF_min, CF_max = 1e-6, 0.999999.
+   states, not CF · visual_0; the geometric mean of U(0, 1) is 1/e, so the visual shrinks by about e per generation and
+   the late generations are driven by the group behaviour). The paper's CF_min, CF_max = 1e-6, 0.999999.
 
 The school starts uniformly within the visual of the start point (the presets or the initialiser;
 §6.1 starts from the conventional calibration), one fish on it. Evaluations per generation, in at

@@ -3,8 +3,8 @@
 ``ng:NGOpt``, ``ng:TwoPointsDE``, ``ng:OnePlusOne``, ``ng:CMA``, ...: the suffix is the optimiser's name in
 nevergrad's registry (Rapin & Teytaud 2018, "Nevergrad - A gradient-free optimization platform",
 https://github.com/facebookresearch/nevergrad); docs/algorithms.md, "nevergrad's optimisers (`ng:<NAME>`)". The family
-is registered with
-:func:`optcal.solvers.registry.register_family`; nevergrad is imported only when an ``ng:`` solver is built.
+is registered with :func:`optcal.solvers.registry.register_family`; nevergrad is imported only when an ``ng:`` solver
+is built.
 """
 
 from __future__ import annotations

@@ -24,9 +24,8 @@ class PSO(Solver):
 
     The swarm lives in the problem's unit box z ∈ [-1, 1]^n (2020 paper §3.4): particles start uniform
     in the box, one of them at ``x0`` (the presets or the initialiser; ``init="uniform"`` leaves it out),
-    with zero velocity (Engelbrecht
-    2012, "Particle swarm optimization: velocity initialization", CEC: zero initial velocities keep
-    particles from leaving a bounded space early). Evaluations: n_particles per iteration plus the
+    with zero velocity (Engelbrecht 2012, "Particle swarm optimization: velocity initialization", CEC: zero initial
+    velocities keep particles from leaving a bounded space early). Evaluations: n_particles per iteration plus the
     initial swarm.
     """
 

@@ -5,9 +5,8 @@ optimised first with every other parameter held at its preset, then the biases (
 from stage 1), then the installation angles, then the second-order terms; "the above steps can be
 repeated until the requirements are met". Here the stages are the model's parameter groups
 (``model.groups()``: scale, bias, misalignment, nonlinear, temperature, drift, in docs/design.md, "Terms and
-parameters" order), so
-the procedure works on any model, and the cycles repeat until a cycle lowers the cost by less than the
-fraction ``rtol`` or ``max_cycles`` cycles have run.
+parameters" order), so the procedure works on any model, and the cycles repeat until a cycle lowers the cost by less
+than the fraction ``rtol`` or ``max_cycles`` cycles have run.
 
 This module also holds :func:`solve_within`, the way a wrapper runs an inner solver on a view of the
 problem it was given (used by ``mcs:`` too).
@@ -133,8 +132,7 @@ class Staged(Solver):
     held at the current values; its start is the current values of its group, and its result (the best
     point the stage found, never worse than its start once that was evaluated) becomes the current
     point. A cycle runs every group in ``groups`` order (default: all the model's groups, docs/design.md, "Terms and
-    parameters"
-    order, which is the papers' order: scale factors, biases, installation angles, nonlinear terms).
+    parameters" order, which is the papers' order: scale factors, biases, installation angles, nonlinear terms).
     Cycles repeat until one lowers the best cost by less than ``rtol`` relative, or ``max_cycles``. A
     stochastic inner solver with a small stage budget can fail to improve in a cycle by chance (a
     metaheuristic restarts its step sizes in every stage), which that rule reads as convergence; give it

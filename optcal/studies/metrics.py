@@ -3,9 +3,8 @@
 Accuracy is scored against the Cramér-Rao bound at the truth with the simulation's noise
 (:func:`optcal.studies.trial.projected_crlb`): per parameter, RMSE / CRLB over runs (1 is an efficient
 estimator). With the norm cost some directions are unobservable (seed15 has three; docs/design.md, "Three directions
-the norm cannot see"): the
-error's component along them is set by the presets, not by the data, so it is reported per direction
-and not scored; parameters that have weight in those directions are scored by their observable part.
+the norm cannot see"): the error's component along them is set by the presets, not by the data, so it is reported per
+direction and not scored; parameters that have weight in those directions are scored by their observable part.
 The one-number summary ``accuracy`` is the RMS over parameters of RMSE / CRLB.
 
 With manufacturer presets a method may also use them as information (the staged procedure keeps the

@@ -51,8 +51,7 @@ def label_of(g: Group) -> str:
 
 def positions_of(scheme: str) -> int | None:
     """How many positions a scheme name holds (docs/design.md, "Position schemes"): 6, 24 and 36 by name, N in
-    plan:<D|A|E>N
-    and random:N, the rows of a scheme file; None when not known (a scheme file no longer there)."""
+    plan:<D|A|E>N and random:N, the rows of a scheme file; None when not known (a scheme file no longer there)."""
     name = str(scheme)
     if name.isdigit():
         return int(name)
@@ -358,8 +357,7 @@ def anytime_section(rows: list[dict], order: list[str], spec: dict, figdir: Path
 def search_methods(spec: dict, present: list[str]) -> list[str]:
     """The labels of the spec's in-field configurations whose solver belongs to the metaheuristic or global
     family (docs/design.md, "The solver contract": a solver's ``family``), in the spec's order: the derivative-free
-    searches
-    that the anytime figures put side by side (a wrapper, such as staged:, has its own family and is left
+    searches that the anytime figures put side by side (a wrapper, such as staged:, has its own family and is left
     out). A configuration that can no longer be built (a solver since removed) is left out."""
     from optcal import solvers
 

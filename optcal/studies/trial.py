@@ -56,14 +56,12 @@ CONVERGED_QUANTILE = 0.999  # χ² quantile of the final cost that counts as "re
 # Before this, staged CMA-ES spent most of its 14,600 evaluations a calibration after it had converged.
 FINAL_GAP: float | None = 1e-8  # None: no early stop (the tests' reference runs)
 # The stagnation rule (optcal.solvers.base.Stagnation): a trial whose solver takes it (Solver.stops_on_stagnation:
-# CMA-ES,
-# inside staged:'s stages too; nevergrad's and mealpy's optimisers with stop_on_stagnation) ends once its best
+# CMA-ES, inside staged:'s stages too; nevergrad's and mealpy's optimisers with stop_on_stagnation) ends once its best
 # cost has improved by no more than 1e-5 of itself over the last tenth of its evaluation budget (of each
-# stage's budget inside staged:). 1e-5 of
-# the cost is Δχ² ≈ 1e-4 at the noise floor (f/σ² is about the degrees of freedom, 12-24 here): no accuracy
-# digit moves, and every cost target of the anytime analyses (gaps down to 1e-3) that a run meets it meets
-# before such a stretch (on the compare study's 50 runs: staged:cmaes 30 % fewer evaluations, the same
-# RMSE/CRLB to three digits, no cost target missed). The solvers whose best cost stays flat for long stretches
+# stage's budget inside staged:). 1e-5 of the cost is Δχ² ≈ 1e-4 at the noise floor (f/σ² is about the degrees of
+# freedom, 12-24 here): no accuracy digit moves, and every cost target of the anytime analyses (gaps down to 1e-3) that
+# a run meets it meets before such a stretch (on the compare study's 50 runs: staged:cmaes 30 % fewer evaluations, the
+# same RMSE/CRLB to three digits, no cost target missed). The solvers whose best cost stays flat for long stretches
 # and then improves again (the swarms, nevergrad's TwoPointsDE, NLopt's global methods, differential evolution,
 # mealpy's grey wolf) do not take it: docs/performance.md, "Stopping at convergence". None: no rule.
 STAGNATION: Stagnation | None = Stagnation(share=0.1, rtol=1e-5)

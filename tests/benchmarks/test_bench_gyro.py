@@ -13,9 +13,8 @@
   whole-process time for the same pair, and ``imu_tk_ratio`` is the best round over that figure. With
   ``OPTCAL_IMU_TK`` naming an executable of imu_tk's own ``test_imu_calib`` (not part of this repository;
   docs/gyroscope.md, "imu_tk's Xsens recording, against imu_tk"), both programs also run in turn, paired rounds with
-  the order alternating
-  (test_bench_startup.py's ``paired_with_imu_tk``), and ``imu_tk_paired_median_ratio`` is the median of the
-  rounds' ratios optcal / imu_tk.
+  the order alternating (test_bench_startup.py's ``paired_with_imu_tk``), and ``imu_tk_paired_median_ratio`` is the
+  median of the rounds' ratios optcal / imu_tk.
 """
 
 from __future__ import annotations

@@ -7,9 +7,8 @@ nothing but start. No timed assertions.
 ``test_bench_raw_calibration_process`` times the whole ``optcal calibrate --raw`` on imu_tk's Xsens recording. With
 ``OPTCAL_IMU_TK`` naming an executable of imu_tk's own ``test_imu_calib`` (built outside this repository:
 docs/gyroscope.md, "imu_tk's Xsens recording, against imu_tk"), it and optcal also run in turn on the same files,
-:data:`PAIRED_ROUNDS` paired rounds
-(:func:`paired_with_imu_tk`, shared with test_bench_gyro.py), and ``imu_tk_paired_median_ratio`` is the median of
-the rounds' ratios. Unset, nothing more runs.
+:data:`PAIRED_ROUNDS` paired rounds (:func:`paired_with_imu_tk`, shared with test_bench_gyro.py), and
+``imu_tk_paired_median_ratio`` is the median of the rounds' ratios. Unset, nothing more runs.
 """
 
 from __future__ import annotations

@@ -22,8 +22,7 @@ HELP = "position error of a 5-hour static navigation run with a calibration, aga
 def _owners() -> dict[str, str]:
     """{parameter name: the term that owns it}. A name shared by `misalignment` and `misalignment6` goes to
     the 3-angle gauge unless a six-angle-only name is present (docs/design.md, "Terms and parameters"); every other
-    name has exactly one
-    owning term."""
+    name has exactly one owning term."""
     from optcal.core.model import TERMS
 
     owner: dict[str, str] = {}

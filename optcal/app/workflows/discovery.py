@@ -1,6 +1,5 @@
 """Model discovery's search (docs/design.md, "Model discovery", docs/discovery.md): fit the base model, then forward
-selection
-over the candidate terms, each extension refitted by a solver and scored by the F-test and ΔBIC of
+selection over the candidate terms, each extension refitted by a solver and scored by the F-test and ΔBIC of
 :mod:`optcal.core.discovery.statistics` (whose docstring gives the equations and the stopping rule); then the
 residual diagnostics (:mod:`optcal.core.discovery.diagnostics`) and the search of the generated dictionary of
 features the list lacks (:mod:`optcal.core.discovery.dictionary`), stepwise: the best feature by its linearised

@@ -1,7 +1,6 @@
 """The parts of the raw-recording path that fit a model, and so run a solver (application layer,
 CONTRIBUTING.md "Layers"; docs/design.md, "Raw recordings"): the search over the variance detector's threshold
-multiplier
-k, and a recording file to positions in one call. The default detector, change-point segmentation
+multiplier k, and a recording file to positions in one call. The default detector, change-point segmentation
 (:mod:`optcal.core.recording.segment`, docs/segmentation.md), fits no model: the threshold search runs only
 when the variance detector is asked for (``method="variance"``, or its ``threshold_k`` or ``init_s``).
 
@@ -133,10 +132,9 @@ def detection_method(method: str | None, threshold_k, init_s) -> str:
 def positions_from_raw(path: str | Path, options: RawOptions | None = None, *, model="diag6", g_local: float = 1.0,
                        gyro=None, **kw) -> PositionsData:
     """Positions from a raw recording: read (``options``' first seven,
-    :class:`~optcal.core.recording.options.RawOptions`,
-    :func:`~optcal.core.recording.read_recording`'s), then its static intervals: from the file ``intervals``
-    (:func:`~optcal.core.recording.read_intervals`), else from the runs of ``label_values`` (all labels if None) in the
-    column ``labels``, else from a detector (:func:`detection_method`):
+    :class:`~optcal.core.recording.options.RawOptions`, :func:`~optcal.core.recording.read_recording`'s), then its
+    static intervals: from the file ``intervals`` (:func:`~optcal.core.recording.read_intervals`), else from the runs
+    of ``label_values`` (all labels if None) in the column ``labels``, else from a detector (:func:`detection_method`):
 
     - ``method="segment"`` (the default): change points and a rest test
       (:func:`~optcal.core.recording.segment.segment_static`, docs/segmentation.md), poses of at least

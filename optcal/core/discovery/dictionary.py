@@ -14,10 +14,9 @@ columns than the residuals have degrees of freedom, so a joint least-squares fit
 Screening is linear and joint with the sensor model. A term adding c·φ to output i moves the norm residual
 e_j = ‖A_j‖ − g by −w_ji·K_i·φ_j·c, with (∂F/∂A)ᵀ w_j = A_j/‖A_j‖ (the implicit-function Jacobian of
 docs/design.md, "Evaluation paths and the Jacobian"). Every feature's column is built at once from arrays of exponents
-and context factors,
-its part in the span of the model's own Jacobian (what the fit absorbs by moving its parameters) is removed,
-and the reduction of the residual sum of squares, RSS₀ − RSS₁ = ‖P r‖² with P the projection on the feature's
-remaining columns, gives F = ((RSS₀ − RSS₁)/q) / (RSS₁/(m − p − q)) for every feature in a few matrix products
+and context factors, its part in the span of the model's own Jacobian (what the fit absorbs by moving its parameters)
+is removed, and the reduction of the residual sum of squares, RSS₀ − RSS₁ = ‖P r‖² with P the projection on the
+feature's remaining columns, gives F = ((RSS₀ − RSS₁)/q) / (RSS₁/(m − p − q)) for every feature in a few matrix products
 (a batched QR for features of several columns). The best one is then refitted exactly by the workflow.
 
 Two features the norm cannot tell apart are one candidate. The norm residual sees c·φ on output i as
@@ -44,8 +43,7 @@ MONOMIAL_ORDERS = (2, 3)  # products and powers of the axes on an output (the is
 CONTEXT_POWERS = (1, 2, 3)  # powers of the temperature and time offsets
 # A feature column with less than this share of its size left outside the model's span adds nothing: the
 # observability analysis's threshold (docs/design.md, "How the code finds them"). Far smaller leftovers are not
-# rounding but the
-# model's own nonlinearity (|A| − g is the residual itself), which lines up with the residual and would
+# rounding but the model's own nonlinearity (|A| − g is the residual itself), which lines up with the residual and would
 # look like a perfect fit.
 RANK_RTOL = RTOL
 

@@ -1,11 +1,9 @@
 """Model discovery's statistics (docs/design.md, "Model discovery"): the candidate terms' regressors, the fits it
-compares,
-the test that scores a candidate, and the noise of each residual. Core: nothing here runs a solver (the
+compares, the test that scores a candidate, and the noise of each residual. Core: nothing here runs a solver (the
 refits are :mod:`optcal.app.workflows.discovery`'s).
 
 Forward selection over the candidate terms of docs/design.md, "Terms and parameters". At each step every term not yet
-in the
-model is added in turn, the extended model is refitted by least squares (warm-started from the current fit
+in the model is added in turn, the extended model is refitted by least squares (warm-started from the current fit
 with the new parameters at zero) and scored against the current model with the F-test for nested
 least-squares models,
 
@@ -56,8 +54,8 @@ def regressors(term: str, A: np.ndarray, problem: CalibrationProblem) -> list[tu
     """The regressor of each of ``term``'s parameters at specific force ``A`` (n, 3):
     ``(parameter, label, axis, values)``. The term adds K_axis·parameter·values to output ``axis``
     (docs/design.md, "Terms and parameters"): A_i² (quadratic), A_i³ (cubic), min(A_i, 0) (scale asymmetry), A_i·A_j
-    (cross coupling),
-    T − T0 (temperature bias), (T − T0)·A_i (temperature scale), t − t0 (drift), A_j (misalignment)."""
+    (cross coupling), T − T0 (temperature bias), (T − T0)·A_i (temperature scale), t − t0 (drift), A_j
+    (misalignment)."""
     data, out = problem.data, []
     dtemp = None if data.temp is None else data.temp - np.mean(data.temp)
     dt = None if data.t is None else data.t - data.t[0]

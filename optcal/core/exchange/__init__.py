@@ -148,9 +148,9 @@ def import_calibration(path, fmt: str, *, units: str | None = None, calibrated: 
                        gyro_units: str | None = None) -> tuple[dict, list[str]]:
     """The optcal calibration-file dictionary of a tool's file, and notes for the user. ``units``: the raw
     units where the file does not state them (imu_tk), states a label optcal does not know (imucal), or
-    are Kalibr's m/s² converted from g or mg;
-    ``calibrated``: imu_tk's calibrated unit (its file does not say); ``model``: the optcal model to hold the
-    result (default: the smallest exact one); ``g_local`` in g (default: the file's, else 1). The gyroscope:
+    are Kalibr's m/s² converted from g or mg; ``calibrated``: imu_tk's calibrated unit (its file does not say);
+    ``model``: the optcal model to hold the result (default: the smallest exact one); ``g_local`` in g (default: the
+    file's, else 1). The gyroscope:
     imucal and Kalibr files hold it (imported unless it is the identity optcal writes without one), imu_tk
     keeps it in a second file, ``gyro``; ``gyro_units`` its raw units (imu_tk: required; imucal: where its
     label is unknown; Kalibr: rad/s by default, deg/s if Kalibr's rad/s were converted from those). The

@@ -7,9 +7,8 @@ and frames"),
     N = diag(K)·(T·A + b) = M·A + o,    M = diag(K)·T  (output units per g),   o = K ⊙ b  (output units)
 
 with T's off-diagonal cells as docs/design.md, "The installation matrix T" maps them. Each format module converts (M,
-o) to its own
-matrices and back; this module converts (M, o) to and from optcal's parameters, chooses the model an import
-needs (diag6, linear9 or scale+bias+misalignment6: the smallest that holds the matrix exactly) and refuses
+o) to its own matrices and back; this module converts (M, o) to and from optcal's parameters, chooses the model an
+import needs (diag6, linear9 or scale+bias+misalignment6: the smallest that holds the matrix exactly) and refuses
 what no format can hold (nonlinear, temperature and drift terms).
 """
 

@@ -12,8 +12,7 @@ entry but for ``rostopic``.
 
 From optcal's N = M_o·A + o (A in g, N in units u with s m/s² per u): M = (s/g0)·M_o and the bias s·o. M is
 lower triangular exactly when T is (optcal's gauge, docs/design.md, "The gauge of `misalignment`"), so linear9 and
-diag6 fit Kalibr's
-model; a T with cells above the diagonal (misalignment6) does not. The file has no constant bias: a
+diag6 fit Kalibr's model; a T with cells above the diagonal (misalignment6) does not. The file has no constant bias: a
 non-zero bias is refused unless the caller accepts that Kalibr estimates it online (``bias_online``).
 Raw units without a fixed SI value (counts, volts) are refused: Kalibr's measurements are in m/s².
 """

@@ -26,11 +26,10 @@ the terms as IEEE Std 952 Annex C and El-Sheimy et al. write them, without the q
 and sinusoid terms) over the points from the first one on the −1/2 line (a point at or before
 the minimum of σ whose local log-log slope is within ``SLOPE_TOL`` = 0.1 of −1/2; shorter τ may carry
 quantisation or the low-pass filter) to the last (a curve that ends steeper than a random walk, a drift,
-gets a note: K takes the drift in).
-Each point is weighted by the inverse variance of its σ², 2σ⁴/ν, with σ and the noise type behind ν taken
-from the fitted curve (iteratively re-weighted). The three lines of the figure are the fit's terms: the −1/2
-line (N read at τ = 1 s), the floor 0.664·B and the +1/2 line (K read at τ = 3 s). B and K are reported as
-upper bounds, not estimates, when σ still falls at the longest τ (the minimum is not reached: the lowest
+gets a note: K takes the drift in). Each point is weighted by the inverse variance of its σ², 2σ⁴/ν, with σ and the
+noise type behind ν taken from the fitted curve (iteratively re-weighted). The three lines of the figure are the fit's
+terms: the −1/2 line (N read at τ = 1 s), the floor 0.664·B and the +1/2 line (K read at τ = 3 s). B and K are reported
+as upper bounds, not estimates, when σ still falls at the longest τ (the minimum is not reached: the lowest
 point is the last one and the white term explains more than a quarter of its σ²) or when the fit leaves
 their term at 0 or undetermined (EDF below 2): K ≤ the upper confidence limit of σ(τ)·√(3/τ) at the longest
 τ, B ≤ that of the minimum of σ / 0.664 (every noise term adds to σ²). Without a white term N is missing.

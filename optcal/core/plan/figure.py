@@ -1,8 +1,7 @@
 """The figure of a plan (docs/planning.md, "For a person: fixtures, faces and tilts, order, files, figure"): the
-directions on the sphere, as two equal-area (Lambert
-azimuthal) discs, the upper hemisphere (A_z ≥ 0, seen from +z) and the lower (seen from −z), each position
-numbered in handling order and the path between consecutive positions drawn; a reference scheme, when
-given, as grey crosses."""
+directions on the sphere, as two equal-area (Lambert azimuthal) discs, the upper hemisphere (A_z ≥ 0, seen from +z) and
+the lower (seen from −z), each position numbered in handling order and the path between consecutive positions drawn; a
+reference scheme, when given, as grey crosses."""
 
 from __future__ import annotations
 

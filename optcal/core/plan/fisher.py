@@ -5,8 +5,7 @@ factors, everything else zero, or any point the caller gives) the norm residual 
 Jacobian row ∂e_j/∂x (2020 paper Eq. 12, the problem's analytic Jacobian through the implicit function
 theorem), and N positions with input-referred noise σ per axis give the information F = Σ_j j_jᵀ j_j / σ²
 (docs/design.md, "Cramér-Rao bound"). Columns are in natural units (:func:`optcal.core.gauge.natural_units`) and, when
-the model
-has directions that no design can see (seed15's three body-frame rotations), the information is that of the
+the model has directions that no design can see (seed15's three body-frame rotations), the information is that of the
 observable subspace: F_obs = Qᵀ F Q with Q an orthonormal basis of the complement of the null space, the
 same projection as :func:`optcal.core.analysis.projected_crlb`. Rows of every design in a population are
 evaluated in one call of the compiled Jacobian (S·N positions at once): no loop over candidates.

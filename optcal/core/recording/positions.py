@@ -38,9 +38,8 @@ def positions_from_recording(recording: Recording, detection: DetectionResult, *
     SD/√n; ``floor_like``: a floor of the same recording whose noise model is kept), middle time and mean
     temperature. The detection, the recording's path and the noise floor
     (:class:`optcal.core.recording.floor.NoiseFloor`) are kept in ``extra`` (``detection``, ``source``,
-    ``noise_floor``),
-    with :func:`recheck_poses` as ``recheck``: the fit (:func:`optcal.app.fit.calibrate`) re-examines outlying
-    poses through it without importing the recording path."""
+    ``noise_floor``), with :func:`recheck_poses` as ``recheck``: the fit (:func:`optcal.app.fit.calibrate`) re-examines
+    outlying poses through it without importing the recording path."""
     iv = detection.intervals
     if not len(iv):
         raise InputError("no static intervals to average into positions")
@@ -142,8 +141,7 @@ def mat_positions(path, units: str = "g") -> PositionsData:
 
 def read_positions_file(path, units: str = "g") -> PositionsData:
     """A positions file (a CSV or a MATLAB file of one mean per pose, docs/design.md, "Positions CSV"), read the same
-    way by
-    ``optcal calibrate`` and :func:`optcal.calibrate`: a raw recording given as positions is named as one, by the
+    way by ``optcal calibrate`` and :func:`optcal.calibrate`: a raw recording given as positions is named as one, by the
     one decision of :func:`optcal.core.recording.sniff.table_kind`, with the option that reads it (and the sample rate
     when it has no time column)."""
     from optcal.core.data import check_units, read_positions

@@ -1,6 +1,5 @@
 """Reading a raw recording (docs/design.md, "Raw recordings"): one row per sample, optionally a time column ``t`` (s,
-ms,
-µs or ns, told apart by the sample interval), the three accelerometer outputs ``ax, ay, az`` in the sensor's
+ms, µs or ns, told apart by the sample interval), the three accelerometer outputs ``ax, ay, az`` in the sensor's
 units, optionally ``temp`` (°C). Files may be CSV (comma, semicolon or tab; decimal point or comma) or
 whitespace-separated, gzip/bz2/xz-compressed, with or without a header, and may start with ``key,value``
 lines; their layout is read by :mod:`optcal.core.recording.sniff`. MATLAB ``.mat`` files (level 5, and v7.3 through

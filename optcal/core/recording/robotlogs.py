@@ -1,7 +1,6 @@
 """Robot and drone logs as raw recordings (issue #33): what the readers of ROS bags
 (:mod:`optcal.core.recording.bags`) and PX4 ULog (:mod:`optcal.core.recording.ulog`) share, and how their samples
-become the
-table :func:`optcal.core.recording.reading.read_recording` reads a text file or a MAT file as.
+become the table :func:`optcal.core.recording.reading.read_recording` reads a text file or a MAT file as.
 
 A log is told by its first bytes or its name (:func:`log_kind`): a ROS 1 bag (``#ROSBAG V2.0``, or ``.bag``), a
 ROS 2 bag (a folder holding ``metadata.yaml``, or its ``.db3`` or ``.mcap`` file), a ULog (``ULog`` and its

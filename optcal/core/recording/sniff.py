@@ -5,8 +5,8 @@ holds which role (time, the accelerometer's ax, ay, az, the gyroscope's gx, gy, 
 :data:`ALIASES`, names compared as :func:`~optcal.core.tablefile.column_key`s, so ``ACCELX``, ``Acc_X``, ``accX`` and
 ``acc x (g)`` are all ax), a MATLAB ``.mat`` file's table (:func:`mat_table`: level 5 through scipy.io.loadmat, a
 bad zlib checksum read with a warning; v7.3, which is HDF5, through h5py; anything unreadable one line), and
-whether a table holds positions or a recording's samples
-(:func:`table_kind`, by its data, one decision for both readers).
+whether a table holds positions or a recording's samples (:func:`table_kind`, by its data, one decision for both
+readers).
 
 Errors name the parameters of :func:`optcal.core.recording.read_recording` in backquotes (`` `columns` ``); the
 command line puts its option names there (optcal/app/commands/_dataopts.py).
@@ -253,8 +253,8 @@ def jump_ratio(N: np.ndarray) -> float | None:
 
 def table_kind(names, N: np.ndarray, nrows: int, ncol: int | None = None) -> tuple[str | None, str]:
     """Whether a table holds ``"positions"`` (docs/design.md, "Positions CSV") or ``"samples"`` of a raw recording
-    ("Raw recordings"),
-    or None when neither is clear, with the evidence in words. The data decide first (:func:`jump_ratio`:
+    ("Raw recordings"), or None when neither is clear, with the evidence in words. The data decide first
+    (:func:`jump_ratio`:
     :data:`POSITION_JUMP` or more is positions, :data:`SAMPLE_JUMP` or less samples); columns only a
     positions file has (:data:`POSITIONS_ONLY`) decide positions for a table of fewer than
     :data:`MANY_ROWS` rows when the data say samples (a sensor left in one pose while the temperature
