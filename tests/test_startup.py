@@ -37,7 +37,8 @@ CLI = [sys.executable, "-c", "import sys; from optcal.app.cli import main; sys.e
 # `optcal --help` and `optcal calibrate --help` in-process, their output swallowed.
 _HELP = """
 import contextlib, io
-from optcal.app.cli import main for argv in (["--help"], ["calibrate", "--help"]):
+from optcal.app.cli import main
+for argv in (["--help"], ["calibrate", "--help"]):
     with contextlib.redirect_stdout(io.StringIO()):
         try:
             main(argv)
@@ -168,7 +169,8 @@ def _command_alone(argv: list[str], command: str, checks: str = "") -> list[str]
     ruptures) modules it imported."""
     code = f"""
         import contextlib, io, sys
-        from optcal.app.cli import main out = io.StringIO()
+        from optcal.app.cli import main
+        out = io.StringIO()
         with contextlib.redirect_stdout(out):
             assert main({argv!r}) == 0
         commands = sorted(m for m in sys.modules
