@@ -33,6 +33,30 @@ def pytest_runtest_setup(item):
         corpus_dir()
 
 
+@pytest.fixture(scope="session")
+def computed_once(tmp_path_factory, worker_id):
+    """``computed_once(name, make)``: the folder ``make(folder)`` filled, made once for the whole session,
+    whichever xdist worker asks first (a file lock in the session's shared temporary folder; the pattern
+    pytest-xdist documents for session fixtures). A module fixture that runs a study would otherwise run once
+    on each worker that gets one of the module's tests."""
+    from filelock import FileLock
+
+    root = tmp_path_factory.getbasetemp()
+    if worker_id != "master":
+        root = root.parent  # the folder every worker's own temporary folder sits in
+
+    def get(name: str, make):
+        folder = root / f"once-{name}"
+        with FileLock(str(folder) + ".lock"):
+            if not (folder / ".complete").exists():
+                folder.mkdir(exist_ok=True)
+                make(folder)
+                (folder / ".complete").touch()
+        return folder
+
+    return get
+
+
 # The noise report's counts, levels and slopes; every other number's key names its unit (docs/noise.md)
 UNITLESS_NOISE_KEYS = {"n_samples", "ci_level", "edf", "local_slope"}
 

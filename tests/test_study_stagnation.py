@@ -61,9 +61,7 @@ def _rows(spec, folder):
         return {r["trial_id"]: r for r in st.rows()}
 
 
-@pytest.fixture(scope="module")
-def both(tmp_path_factory):
-    d = tmp_path_factory.mktemp("stagnation")
+def _run_both(d):
     # mealpy's grey wolf with the rule on (stop_on_stagnation: it is off by default for mealpy's optimisers)
     text = SPEC + ('\n[[solvers]]\nname = "mealpy:GWO"\noptions = {stop_on_stagnation = true}\n' if MEALPY else "")
     (d / "s.toml").write_text(text)
@@ -71,9 +69,20 @@ def both(tmp_path_factory):
     with pytest.MonkeyPatch.context() as mp:
         mp.setattr(trial, "STAGNATION", None)
         trial._WORLDS.clear()
-        full = _rows(spec, d / "full")
+        run_study(spec, d / "full", progress=False)
     trial._WORLDS.clear()
-    return full, _rows(spec, d / "stop"), d / "stop"
+    run_study(spec, d / "stop", progress=False)
+
+
+def _rows(folder):
+    with Store.open_existing(folder) as st:
+        return {r["trial_id"]: r for r in st.rows()}
+
+
+@pytest.fixture(scope="module")
+def both(computed_once):
+    d = computed_once("stagnation", _run_both)  # the two studies, run once for every worker
+    return _rows(d / "full"), _rows(d / "stop"), d / "stop"
 
 
 def test_every_row_says_why_its_trial_ended(both):

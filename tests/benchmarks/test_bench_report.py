@@ -3,9 +3,10 @@ of it drawing figures): the report of a 40-group study (ten fast solvers × two 
 runs) with every figure drawn in the report's own process, and with the figures drawn by worker processes
 (one per CPU; optcal.studies.figures.Renderer), which is what `optcal study report` does from 40 groups on.
 
-Run with `make bench`; under `make test` each runs once with timing disabled. extra_info: the groups, the
-figures, the workers, the seconds (the fastest round), and the CPU seconds of the report's own process.
-No timed assertion: the files are the same either way (tests/test_report_speed_equivalence.py).
+Run with `make bench`. Under `make test` (timing disabled) it is skipped: what it would check there, the
+report and its figures drawn both ways, tests/test_report_speed_equivalence.py checks file for file, and a
+30-second smoke run would only repeat it. extra_info: the groups, the figures, the workers, the seconds (the
+fastest round), and the CPU seconds of the report's own process. No timed assertion.
 """
 
 import shutil
@@ -34,7 +35,9 @@ enabled = true
 
 
 @pytest.fixture(scope="module")
-def study(tmp_path_factory):
+def study(tmp_path_factory, request):
+    if request.config.getoption("benchmark_disable"):
+        pytest.skip("timing disabled: the report drawn both ways is tests/test_report_speed_equivalence.py's test")
     folder = tmp_path_factory.mktemp("bench_report") / "study"
     run_study(parse(tomllib.loads(SPEC), "bench-report.toml"), folder, progress=False)
     return folder
