@@ -3,7 +3,7 @@
 The package: :mod:`~optcal.core.noise.allan` reads the stretch and computes σ(τ), :mod:`~optcal.core.noise.fit` fits the
 three terms and their intervals, :mod:`~optcal.core.noise.report` holds the result and writes the table, the JSON
 and Kalibr's yaml, :mod:`~optcal.core.noise.colored` draws noise of given N, B and K for simulations; the figure is
-:mod:`optcal.core.plots.noise`. Every name is importable from ``optcal.noise``.
+:mod:`optcal.core.plots.noise`. Every name is importable from ``optcal.core.noise``.
 
 The overlapping Allan deviation σ(τ) of each axis is computed with allantools (``allantools.oadev`` on the
 samples as frequency data, at octave-spaced τ = m/f_s, m = 1, 2, 4, … up to a quarter of the stretch). Three

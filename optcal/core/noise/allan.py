@@ -1,5 +1,5 @@
 """Reading a static stretch and its overlapping Allan deviation (the method: the docstring of
-:mod:`optcal.noise`): the samples turned into g, the octave τ, σ(τ) per axis with allantools and the
+:mod:`optcal.core.noise`): the samples turned into g, the octave τ, σ(τ) per axis with allantools and the
 chi-square interval of each point, a warning when the stretch does not look static, a stretch of a
 recording file, and the white-noise density of a recording or of a saved analysis (:func:`load_white_noise`).
 """

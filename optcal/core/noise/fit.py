@@ -1,5 +1,5 @@
 """The three-term fit of the Allan variance and the intervals of its coefficients (the method: the docstring
-of :mod:`optcal.noise`; IEEE Std 952-1997 Annex C; El-Sheimy, Hou & Niu, IEEE Trans. Instrum. Meas. 57(1),
+of :mod:`optcal.core.noise`; IEEE Std 952-1997 Annex C; El-Sheimy, Hou & Niu, IEEE Trans. Instrum. Meas. 57(1),
 2008; intervals: NIST SP 1065 eq. 45 with Greenhall's EDF).
 
 σ²(τ) = N²/τ + (0.664·B)² + K²·τ/3 is fitted by weighted non-negative least squares over the points from

@@ -1,6 +1,6 @@
 """The figure of a noise analysis (docs/noise.md): the overlapping Allan deviation of each axis on log-log
 axes with its intervals, the fitted curve σ² = N²/τ + (0.664·B)² + K²·τ/3 and its three lines (the method:
-:mod:`optcal.noise`)."""
+:mod:`optcal.core.noise`)."""
 
 from __future__ import annotations
 
@@ -15,7 +15,7 @@ if TYPE_CHECKING:
 
 def noise_figure(report) -> Figure:
     """σ(τ) in µg per axis of ``report`` (a :class:`optcal.core.noise.NoiseReport`; this module imports nothing of
-    optcal.noise, which calls it) with its intervals, the fitted curve over the fitted points and its three
+    optcal.core.noise, which calls it) with its intervals, the fitted curve over the fitted points and its three
     lines (−1/2 with N marked at τ = 1 s, the floor 0.664·B, +1/2 with K marked at τ = 3 s; ▼ and △ mark
     upper bounds), against τ in s."""
     from matplotlib.figure import Figure

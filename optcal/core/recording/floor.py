@@ -11,7 +11,7 @@ its mean about the mean of all positions,
 
 with C the covariance of the p interval means under the sensor's noise and p/(p − 1) the factor that makes
 the floor exactly σ/√n for independent means. The noise is white plus flicker, the first two terms of the
-power law of :mod:`optcal.noise` (IEEE Std 952-1997 Annex C; El-Sheimy, Hou & Niu 2008): two-sided PSD
+power law of :mod:`optcal.core.noise` (IEEE Std 952-1997 Annex C; El-Sheimy, Hou & Niu 2008): two-sided PSD
 S(f) = N² + B²/(2π|f|), Allan variance σ²(τ) = N²/τ + (0.664·B)². N and B are fitted per axis to the
 overlapping Allan variance of all the recording's static intervals pooled (:func:`pooled_avar`: every second
 difference of τ-averages that lies inside one interval, from all of them) by weighted least squares
