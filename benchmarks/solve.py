@@ -5,14 +5,17 @@ from __future__ import annotations
 
 import numpy as np
 
+from benchmarks._paths import module
+
 BACKENDS = ["scipy-lm", "nlopt-bobyqa", "cmaes", "pso", "staged:bsas", "nafsa"]
 BUDGET = 2000  # evaluations per calibration
 
 
 def _problem():
-    from optcal.core.presets import PAPER_TRUTH, manufacturer_presets
-    from optcal.core.problem import CalibrationProblem
-    from optcal.core.simulate import simulate
+    presets_mod = module("optcal.core.presets")
+    PAPER_TRUTH, manufacturer_presets = presets_mod.PAPER_TRUTH, presets_mod.manufacturer_presets
+    CalibrationProblem = module("optcal.core.problem").CalibrationProblem
+    simulate = module("optcal.core.simulate").simulate
 
     rng = np.random.default_rng(4242)
     sim = simulate("nonlinear12", PAPER_TRUTH, rng, scheme="24", noise_g=10e-6, tilt_deg=1.0)
@@ -23,9 +26,7 @@ def _problem():
 def _compile():
     """Compile the kernel once per commit (numba caches it on disk beside the installed package), outside
     every timed process: after an install the first evaluation compiles for about half a minute."""
-    from optcal.core.warmup import warm
-
-    return warm()
+    return module("optcal.core.warmup").warm()
 
 
 class Kernel:
@@ -55,8 +56,7 @@ class Calibrate:
     setup_cache = staticmethod(_compile)
 
     def setup(self, _, name):
-        from optcal import solvers
-
+        solvers = module("optcal.solvers")
         if not solvers.get(name).is_available():
             raise NotImplementedError  # asv: skipped
         self.p = _problem()

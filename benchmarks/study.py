@@ -12,7 +12,9 @@ from __future__ import annotations
 import os
 import tempfile
 
-from optcal.studies.spec import load
+from benchmarks._paths import module
+
+load = module("optcal.studies.spec").load
 
 SPEC = os.environ.get("OPTCAL_ASV_SPEC", "ci")
 RUNS = os.environ.get("OPTCAL_ASV_RUNS")
@@ -30,10 +32,10 @@ SOLVERS = [c.label for c in _S.solvers if not c.reference]
 
 def setup_cache():
     """Run the study once (this commit's code) and keep each cell's summary and each solver's ECDF areas."""
-    from optcal.studies import anytime
-    from optcal.studies.execute import run_study
-    from optcal.studies.metrics import groups
-    from optcal.studies.store import Store
+    anytime = module("optcal.studies.anytime")
+    run_study = module("optcal.studies.execute").run_study
+    groups = module("optcal.studies.metrics").groups
+    Store = module("optcal.studies.store").Store
 
     with tempfile.TemporaryDirectory() as folder:
         run_study(_spec(), folder, executor="serial", progress=False)
@@ -92,12 +94,9 @@ class TimeStudy:
     warmup_time = 0
 
     def setup_cache(self):
-        from optcal.core.warmup import warm
-
-        warm()  # the kernel compiles once per commit here, not inside the timing
+        module("optcal.core.warmup").warm()  # the kernel compiles once per commit here, not inside the timing
 
     def time_study_quick(self, _):
-        from optcal.studies.execute import run_study
-
+        run_study = module("optcal.studies.execute").run_study
         with tempfile.TemporaryDirectory() as folder:
             run_study(_spec().quick(), folder, executor="serial", progress=False)
