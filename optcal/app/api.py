@@ -88,12 +88,11 @@ def calibrate(data, model=None, *, solver: str = "lm", units: str | None = None,
 
     ``data``: a :class:`~optcal.core.data.PositionsData`; an (n, 3) array of position means in ``units``; or a
     path (str or pathlib.Path) to a positions CSV (design.md, "Positions CSV"), or, with ``raw=True``, to a raw
-    recording whose static intervals are found as ``optcal calibrate --raw`` finds them (design.md, "Raw recordings").
-    ``units``: the outputs'
-    units (g, m/s2, counts, volts, mg; default g). Keyword arguments for a raw recording, as
-    :func:`optcal.core.recording.positions_from_raw` takes them: ``columns``, ``rate`` (Hz), ``saturation``, ``adc``
-    (the counts' format, e.g. "uint16"), ``time_unit`` (of the time column), ``topic`` (a ROS bag's or a PX4
-    ULog's IMU topic, docs/real_data.md), ``labels`` (a label column) and ``label_values``, ``intervals`` (a
+    recording whose static intervals are found as ``optcal calibrate --raw`` finds them (design.md, "Raw
+    recordings"). ``units``: the outputs' units (g, m/s2, counts, volts, mg; default g). Keyword arguments for
+    a raw recording, as :func:`optcal.app.workflows.recording.positions_from_raw` takes them: ``columns``,
+    ``rate`` (Hz), ``saturation``, ``adc`` (the counts' format, e.g. "uint16"), ``time_unit`` (of the time
+    column), ``topic`` (a ROS bag's or a PX4 ULog's IMU topic, docs/real_data.md), ``labels`` (a label column) and ``label_values``, ``intervals`` (a
     file), ``method`` ("segment", the default, or "variance"), ``threshold_k`` ("2:10"),
     ``window_s``, ``min_static_s`` and ``init_s`` (s). ``g_local``: local gravity in g
     (``optcal.core.gravity.local_gravity_g`` converts m/s² or a latitude). The rest is

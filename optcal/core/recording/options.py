@@ -1,6 +1,7 @@
 """How a raw recording is read and its rests found, in one object (issue #30): the options of ``optcal calibrate
 --raw`` (and ``imu``, ``discover``, ``noise``), the keyword arguments of :func:`optcal.calibrate` with
-``raw=True`` and of :func:`optcal.core.recording.positions_from_raw`, and the options the library's errors name.
+``raw=True`` and of :func:`optcal.app.workflows.recording.positions_from_raw`, and the options the library's
+errors name.
 Each field carries the command-line option that sets it, so that the list of options, the API's accepted
 keywords and the errors' option names are this one definition."""
 
