@@ -86,19 +86,18 @@ def calibrate(data, model=None, *, solver: str = "lm", units: str | None = None,
     to ``data`` and return an :class:`optcal.core.calibration.Calibration` (parameters, standard errors, observability,
     goodness of fit).
 
-    ``data``: a :class:`~optcal.core.data.PositionsData`; an (n, 3) array of position means in ``units``; or a
-    path (str or pathlib.Path) to a positions CSV (design.md, "Positions CSV"), or, with ``raw=True``, to a raw
-    recording whose static intervals are found as ``optcal calibrate --raw`` finds them (design.md, "Raw
-    recordings"). ``units``: the outputs' units (g, m/s2, counts, volts, mg; default g). Keyword arguments for
-    a raw recording, as :func:`optcal.app.workflows.recording.positions_from_raw` takes them: ``columns``,
-    ``rate`` (Hz), ``saturation``, ``adc`` (the counts' format, e.g. "uint16"), ``time_unit`` (of the time
-    column), ``topic`` (a ROS bag's or a PX4 ULog's IMU topic, docs/real_data.md), ``labels`` (a label column) and ``label_values``, ``intervals`` (a
-    file), ``method`` ("segment", the default, or "variance"), ``threshold_k`` ("2:10"),
-    ``window_s``, ``min_static_s`` and ``init_s`` (s). ``g_local``: local gravity in g
-    (``optcal.core.gravity.local_gravity_g`` converts m/s² or a latitude). The rest is
-    :func:`optcal.app.fit.calibrate`'s:
-    the registered solver and its options, turntable ``reference``, ``presets``, the solver's ``seed``, the
-    evaluation ``budget`` and the noise SD of a position mean ``noise_g`` (g).
+    ``data``: a :class:`~optcal.core.data.PositionsData`; an (n, 3) array of position means in ``units``; or a path (str
+    or pathlib.Path) to a positions CSV (design.md, "Positions CSV"), or, with ``raw=True``, to a raw recording whose
+    static intervals are found as ``optcal calibrate --raw`` finds them (design.md, "Raw recordings"). ``units``: the
+    outputs' units (g, m/s2, counts, volts, mg; default g). Keyword arguments for a raw recording, as
+    :func:`optcal.app.workflows.recording.positions_from_raw` takes them: ``columns``, ``rate`` (Hz), ``saturation``,
+    ``adc`` (the counts' format, e.g. "uint16"), ``time_unit`` (of the time column), ``topic`` (a ROS bag's or a PX4
+    ULog's IMU topic, docs/real_data.md), ``labels`` (a label column) and ``label_values``, ``intervals`` (a file),
+    ``method`` ("segment", the default, or "variance"), ``threshold_k`` ("2:10"), ``window_s``, ``min_static_s`` and
+    ``init_s`` (s). ``g_local``: local gravity in g (``optcal.core.gravity.local_gravity_g`` converts m/s² or a
+    latitude). The rest is :func:`optcal.app.fit.calibrate`'s: the registered solver and its options, turntable
+    ``reference``, ``presets``, the solver's ``seed``, the evaluation ``budget`` and the noise SD of a position mean
+    ``noise_g`` (g).
 
     The rules of ``optcal calibrate`` hold (docs/design.md, "Per-position residuals, outliers, the robust loss, what
     the data determine and weak fits"): a fit the data do not determine (too few
