@@ -65,11 +65,14 @@ def test_per_position_by_hand():
     assert math.isnan(per_position([3e-6], None, 1e-6)) and math.isnan(per_position([], 4, 1e-6))
 
 
-@pytest.fixture(scope="module")
-def sizes(tmp_path_factory):
-    folder = tmp_path_factory.mktemp("sizes")
+def _sizes_study(folder):
     run_study(parse(tomllib.loads(SPEC), "sizes.toml"), folder, progress=False)
     write_report(folder)
+
+
+@pytest.fixture(scope="module")
+def sizes(computed_once):
+    folder = computed_once("sizes", _sizes_study)  # once for every xdist worker; the tests only read it
     with Store.open_existing(folder) as st:
         rows = st.rows()
     return folder, (folder / "report.md").read_text(), json.loads((folder / "summary.json").read_text()), rows

@@ -64,11 +64,14 @@ def test_compare_to_best_flags_a_solver_worse_in_every_run_and_not_a_tie():
     assert {r["solver"]: r for r in paired.compare_to_best(groups, False)}["worse"]["n"] == 11
 
 
-@pytest.fixture(scope="module")
-def ci_report(tmp_path_factory):
-    folder = tmp_path_factory.mktemp("ci")
+def _ci_study(folder):
     run_study(load("ci"), folder, progress=False)
     write_report(folder)
+
+
+@pytest.fixture(scope="module")
+def ci_report(computed_once):
+    folder = computed_once("ci_report", _ci_study)  # once for every xdist worker; the tests only read it
     return folder, (folder / "report.md").read_text(), read_summary(folder)
 
 
