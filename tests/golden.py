@@ -3,7 +3,8 @@ nothing a user sees"): calibrations of every corpus recording, the IMU fits, a s
 pixels, kept in ``tests/golden/outputs.json`` and compared value by value (relative 1e-12, so a different
 summation order in BLAS is not a failure, a different answer is).
 
-The tests that already compute these outputs call ``check(key, value)``; nothing is computed twice. A change
+The tests that already compute these outputs call ``check(key, value)`` (or assert that ``differences(key,
+value)`` is empty); nothing is computed twice. A change
 that means to alter an output regenerates the file, serially, and says why in its commit:
 
     OPTCAL_GOLDEN=write .venv/bin/python -m pytest -p no:xdist tests/test_corpus_wild.py tests/test_study_api.py \\
@@ -55,18 +56,25 @@ def _same(a, b, path: str) -> list[str]:
     return [] if a == b else [f"{path}: {a!r} != {b!r}"]
 
 
-def check(key: str, value) -> None:
-    """Assert that ``value`` is what ``key`` held before; with ``OPTCAL_GOLDEN=write``, record it instead."""
+def differences(key: str, value) -> list[str]:
+    """What differs between ``value`` and what ``key`` held before (empty: the same); with
+    ``OPTCAL_GOLDEN=write``, record ``value`` instead and report nothing."""
     value = _plain(value)
     if os.environ.get("OPTCAL_GOLDEN") == "write":
         data = _load()
         data[key] = value
         FILE.parent.mkdir(exist_ok=True)
         FILE.write_text(json.dumps(dict(sorted(data.items())), indent=1) + "\n")
-        return
+        return []
     data = _load()
-    assert key in data, f"no golden value for {key!r}: regenerate tests/golden/outputs.json (tests/golden.py)"
-    diffs = _same(value, data[key], key)
+    if key not in data:
+        return [f"no golden value for {key!r}: regenerate tests/golden/outputs.json (tests/golden.py)"]
+    return _same(value, data[key], key)
+
+
+def check(key: str, value) -> None:
+    """Assert that ``value`` is what ``key`` held before (:func:`differences`, the first five named)."""
+    diffs = differences(key, value)
     more = f" … ({len(diffs) - 5} more)" if len(diffs) > 5 else ""
     assert not diffs, "output changed: " + "; ".join(diffs[:5]) + more
 
