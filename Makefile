@@ -4,10 +4,10 @@ VENV   := .venv
 PY     := $(VENV)/bin/python
 RUN_STAMP := $(VENV)/.installed-run
 STAMP  := $(VENV)/.installed
-# Monte-Carlo runs of `make run`: the headline study's configurations, all of them, on 16 of its 50 runs, so
+# Monte-Carlo runs of `make run`: the headline study's configurations, all of them, on 20 of its 50 runs, so
 # that a fresh clone shows the table within 8 minutes on two cores (docs/performance.md, "The time of `make
 # run`"); `make run-full` runs all 50.
-RUNS   ?= 16
+RUNS   ?= 20
 
 .PHONY: run run-full run-quick test docs lint bench bench-compare clean
 
@@ -27,7 +27,7 @@ $(STAMP): $(RUN_STAMP)
 	touch $(STAMP)
 
 # The headline comparison study (optcal/studies/specs/compare.toml: 41 configurations × 2 models × 2 schemes) on
-# $(RUNS) Monte-Carlo runs (2,624 trials) and its report, out/compare/report.md, on every core; the report's
+# $(RUNS) Monte-Carlo runs (3,280 trials) and its report, out/compare/report.md, on every core; the report's
 # headline tables are written after the first run and refreshed while it goes. A study that is stopped resumes
 # where it stopped when run again. `make run-full`: the spec's 50 runs (8,200 trials; the README's table) into
 # out/compare-full; `make run-quick`: its 10-run variant.
