@@ -21,6 +21,7 @@ import numpy as np
 
 from optcal.core.data import UNITS, PositionsData, check_units
 from optcal.core.errors import InputError
+from optcal.core.fixed_width import read_fixed_width
 from optcal.core.recording.sniff import (
     KIND_ROWS,
     ROLES,
@@ -334,14 +335,20 @@ def _text(path: Path):
 def _load_numeric(path: Path, lay: Layout, usecols: list[int], max_rows: int | None = None) -> np.ndarray:
     """The chosen columns as floats, (n, len(usecols)). Delimited files go through Arrow's multithreaded
     CSV reader when pyarrow is installed (several times faster than NumPy's); anything it does not read
-    cleanly (comment lines, ragged rows, text in a number column, whitespace-separated files) goes through
-    numpy.loadtxt, a C reader too, whose messages name the offending row. A column asked for twice is read
+    cleanly (comment lines, ragged rows, text in a number column) goes through numpy.loadtxt, a C reader
+    too, whose messages name the offending row. Whitespace-separated files whose lines share one layout (a
+    logger's fixed format) are read by :func:`optcal.core.fixed_width.read_fixed_width`, the others by
+    numpy.loadtxt. A column asked for twice is read
     once (Arrow refuses a repeated column)."""
     cols, back = np.unique(np.asarray(usecols, int), return_inverse=True)
     if len(cols) < len(usecols):
         return _load_numeric(path, lay, cols.tolist(), max_rows)[:, back.ravel()]
     if lay.delimiter is not None and max_rows is None and _arrow_reader() is not None:
         out = _load_arrow(path, lay, usecols)
+        if out is not None:
+            return out
+    if lay.delimiter is None and max_rows is None and lay.decimal == ".":
+        out = _load_fixed_width(path, lay, usecols)
         if out is not None:
             return out
     comma = {j: (lambda s: float(s.replace(",", "."))) for j in usecols} if lay.decimal == "," else None
@@ -367,6 +374,21 @@ def _comment_marks(path: Path, chunk: int = 1 << 20):
             found.update(m for m in marks if m in block)
     used = tuple(m.decode() for m in marks if m in found)
     return used[0] if len(used) == 1 else (used or None)
+
+
+def _load_fixed_width(path: Path, lay: Layout, usecols: list[int]) -> np.ndarray | None:
+    """A whitespace-separated table whose every line has one layout (:mod:`optcal.core.fixed_width`), or None."""
+    try:
+        with open_binary(path) as fh:
+            raw = fh.read()
+    except DECODE_ERRORS:
+        return None
+    start = 0
+    for _ in range(lay.skiprows):
+        start = raw.find(b"\n", start) + 1
+        if start == 0:
+            return None
+    return read_fixed_width(raw[start:], lay.ncol, usecols)
 
 
 def _load_arrow(path: Path, lay: Layout, usecols: list[int]) -> np.ndarray | None:
