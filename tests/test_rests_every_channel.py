@@ -122,3 +122,52 @@ def test_a_pose_with_motion_at_its_end_is_trimmed_and_refitted():
     new = cal.problem.data.extra["detection"].intervals
     assert rests[5, 0] <= new[5, 0] and new[5, 1] <= rests[5, 1] + 3
     assert np.all(np.abs(cal.x - good.x) < 2 * good.stderr), (cal.x - good.x) / good.stderr
+
+
+def _jolted(seed: int = 3):
+    """Twelve 3-s poses at 100 Hz joined by steps, each motion starting with a jolt: ten samples alternating
+    ±0.3 g on every axis at the end of the rest before it, four in its second-to-last 6-sample block (with two
+    still samples) and six in its last: every block's mean is the rest's, so the block means do not see it,
+    and the segmentation's end block holds only the last six."""
+    import dataclasses
+
+    syn = poses_recording(np.random.default_rng(seed), motion="step", noise_g=2e-3)
+    N = np.array(syn.recording.N, float)
+    jolt = np.zeros(len(N), bool)
+    for _, e in syn.rests[:-1]:
+        N[e - 10:e] += 0.3 * np.tile([1.0, -1.0], 5)[:, None]
+        jolt[e - 10:e] = True
+    return dataclasses.replace(syn.recording, N=N), jolt
+
+
+@pytest.mark.parametrize("seed", [3, 4, 5])
+def test_a_jolt_inside_a_rests_last_block_is_trimmed(seed, monkeypatch):
+    """Issue #29 (found on a hand-held log of another lab): the first samples of a motion inside a rest's last
+    kept block, invisible in the block's mean, are cut off sample by sample; without the end check they stay."""
+    rec, jolt = _jolted(seed)
+    det = segment_static(rec)
+    kept = np.zeros(len(jolt), bool)
+    for a, b in det.intervals:
+        kept[a:b] = True
+    assert len(det.intervals) == 12
+    assert not (kept & jolt).any()
+    assert any("trimmed at an end" in n for n in det.notes)
+    monkeypatch.setattr("optcal.core.recording.segment.END_Z", np.inf)  # no end check: the jolts stay in
+    kept[:] = False
+    for a, b in segment_static(rec).intervals:
+        kept[a:b] = True
+    assert (kept & jolt).sum() >= 4
+
+
+def test_quiet_rests_are_not_trimmed():
+    """Rests whose end blocks hold only noise keep every sample the segmentation gave them."""
+    from optcal.core.recording.segment import _trim_ends
+
+    rng = np.random.default_rng(0)
+    N = np.repeat(np.array([[0.0, 0.0, 1.0], [1.0, 0.0, 0.0]]), 500, axis=0) + rng.normal(0, 2e-3, (1000, 3))
+    iv = np.array([[10, 490], [510, 990]])
+    out, n = _trim_ends(N, iv, 6, np.full(3, 2e-3))
+    assert n == 0 and out.tolist() == iv.tolist()
+    N[486:488] += 0.05  # 25 SDs: a motion's first samples in the first interval's last block
+    out, n = _trim_ends(N, iv, 6, np.full(3, 2e-3))
+    assert n == 1 and out.tolist() == [[10, 486], [510, 990]]
