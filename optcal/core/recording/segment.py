@@ -69,7 +69,6 @@ GROW_FRACTION = 0.5  # a turn extends while its averaged rate stays above this f
 GYRO_Z_LOW = 4.0  # ... and this many noise SDs (its slow start, its settling)
 SETTLE_S = 0.15  # s: samples this long after a turn are left out of a rest (a settling fades under the noise)
 GYRO_MARGIN_S = 0.05  # s: and this long before one (the turn's first samples)
-END_Z = 6.0  # a sample in a kept rest's first or last block this many robust SDs off its level is a motion's
 
 
 @dataclass
@@ -725,12 +724,6 @@ def segment_static(recording: Recording, *, min_static_s: float | None = None,
         iv[-1, 1] = nb * b + (int(np.argmax(tail)) if tail.any() else len(tail))
     iv = iv[iv[:, 1] > iv[:, 0]]
     notes = []
-    n_trimmed = 0
-    if refine:
-        iv, n_trimmed = _trim_ends(np.where(np.isfinite(recording.N), recording.N, 0.0), iv, b, sg.sigma)
-    if n_trimmed:
-        notes.append(f"{n_trimmed} rest(s) trimmed at an end where a motion starts or ends inside their first or "
-                     "last block")
     if sg.turning is not None and len(iv):  # no sample the gyroscope sees turning stays in a rest
         # a pose of at least min_static_s (decided on its segment) keeps what its edges leave, down to half that
         iv, n_cut = _still_parts(iv, sg.turning, max(3, m // 2))
@@ -755,44 +748,6 @@ def segment_static(recording: Recording, *, min_static_s: float | None = None,
     res.block = b
     res.segmentation = sg
     return res
-
-
-def _trim_ends(N: np.ndarray, iv: np.ndarray, b: int, sigma: np.ndarray) -> tuple[np.ndarray, int]:
-    """The intervals ``iv`` (k, 2) with the motion's samples at their ends cut off, and how many were cut.
-
-    Segmentation decides on block means: a motion that starts in a rest's last kept block (or ends in its
-    first) may leave its first samples there while the block's mean, over ``b`` samples, still looks at rest
-    (a hand's jolt of ±0.3 g over four samples averages out). Each interval's level is its median and its
-    scale the larger of 1.4826 × its median absolute deviation (tremor included) and the recording's white
-    noise ``sigma``, per axis; in its first and last ``b`` samples, a sample :data:`END_Z` scales off on any
-    axis marks a motion, and the interval is cut from its start to after the last such sample of its first
-    block, and from the first such sample of its last block to its end. All intervals at once."""
-    iv = np.asarray(iv, np.int64).reshape(-1, 2)
-    k = len(iv)
-    if not k or b < 2:
-        return iv, 0
-    level = _group_median(N, iv)
-    lens = iv[:, 1] - iv[:, 0]
-    which = np.repeat(np.arange(k), lens)
-    rows = np.arange(int(lens.sum())) - np.repeat(np.cumsum(lens) - lens, lens) + np.repeat(iv[:, 0], lens)
-    dev = np.abs(N[rows] - level[which])
-    mad = _group_median(dev, np.column_stack([np.cumsum(lens) - lens, np.cumsum(lens)]))
-    scale = np.maximum(1.4826 * mad, np.asarray(sigma, float)[None, :])
-    w = np.minimum(b, lens // 2)  # an interval's first and last w samples (no more than half of it each)
-    j = np.arange(b)
-    head = np.minimum(iv[:, :1] + j, iv[:, 1:] - 1)  # (k, b): the first samples (repeated past w)
-    tail = np.maximum(iv[:, 1:] - 1 - j, iv[:, :1])  # (k, b): the last samples, from the end inwards
-
-    def far(idx):
-        return (np.abs(N[idx] - level[:, None]) > END_Z * scale[:, None]).any(axis=2) & (j < w[:, None])
-
-    fh, ft = far(head), far(tail)
-    # the start moves past the last flagged sample of the first block, the end to the first of the last
-    cut_head = np.where(fh.any(axis=1), b - np.argmax(fh[:, ::-1], axis=1), 0)
-    cut_tail = np.where(ft.any(axis=1), b - np.argmax(ft[:, ::-1], axis=1), 0)
-    out = iv + np.column_stack([cut_head, -cut_tail])
-    n_cut = int(np.sum((cut_head > 0) | (cut_tail > 0)))
-    return out[out[:, 1] - out[:, 0] >= 3], n_cut
 
 
 def _still_parts(iv: np.ndarray, turning: np.ndarray, m: int) -> tuple[np.ndarray, int]:
