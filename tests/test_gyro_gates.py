@@ -192,3 +192,26 @@ def test_force_weak_keeps_the_failed_fit_marked(sdr, tmp_path, capsys):
     assert "gyroscope forced although implausible" in text
     g = json.loads(out.read_text())["gyroscope"]  # the file says so too (optcal.app.imu.ImuCalibration.gyro_block)
     assert g["forced"] is True and g["forced_reasons"] and imu.gyro_block()["forced"] is True
+
+
+def test_chi2_far_above_the_noise_is_noted_with_the_scaled_errors():
+    """χ²/dof above CHI2_NOTE (and below the refusal) passes with a note saying how far the residuals exceed the
+    rests' white noise and that the standard errors carry it; at the noise, no such note (found on a lab's
+    hand-held log outside the corpus: χ²/dof 692 written with exit 0 and no word)."""
+    assert ga.chi2_note(ga.CHI2_NOTE, 1.0) is None and ga.chi2_note(float("nan"), 1.0) is None
+    note = ga.chi2_note(692.26, 0.621)
+    assert note.startswith("gyroscope χ²/dof 692: the motions' residuals are 26.3 times") and "0.62° off" in note
+    assert note.endswith("the standard errors are scaled by 26.3")
+    clean = _simulated(DEG, "deg/s")
+    fit = calibrate_gyro(clean, scale=DEG)
+    assert fit.chi2_dof < 2 and not any("χ²/dof" in n for n in fit.notes)
+    # rates disturbed inside the motions only (a jittering time base): the rests' noise is unchanged
+    W = clean.W.copy()
+    moving = np.ones(len(W), bool)
+    for a, b in clean.rests:
+        moving[a:b] = False
+    W[moving] += np.random.default_rng(0).normal(0.0, 6.0 * clean.rest_sd_W.mean(), (int(moving.sum()), 3))
+    noisy = calibrate_gyro(dataclasses.replace(clean, W=W), scale=DEG)
+    assert ga.CHI2_NOTE < noisy.chi2_dof < ga.MAX_CHI2_DOF and not noisy.forced
+    said = [n for n in noisy.notes if n.startswith("gyroscope χ²/dof")]
+    assert len(said) == 1 and f"scaled by {np.sqrt(noisy.chi2_dof):.3g}" in said[0]

@@ -21,7 +21,14 @@ import numpy as np
 
 from optcal.core import analysis
 from optcal.core.errors import InputError
-from optcal.core.gyro.analysis import check_observable, g_sensitivity_test, plausibility, refusal_line, scale_note
+from optcal.core.gyro.analysis import (
+    check_observable,
+    chi2_note,
+    g_sensitivity_test,
+    plausibility,
+    refusal_line,
+    scale_note,
+)
 from optcal.core.gyro.data import GyroData
 from optcal.core.gyro.problem import GyroProblem
 
@@ -93,7 +100,8 @@ def gate(fit: GyroFit, *, scale=None, force_weak: bool = False) -> GyroFit:
     """Refuse an implausible ``fit`` in one line (:func:`optcal.core.gyro.analysis.plausibility`), or with
     ``force_weak`` mark it as forced (a first note and ``forced``); add a note when its scale is more than
     10 % from the declared units' factor (:data:`optcal.core.gyro.calfile.NOMINAL_SCALE`) or, for units without
-    one, from the nominal ``scale`` given."""
+    one, from the nominal ``scale`` given, and one when its χ²/dof is far above the rests' white noise
+    (:func:`optcal.core.gyro.analysis.chi2_note`)."""
     from optcal.core.gyro.calfile import NOMINAL_SCALE
 
     p = fit.problem
@@ -115,6 +123,8 @@ def gate(fit: GyroFit, *, scale=None, force_weak: bool = False) -> GyroFit:
     else:  # searched for from the motions (or given per axis): nothing to compare with
         note = None
     if note:
+        fit.notes.append(note)
+    if not refused and (note := chi2_note(fit.chi2_dof, residual)):
         fit.notes.append(note)
     return fit
 

@@ -77,6 +77,9 @@ NOMINAL_NOTE = 0.10
 # what a gyroscope within its datasheet's 3 % misses a 90–180° turn by: such a calibration does no better.
 MAX_CHI2_DOF = 1000.0
 MAX_RESIDUAL_DEG = 5.0
+# Below the refusal, χ²/dof above this (residuals more than about 3 times the rests' white noise) is said in a note:
+# the fit stands, its standard errors scaled by √(χ²/dof), and the user learns what the excess usually is.
+CHI2_NOTE = 10.0
 
 _FAILED = ("likely a wrong rate or time column (`rate`, `time_unit`), motion in rests, saturation, or wrong "
            "`gyro_units` or `gyro_columns`")
@@ -147,6 +150,18 @@ def refusal_line(refusals: list[GyroRefusal], limit: int = 280) -> str:
         if len(text) <= limit or n == 1:
             return text
     return text  # pragma: no cover
+
+
+def chi2_note(chi2_dof: float, residual_deg: float) -> str | None:
+    """A note when the gyroscope's χ²/dof exceeds :data:`CHI2_NOTE` (and the fit was not refused for it): how
+    far the motions' residuals exceed the rests' white noise, what usually causes it, and that the standard
+    errors carry it (scaled by √(χ²/dof), the Birge ratio)."""
+    if not (np.isfinite(chi2_dof) and chi2_dof > CHI2_NOTE):
+        return None
+    ratio = float(np.sqrt(chi2_dof))
+    return (f"gyroscope χ²/dof {chi2_dof:.3g}: the motions' residuals are {ratio:.3g} times what the rests' white "
+            f"noise explains (motions {residual_deg:.2f}° off, RMS), usually motion left in the rests, a time base "
+            f"that jitters or a bias that drifts during the turns; the standard errors are scaled by {ratio:.3g}")
 
 
 def scale_note(K, units: str, nominal: float | None, *, declared: bool) -> str | None:
