@@ -36,6 +36,9 @@ def describe_detection(obj: DetectionResult | PositionsData) -> str:
                f"noise SD per sample {noise} {rec.units} (x, y, z, from the recording), poses of at least "
                f"{det.min_samples} samples, rest tested in windows of up to {det.window} samples; "
                f"{len(sg.segments)} segment(s), {int(sg.rest.sum())} at rest")
+        if sg.turning is not None:
+            gyro = ", ".join(str(rec.columns[r]) for r in ("gx", "gy", "gz") if r in rec.columns)
+            how += f"; stillness judged on the gyroscope too{f' ({gyro})' if gyro else ''}"
     else:
         how = "intervals given by hand" if det.method == "given" else "intervals from the label column"
     lines = [head, *([read] if read else [])]

@@ -306,6 +306,26 @@ def resolve_column(ref: str, lay: Layout, path: Path) -> int:
     raise InputError(f"{path}: no column {ref!r}{hint}; {where}")
 
 
+def _named(lay: Layout, keys: list[str], role: str) -> list[int]:
+    """The numeric columns whose names are an alias of ``role`` (:data:`ALIASES`; a temperature only in °C or
+    without a unit). ``tx`` is a time only when no ``ty`` and ``tz`` stand beside it (then it is the x of an
+    axis triple, as in a header ``time tx ty tz wx wy wz``)."""
+    found = [j for j, k in enumerate(keys) if k in ALIAS_KEYS[role] and lay.numeric[j]
+             and (role != "temp" or unit_of(lay.header[j]) in (None, *CELSIUS))]
+    if role == "t":
+        found = [j for j in found if not (keys[j] == "tx" and {"ty", "tz"} <= set(keys))]
+    return found
+
+
+def _header_gyro(lay: Layout) -> dict[str, int]:
+    """The gyroscope's columns the header names (all three axes, one column each), or none."""
+    if lay.header is None:
+        return {}
+    keys = [column_key(h) for h in lay.header]
+    found = {r: _named(lay, keys, r) for r in GYRO}
+    return {r: j[0] for r, j in found.items()} if all(len(j) == 1 for j in found.values()) else {}
+
+
 def header_roles(lay: Layout, path: Path) -> dict[str, int]:
     """Role → column index from the header's names (:data:`ALIASES`, compared as
     :func:`~optcal.core.tablefile.column_key`s), among the numeric columns (a ``Time(hh:mm:ss)`` text column is not
@@ -315,8 +335,7 @@ def header_roles(lay: Layout, path: Path) -> dict[str, int]:
     keys = [column_key(h) for h in lay.header]
     out: dict[str, int] = {}
     for r in ROLES:
-        found = [j for j, k in enumerate(keys) if k in ALIAS_KEYS[r] and lay.numeric[j]
-                 and (r != "temp" or unit_of(lay.header[j]) in (None, *CELSIUS))]
+        found = _named(lay, keys, r)
         if len(found) == 1:
             out[r] = found[0]
         elif len(found) > 1 and r in ("t", "ax", "ay", "az"):
@@ -343,7 +362,8 @@ def role_columns(spec, lay: Layout, path: Path) -> dict[str, int]:
     """Role → column index from ``spec`` (positional ``t,ax,ay,az`` or ``role=column`` items, a string, a
     sequence or a mapping {role: column}), or, when ``spec`` is None, from the header's names
     (:func:`header_roles`) or the number of numeric columns. A role given twice, or one column given for two
-    roles, is refused."""
+    roles, is refused. A ``spec`` without the gyroscope takes the gyroscope's columns from the header when it
+    names all three (and ``spec`` uses none of them), as the header alone would give them."""
     if spec is None:
         if lay.header is not None:
             return header_roles(lay, path)
@@ -383,6 +403,10 @@ def role_columns(spec, lay: Layout, path: Path) -> dict[str, int]:
     missing = [r for r in ("ax", "ay", "az") if r not in out]
     if missing:
         raise InputError(f"`columns` lacks {', '.join(missing)}")
+    if not any(r in out for r in GYRO):  # the accelerometer named: the gyroscope the header names, if it is free
+        named = _header_gyro(lay)
+        if named and not set(named.values()) & set(out.values()):
+            out.update(named)
     gyro = [r for r in GYRO if r in out]
     if gyro and len(gyro) < 3:
         raise InputError(f"`columns` names {', '.join(gyro)} but not {', '.join(r for r in GYRO if r not in out)}; "
