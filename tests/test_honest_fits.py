@@ -108,6 +108,13 @@ def test_positions_table_in_to_dict_json_and_text():
     assert sum(r["leverage"] for r in rows) == pytest.approx(12, abs=1e-3)  # Σh = rank
     assert sum(r["outlier"] for r in rows) == 1
     assert "OUTLIER" in cal.residual_table().splitlines()[2 + BAD]
+    # the text shows the statistic the flag judges, |r|/(σ√(1−h)), beside r/σ (a lab's log flagged a position of
+    # leverage 0.993 whose r/σ of 0.34 alone looked harmless)
+    head, *_ = cal.residual_table().splitlines()
+    assert head.split()[-4:] == ["test", "σ", "weight", "flag"]
+    cells = cal.residual_table().splitlines()[2 + BAD].split()
+    assert float(cells[-3]) == pytest.approx(r7["statistic_sigma"], abs=0.006)
+    assert r7["statistic_sigma"] == pytest.approx(abs(r7["standardised"]) / np.sqrt(1 - r7["leverage"]), rel=1e-3)
 
 
 def test_labels_and_measured_noise_per_position():

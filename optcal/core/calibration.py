@@ -71,16 +71,19 @@ class Calibration:
         return self.diagnostics.rows() if self.diagnostics is not None else []
 
     def residual_table(self) -> str:
-        """The per-position residuals as fixed-width text, residuals and noise in µg."""
+        """The per-position residuals as fixed-width text, residuals and noise in µg. ``test σ`` is the statistic
+        the outlier flag judges, |r|/(σ√(1−h)): a position of leverage h near 1 pulls the fit onto itself, so a
+        small r/σ can still be far off the fit of the others."""
         head = (f"{'#':>3} {'position':>8} {'label':<8} {'residual µg':>12} {'σ µg':>9} {'r/σ':>7} {'lever.':>6} "
-                f"{'weight':>6}  flag")
+                f"{'test σ':>7} {'weight':>6}  flag")
         lines = [head, "-" * len(head)]
         for r in self.positions:
             def f(v, spec):
                 return format(v, spec) if v is not None else "-"
             lines.append(f"{r['index']:>3} {r['position']:>8} {str(r['label'] or ''):<8} "
                          f"{f(r['residual_ug'], '12.3f')} {f(r['sigma_ug'], '9.3f')} {f(r['standardised'], '7.2f')} "
-                         f"{f(r['leverage'], '6.3f')} {f(r['weight'], '6.3f')}  {'OUTLIER' if r['outlier'] else ''}")
+                         f"{f(r['leverage'], '6.3f')} {f(r['statistic_sigma'], '7.2f')} {f(r['weight'], '6.3f')}  "
+                         f"{'OUTLIER' if r['outlier'] else ''}")
         return "\n".join(lines)
 
     def to_dict(self) -> dict:
