@@ -361,23 +361,25 @@ def test_gyroscope_names_are_recognised(tmp_path, gyro):
     np.testing.assert_allclose(rec.W, rows[:, 6:9], rtol=1e-9)
 
 
-def test_tx_beside_ty_and_tz_is_an_axis_not_the_time(tmp_path):
+def test_tx_beside_ty_and_tz_is_an_axis_not_the_time(tmp_path, capsys):
     """A lab's header ``time tx ty tz wx wy wz`` (an AHRS board's log): ``time`` is the time, not refused as one of
-    two candidates; tx, ty, tz are no alias, so the accelerometer must be named, and then the header's gyroscope
-    (wx, wy, wz) comes with it, as the header alone would give it."""
+    two candidates; tx, ty, tz are no alias, so the accelerometer must be named. ``calibrate`` then reads the
+    columns named; ``imu`` takes the gyroscope the header names (wx, wy, wz) without ``--gyro-columns``, unless
+    one of them was taken for the accelerometer."""
+    from optcal.core.gyro.recording import read_gyro
+
     rows = _imu_rows()
     path = _write(tmp_path / "ahrs.csv", "time,tx,ty,tz,wx,wy,wz", rows[:, [1, 3, 4, 5, 6, 7, 8]])
     with pytest.raises(InputError, match=r"cannot tell which columns are ax, ay, az \(columns: time, tx, ty"):
         read_recording(path)
-    rec = read_recording(path, columns="time,tx,ty,tz")
-    assert rec.columns == {"t": "time", "ax": "tx", "ay": "ty", "az": "tz", "gx": "wx", "gy": "wy", "gz": "wz"}
-    np.testing.assert_allclose(rec.W, rows[:, 6:9], rtol=1e-9)
-    # a gyroscope column taken for the accelerometer: the header's gyroscope is not added
-    rec = read_recording(path, columns="time,wx,ty,tz")
-    assert rec.W is None and "gx" not in rec.columns
-    # given explicitly, the gyroscope is the one given
-    rec = read_recording(path, columns="t=time,ax=tx,ay=ty,az=tz,gx=wz,gy=wy,gz=wx")
-    np.testing.assert_allclose(rec.W, rows[:, [8, 7, 6]], rtol=1e-9)
+    acc = read_recording(path, columns="time,tx,ty,tz")
+    assert acc.columns == {"t": "time", "ax": "tx", "ay": "ty", "az": "tz"} and acc.W is None
+    gyro = read_gyro(path, acc, units="rad/s")
+    assert gyro.columns == {"t": "time", "ax": "wx", "ay": "wy", "az": "wz"}
+    np.testing.assert_allclose(gyro.N, rows[:, 6:9], rtol=1e-9)
+    taken = read_recording(path, columns="time,wx,ty,tz")
+    with pytest.raises(InputError, match="name the gyroscope's columns"):
+        read_gyro(path, taken, units="rad/s")
 
 
 def test_the_alias_table_gives_each_name_one_role():

@@ -4,6 +4,8 @@ force (imu_tk's data come as two files sharing times; Tedaldi et al., ICRA 2014,
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 
 from optcal.core.errors import InputError
@@ -47,7 +49,8 @@ def read_gyro(data, acc, *, gyro=None, gyro_columns=None, units: str, rate: floa
     file ``gyro`` (times and three rates; ``gyro_columns`` names the four, "t,gx,gy,gz", or its first four
     columns are taken) or from the accelerometer's file ``data``, whose recording ``acc`` is, in the columns
     ``gyro_columns`` ("gx,gy,gz" or a list) beside its time column, by default those its header names as the
-    gyroscope's (gx, gyr_x, GyroX, ...: the columns ``optcal calibrate`` judges stillness on). ``units``: the
+    gyroscope's (gx, gyr_x, GyroX, ...: the columns ``optcal calibrate`` judges stillness on), also when the
+    accelerometer's columns were named (``columns``) and the gyroscope's were not. ``units``: the
     gyroscope's (counts, deg/s, rad/s, volts). A ROS bag's or a ULog's gyroscope was read with its
     accelerometer: it is ``acc``'s (:func:`log_gyro`)."""
     from optcal.core.recording.reading import read_recording
@@ -62,12 +65,28 @@ def read_gyro(data, acc, *, gyro=None, gyro_columns=None, units: str, rate: floa
     cols = _columns(gyro_columns, 3)
     if cols is None and all(k in acc.columns for k in ("gx", "gy", "gz")):
         cols = [str(acc.columns[k]) for k in ("gx", "gy", "gz")]  # the header names them, as calibrate reads them
+    if cols is None:  # the accelerometer's columns were named: the gyroscope the header names, if none is taken
+        cols = _header_gyro_names(data, acc)
     if cols is None:
         raise InputError("name the gyroscope's columns in DATA with `gyro_columns` gx,gy,gz, or give them in a "
                          "second file with `gyro`")
     time = acc.columns.get("t")
     spec = (f"t={time}," if time is not None else "") + f"ax={cols[0]},ay={cols[1]},az={cols[2]}"
     return read_recording(data, spec, rate, label, time_unit=time_unit)
+
+
+def _header_gyro_names(path, acc) -> list[str] | None:
+    """The gyroscope's column names in ``path``'s header (all three axes, one column each, none of them among the
+    accelerometer's columns), or None."""
+    from optcal.core.recording.sniff import header_gyro, is_mat, sniff_layout
+
+    if is_mat(Path(path)):
+        return None
+    lay = sniff_layout(Path(path))
+    named = header_gyro(lay)
+    used = {str(c) for c in acc.columns.values()}
+    names = [lay.header[named[r]] for r in ("gx", "gy", "gz")] if named else None
+    return names if names and not used & set(names) else None
 
 
 def log_gyro(acc, units: str, gyro_columns=None):

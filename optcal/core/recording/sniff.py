@@ -317,7 +317,7 @@ def _named(lay: Layout, keys: list[str], role: str) -> list[int]:
     return found
 
 
-def _header_gyro(lay: Layout) -> dict[str, int]:
+def header_gyro(lay: Layout) -> dict[str, int]:
     """The gyroscope's columns the header names (all three axes, one column each), or none."""
     if lay.header is None:
         return {}
@@ -362,8 +362,7 @@ def role_columns(spec, lay: Layout, path: Path) -> dict[str, int]:
     """Role → column index from ``spec`` (positional ``t,ax,ay,az`` or ``role=column`` items, a string, a
     sequence or a mapping {role: column}), or, when ``spec`` is None, from the header's names
     (:func:`header_roles`) or the number of numeric columns. A role given twice, or one column given for two
-    roles, is refused. A ``spec`` without the gyroscope takes the gyroscope's columns from the header when it
-    names all three (and ``spec`` uses none of them), as the header alone would give them."""
+    roles, is refused."""
     if spec is None:
         if lay.header is not None:
             return header_roles(lay, path)
@@ -403,10 +402,6 @@ def role_columns(spec, lay: Layout, path: Path) -> dict[str, int]:
     missing = [r for r in ("ax", "ay", "az") if r not in out]
     if missing:
         raise InputError(f"`columns` lacks {', '.join(missing)}")
-    if not any(r in out for r in GYRO):  # the accelerometer named: the gyroscope the header names, if it is free
-        named = _header_gyro(lay)
-        if named and not set(named.values()) & set(out.values()):
-            out.update(named)
     gyro = [r for r in GYRO if r in out]
     if gyro and len(gyro) < 3:
         raise InputError(f"`columns` names {', '.join(gyro)} but not {', '.join(r for r in GYRO if r not in out)}; "
