@@ -122,3 +122,23 @@ def test_a_pose_with_motion_at_its_end_is_trimmed_and_refitted():
     new = cal.problem.data.extra["detection"].intervals
     assert rests[5, 0] <= new[5, 0] and new[5, 1] <= rests[5, 1] + 3
     assert np.all(np.abs(cal.x - good.x) < 2 * good.stderr), (cal.x - good.x) / good.stderr
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_every_kept_rest_holds_at_least_half_the_shortest_pose(seed):
+    """The report says "poses of at least m samples (each kept without its edges …: m//2 or more remain)": a pose
+    is judged on its segment with a block at each edge, and its rest kept without the edges (and, with a
+    gyroscope, without the samples it sees turning), down to half the pose; simulated hand-held recordings
+    (settling, tremor, re-seats), with and without the gyroscope."""
+    from optcal.core.recording.report import describe_detection
+    from optcal.core.synthetic_imu import handheld_imu
+
+    s = handheld_imu(np.random.default_rng(seed))
+    for gyro in (s.gyro.N, False):
+        det = segment_static(s.acc, gyro=gyro)
+        m = det.min_samples
+        lengths = det.intervals[:, 1] - det.intervals[:, 0]
+        assert len(lengths) >= 15 and lengths.min() >= max(m // 2, 3)
+        assert f"poses of at least {m} samples (each kept without its edges, which may hold the motion's " \
+               f"samples: {m // 2} or more remain)" in describe_detection(det)
+    assert "stillness judged on the gyroscope too" in describe_detection(segment_static(s.acc, gyro=s.gyro.N))

@@ -34,7 +34,9 @@ def describe_detection(obj: DetectionResult | PositionsData) -> str:
         noise = ", ".join(f"{v:.3g}" for v in det.noise)
         how = (f"change-point segmentation (PELT on {det.block}-sample block means) and a rest test: "
                f"noise SD per sample {noise} {rec.units} (x, y, z, from the recording), poses of at least "
-               f"{det.min_samples} samples, rest tested in windows of up to {det.window} samples; "
+               f"{det.min_samples} samples (each kept without its edges, which may hold the motion's samples: "
+               f"{max(det.min_samples // 2, 3)} or more remain), rest tested in windows of up to {det.window} "
+               f"samples; "
                f"{len(sg.segments)} segment(s), {int(sg.rest.sum())} at rest")
         if sg.turning is not None:
             gyro = ", ".join(str(rec.columns[r]) for r in ("gx", "gy", "gz") if r in rec.columns)
