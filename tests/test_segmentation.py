@@ -179,3 +179,19 @@ def test_arc_and_directions():
     v = arc(a, b, 50)
     assert v.shape == (50, 3) and np.allclose(np.linalg.norm(v, axis=1), 1.0)
     assert np.all(np.diff(v[:, 2]) < 0)
+
+
+def test_a_recording_of_too_few_poses_is_told_so(tmp_path, capsys):
+    """Three held poses joined by turns (a lab's 3-pose file outside the corpus was told to try another detector):
+    all three are found, and the refusal says the recording holds just those, with no detector to try."""
+    from optcal.core.synthetic_recording import poses_recording
+
+    syn = poses_recording(np.random.default_rng(0), n_poses=3, hold_s=20.0)
+    det = segment_static(syn.recording)
+    assert det.n_intervals == 3
+    counts, advice = segment_diagnosis(det, 6)
+    assert advice.startswith("the recording holds just 3 pose(s); record at least 6")
+    path = _write(tmp_path / "three.csv", syn.recording)
+    assert main(["calibrate", path, "--raw", "--model", "diag6"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "holds just 3 pose(s)" in err[0] and "variance" not in err[0]

@@ -791,9 +791,11 @@ def segment_diagnosis(det: DetectionResult, needed: int) -> tuple[str, str]:
     if det.n_intervals == 0 and moving_frac >= 0.5:
         advice = ("no part of the recording is at rest (a continuous motion, not held poses); hold poses still "
                   "for `min_static_s`, or give `intervals`")
-    elif moving >= 0.9 * outside and longest < det.min_samples // 2:
-        advice = ("outside the intervals found, no part is at rest (a continuous motion); hold poses still for "
-                  "`min_static_s`, or give `intervals`")
+    elif moving >= 0.75 * outside and longest < det.min_samples // 2:
+        # what is not a rest moves (or pauses too briefly): the recording has these poses and no more, so
+        # another detector or lower settings find nothing new
+        advice = (f"the recording holds just {det.n_intervals} pose(s); record at least {needed}, in different "
+                  "orientations, each held still for `min_static_s`")
     elif short_rest.sum() >= needed - det.n_intervals and longest >= det.min_samples // 2:
         advice = (f"lower `min_static_s` to {max(np.floor(longest / rate * 10) / 10, 0.1):g} s"
                   if np.isfinite(rate) else "lower `min_static_s`")
