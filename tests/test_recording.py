@@ -421,9 +421,9 @@ def test_bad_input_no_static_intervals(tmp_path, capsys):
     path = write(tmp_path / "turning.csv", t, N)
     code, err = _cli(["calibrate", path, "--raw", "--units", "counts", "--model", "linear9"], capsys)
     assert code == 2 and "found 1 static interval(s)" in err and "needs at least 9" in err
-    # the one interval is the rest at the start; the turning after it is named as such (issue #20)
-    # (the whole message is longer than a refusal's 300 characters: the command line cuts its clauses' middles)
-    assert "outside the intervals found, no part" in err and "--intervals" in err
+    # the one interval is the rest at the start and the rest of the recording turns: it holds just that pose, and
+    # the way out is more poses (issue #29: no other detector or setting would find another)
+    assert "the recording holds just 1 pose(s); record at least 9, in different orientations" in err
 
 
 def test_bad_input_too_few_poses_says_how_many(tmp_path, capsys):
