@@ -1,4 +1,6 @@
+import importlib.util
 import re
+from pathlib import Path
 
 import matplotlib
 import numpy as np
@@ -82,3 +84,12 @@ def run_cli(argv, capsys):
     code = main([str(a) for a in argv])
     out = capsys.readouterr()
     return code, out.out, out.err
+
+
+def doc_script(name: str):
+    """The script ``docs/scripts/<name>.py`` as a module (the tests check the figures and tables it makes)."""
+    path = Path(__file__).resolve().parents[1] / "docs" / "scripts" / f"{name}.py"
+    spec = importlib.util.spec_from_file_location(name, path)
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    return mod

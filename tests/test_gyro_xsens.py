@@ -7,11 +7,11 @@ from __future__ import annotations
 
 import gzip
 import hashlib
-import importlib.util
 from pathlib import Path
 
 import numpy as np
 import pytest
+from conftest import doc_script
 
 ROOT = Path(__file__).resolve().parents[1]
 pytestmark = pytest.mark.usefixtures("corpus")  # skipped, with the one reason, where the corpus is absent
@@ -19,10 +19,7 @@ GYRO_MD5 = "159e295278470270d9d8d6d2b008e885"  # upstream bin/test_data/xsens_gy
 
 
 def _script():
-    spec = importlib.util.spec_from_file_location("gyro_imu_tk", ROOT / "docs" / "scripts" / "gyro_imu_tk.py")
-    mod = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(mod)
-    return mod
+    return doc_script("gyro_imu_tk")
 
 
 @pytest.fixture(scope="module")

@@ -25,6 +25,7 @@ from pathlib import Path
 
 import grimp
 import pytest
+from conftest import doc_script
 
 try:
     import tomllib
@@ -213,12 +214,7 @@ def test_no_module_imports_one_of_the_projects_modules_by_a_fixed_string():
 
 def _import_graph_script():
     """docs/scripts/import_graph.py, whose facts (floors, cycles, upward arrows) the closing notes quote."""
-    import importlib.util
-
-    spec = importlib.util.spec_from_file_location("import_graph", ROOT / "docs" / "scripts" / "import_graph.py")
-    mod = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(mod)
-    return mod
+    return doc_script("import_graph")
 
 
 def test_no_import_cycles_and_no_upward_arrow():

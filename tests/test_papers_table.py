@@ -9,27 +9,19 @@ depend on the size (evaluation counts, the cost readings) must equal the documen
 
 from __future__ import annotations
 
-import importlib.util
 import math
 import re
 from pathlib import Path
 
 import numpy as np
 import pytest
+from conftest import doc_script
 
 ROOT = Path(__file__).resolve().parents[1]
 DOC = (ROOT / "docs" / "studies.md").read_text()
 
 
-def _script():
-    spec = importlib.util.spec_from_file_location("papers_side_by_side",
-                                                  ROOT / "docs" / "scripts" / "papers_side_by_side.py")
-    mod = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(mod)
-    return mod
-
-
-S = _script()
+S = doc_script("papers_side_by_side")
 
 
 def section() -> str:

@@ -5,18 +5,16 @@ docs/scripts/headline_table.py, never edited by hand (the marker's hash is the t
 from __future__ import annotations
 
 import hashlib
-import importlib.util
 from pathlib import Path
+
+from conftest import doc_script
 
 ROOT = Path(__file__).resolve().parents[1]
 README = ROOT / "README.md"
 
 
 def _script():
-    spec = importlib.util.spec_from_file_location("headline_table", ROOT / "docs" / "scripts" / "headline_table.py")
-    mod = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(mod)
-    return mod
+    return doc_script("headline_table")
 
 
 def test_the_readme_is_short_and_starts_with_what_a_user_needs():

@@ -46,9 +46,8 @@ def _letters(M: np.ndarray) -> str | None:
         elif a == b and a in CONSTANT:
             out.append(CONSTANT[a])
         elif a in (ord(" "), PLUS, MINUS) and b in (PLUS, MINUS) and np.isin(M[:, c], (ord(" "), PLUS, MINUS)).all():
+            # a sign, or a space for +; right after the exponent's mark, the exponent's own sign (never a space)
             out.append("s" if a == ord(" ") or not out or out[-1] != "e" else "x")
-        elif a == b and a in (PLUS, MINUS):
-            out.append("s" if not out or out[-1] != "e" else "x")
         else:
             return None
     return "".join(out)

@@ -334,11 +334,10 @@ def _text(path: Path):
 
 def _load_numeric(path: Path, lay: Layout, usecols: list[int], max_rows: int | None = None) -> np.ndarray:
     """The chosen columns as floats, (n, len(usecols)). Delimited files go through Arrow's multithreaded
-    CSV reader when pyarrow is installed (several times faster than NumPy's); anything it does not read
-    cleanly (comment lines, ragged rows, text in a number column) goes through numpy.loadtxt, a C reader
-    too, whose messages name the offending row. Whitespace-separated files whose lines share one layout (a
-    logger's fixed format) are read by :func:`optcal.core.fixed_width.read_fixed_width`, the others by
-    numpy.loadtxt. A column asked for twice is read
+    CSV reader when pyarrow is installed (several times faster than NumPy's), whitespace-separated files whose
+    lines share one layout (a logger's fixed format) through :func:`optcal.core.fixed_width.read_fixed_width`;
+    anything they do not read cleanly (comment lines, ragged rows, text in a number column) goes through
+    numpy.loadtxt, a C reader too, whose messages name the offending row. A column asked for twice is read
     once (Arrow refuses a repeated column)."""
     cols, back = np.unique(np.asarray(usecols, int), return_inverse=True)
     if len(cols) < len(usecols):

@@ -333,16 +333,16 @@ def header_roles(lay: Layout, path: Path) -> dict[str, int]:
     the temperature, as is a gyroscope without all three axes and a temperature whose name gives a unit other
     than °C (``Temp(Raw)``). Columns that do not give ax, ay, az are refused, named (the first few)."""
     keys = [column_key(h) for h in lay.header]
-    out: dict[str, int] = {}
+    out: dict[str, int] = header_gyro(lay)  # a gyroscope is three named axes, or none
     for r in ROLES:
+        if r in GYRO:
+            continue
         found = _named(lay, keys, r)
         if len(found) == 1:
             out[r] = found[0]
-        elif len(found) > 1 and r in ("t", "ax", "ay", "az"):
+        elif len(found) > 1 and r != "temp":
             raise InputError(f"{path}: columns {listing(lay.header[j] for j in found)} could each be {r}; name "
                              "the columns with `columns`, e.g. t,ax,ay,az with names or 0-based indices")
-    if not all(r in out for r in GYRO):  # a gyroscope is three named axes, or none
-        out = {r: j for r, j in out.items() if r not in GYRO}
     if all(r in out for r in ("ax", "ay", "az")):
         return out
     raise InputError(
