@@ -33,8 +33,11 @@ hand-held pose (a tenth or two of a degree) are not motion; a turn, a settling a
 6. *Re-seats without motion* (with the accelerometer): a still run is split where the accelerometer's outputs
    step, i.e. the medians of :data:`STEP_SAMPLES` samples (at least 0.05 s) before and after a sample differ
    by χ² > :data:`CHI2_STEP` in units of that difference's own robust scatter inside the still runs (a
-   median ignores a single-sample spike); the split is at the largest step. The gyroscope sees nothing of a
-   sensor re-seated while logging paused, or of a recording cut and joined.
+   median ignores a single-sample spike); the split is at the largest step. Steps less than :data:`LEVEL_S`
+   apart are one disturbance, which splits the run only when it lasts: the levels (medians over up to
+   :data:`LEVEL_S`) before and after it differ by as much. A knock steps out and back and leaves the pose
+   where it was. The gyroscope sees nothing of a sensor re-seated while logging paused, or of a recording cut
+   and joined.
 
 The rests are the still runs, split at steps. The thresholds are set so that noise alone never moves a
 sample, so a labelled rest can be trusted to be still; its ends are conservative (a few hundredths of a second
@@ -88,6 +91,7 @@ SLOW_SIGMAS = 5.0  # ... and by more than this × the walk of the integrated whi
 SETTLE_MARGIN_S = 0.1  # s: moving samples dilated by this after a motion (a settling fades under the noise)
 MARGIN_S = 0.03  # s: and by this before one (at least one sample each)
 FILL_S = 0.25  # s: a still run shorter than this between motions moves (an oscillation turning back)
+LEVEL_S = 1.0  # s: a step lasts when the levels over up to this either side of it differ (a knock comes back)
 STEP_SAMPLES = 5  # samples each side whose medians are compared for a step of the accelerometer
 CHI2_STEP = 60.0  # a step of the accelerometer's outputs (χ² of the median difference in noise units)
 CHI2_OFF_POSE = 30.7  # χ²(3) upper 10⁻⁶ quantile: a sample off a pose's mean (interval labels without a gyro)
@@ -237,7 +241,7 @@ def _chunks(r: np.ndarray, m: int) -> np.ndarray:
     return np.column_stack([start, end]).astype(np.int64)
 
 
-def _acc_steps(N: np.ndarray, still: np.ndarray, k: int) -> np.ndarray:
+def _acc_steps(N: np.ndarray, still: np.ndarray, k: int, level: int) -> np.ndarray:
     """Samples s inside still runs at which the accelerometer steps: the medians of N[s−k:s] and N[s:s+k]
     differ by χ² > CHI2_STEP in units of that difference's own scatter inside the still runs (robust: most
     boundaries are not steps; measured, not assumed, as a sensor's filter correlates its noise); one per run of
@@ -265,7 +269,34 @@ def _acc_steps(N: np.ndarray, still: np.ndarray, k: int) -> np.ndarray:
     grp = np.cumsum(np.diff(np.concatenate([[-2], j])) > 1) - 1  # runs of consecutive hits
     order = np.lexsort((-chi[j], grp))
     _, first = np.unique(grp[order], return_index=True)
-    return s[j[order[first]]].astype(np.int64)
+    return _lasting(Nf, still, s[j[order[first]]].astype(np.int64), sd, level)
+
+
+def _lasting(N: np.ndarray, still: np.ndarray, at: np.ndarray, sd: np.ndarray, L: int) -> np.ndarray:
+    """The steps ``at`` after which the outputs stay at a new level. Steps of one still run less than ``L``
+    samples apart are one disturbance; it lasts when the medians of up to ``L`` still samples before its first
+    step and after its last (not beyond the neighbouring disturbances or the run's ends) differ by χ² >
+    CHI2_STEP in units ``sd`` (the step test's own). A knock that shakes the sensor and leaves it where it was
+    (a rocket board tapped on its bench) steps out and back: its steps are dropped; a re-seat keeps them all."""
+    if not len(at):
+        return at
+    r = runs(still)
+    run = np.searchsorted(r[:, 0], at, side="right") - 1
+    new = np.concatenate([[True], (run[1:] != run[:-1]) | (np.diff(at) >= L)])  # a disturbance's first step
+    group = np.cumsum(new) - 1
+    first, last = at[new], at[np.concatenate([new[1:], [True]])]
+    grun = run[new]
+    same_prev = np.concatenate([[False], grun[1:] == grun[:-1]])
+    same_next = np.concatenate([grun[:-1] == grun[1:], [False]])
+    lo = np.where(same_prev, np.concatenate([[0], last[:-1]]), r[grun, 0])
+    hi = np.where(same_next, np.concatenate([first[1:], [0]]), r[grun, 1])
+    j = np.arange(L)
+    before = first[:, None] - 1 - j[None, :]
+    after = last[:, None] + j[None, :]
+    left = np.where((before >= lo[:, None])[..., None], N[np.clip(before, 0, len(N) - 1)], np.nan)
+    right = np.where((after < hi[:, None])[..., None], N[np.clip(after, 0, len(N) - 1)], np.nan)
+    diff = np.nanmedian(right, axis=1) - np.nanmedian(left, axis=1)
+    return at[(np.sum((diff / sd) ** 2, axis=1) > CHI2_STEP)[group]]
 
 
 def _split(rests: np.ndarray, at: np.ndarray) -> np.ndarray:
@@ -353,7 +384,7 @@ def gyro_labels(gyro: Recording, acc: Recording | None = None, *, units_per_dps:
     steps = np.zeros(0, np.int64)
     if acc is not None:
         k = max(STEP_SAMPLES, int(round(0.05 * rate)))
-        steps = _acc_steps(np.asarray(acc.N, float), still, k)
+        steps = _acc_steps(np.asarray(acc.N, float), still, k, max(k, int(round(LEVEL_S * rate))))
         rests = _split(rests, steps)
     info = {"bias": bias, "noise": sigma, "units_per_dps": units_per_dps, "margin": m, "steps": steps,
             "moving_samples": int(moving.sum()), "slow_motion_samples": int(slow.sum())}

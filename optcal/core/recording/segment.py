@@ -495,7 +495,8 @@ def _turn_margins(seg: np.ndarray, reason: np.ndarray, rate: float) -> np.ndarra
 def _refine(Z, seg, reason, w, excess, step, b, rate, W):
     """Rests that share a segment with part of a motion, cut out of it (docs/segmentation.md, "Every rest"):
     with a gyroscope ``W`` (n, 3), every segment is cut where the gyroscope sees a turn (:func:`gyro_turning`)
-    and the pieces between turns are tested for rest again; then each segment still rejected as shaking is cut
+    and the pieces between turns of a segment that was not at rest are tested for rest again (a rest's pieces
+    stay at rest: the test on a shorter piece only loses power, and the gyroscope took out what turned); then each segment still rejected as shaking is cut
     at the steps of its block means beyond :data:`LOUD_SIGMAS` (:func:`_loud_blocks`), and its quiet pieces
     are tested. Returns the segments, their reasons ("turn" for a piece the gyroscope sees turning, "noisy"
     for a loud piece), how many segments were cut, and the turning samples (None without a gyroscope)."""
@@ -521,7 +522,7 @@ def _cut(Z, seg, reason, flag, which, flagged_reason, w, excess, step):
         return seg, reason, 0
     new, flagged, owner = _split_at(seg, flag, which)
     out = np.where(flagged, flagged_reason, reason[owner]).astype(object)
-    retest = which[owner] & ~flagged
+    retest = which[owner] & ~flagged & (reason[owner] != "")  # a rest's pieces stay at rest
     if retest.any():
         out[retest] = _rest_test(Z, new[retest], w, excess, step)
     n = int(np.sum(np.bincount(owner, minlength=len(seg)) > 1))
