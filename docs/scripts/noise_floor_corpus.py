@@ -1,7 +1,7 @@
 """The table of docs/noise.md, "The noise floor of a position": each raw recording of the real corpus
 (tests/corpus.py: ``OPTCAL_CORPUS``, else the shared folder beside the clone; each folder with its licence and
-README) calibrated by the default path of ``optcal calibrate
---raw`` (optcal.app.workflows.recording.positions_from_raw: the default segmentation, positions; optcal.app.fit.calibrate), its
+README) calibrated by the default path of ``optcal calibrate --raw``
+(optcal.app.workflows.recording.positions_from_raw: the default segmentation, positions; optcal.app.fit.calibrate), its
 verdicts against the white-noise floor σ/√n (the old one) and against the noise floor of optcal.core.recording.floor
 (the new one).
 

@@ -496,10 +496,11 @@ def _refine(Z, seg, reason, w, excess, step, b, rate, W):
     """Rests that share a segment with part of a motion, cut out of it (docs/segmentation.md, "Every rest"):
     with a gyroscope ``W`` (n, 3), every segment is cut where the gyroscope sees a turn (:func:`gyro_turning`)
     and the pieces between turns of a segment that was not at rest are tested for rest again (a rest's pieces
-    stay at rest: the test on a shorter piece only loses power, and the gyroscope took out what turned); then each segment still rejected as shaking is cut
-    at the steps of its block means beyond :data:`LOUD_SIGMAS` (:func:`_loud_blocks`), and its quiet pieces
-    are tested. Returns the segments, their reasons ("turn" for a piece the gyroscope sees turning, "noisy"
-    for a loud piece), how many segments were cut, and the turning samples (None without a gyroscope)."""
+    stay at rest: the test on a shorter piece only loses power, and the gyroscope took out what turned); then
+    each segment still rejected as shaking is cut at the steps of its block means beyond :data:`LOUD_SIGMAS`
+    (:func:`_loud_blocks`), and its quiet pieces are tested. Returns the segments, their reasons ("turn" for a
+    piece the gyroscope sees turning, "noisy" for a loud piece), how many segments were cut, and the turning
+    samples (None without a gyroscope)."""
     n_split, turning = 0, None
     nb = len(Z)
     if W is not None:
