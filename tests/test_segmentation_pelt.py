@@ -1,13 +1,18 @@
 """optcal.core.recording.pelt against ruptures' compiled PELT (KernelCPD, linear kernel, min_size 1, jump 1): the same
 change points on random piecewise-constant series with noise, at many penalties, and on the block series that
-segmentation builds from raw recordings of the real corpus (tests/corpus.py; docs/segmentation.md)."""
+segmentation builds from raw recordings of the real corpus (tests/corpus.py; docs/segmentation.md); and the compiled
+kernel that segmentation takes from ruptures' extension file without importing the package."""
+
+import subprocess
+import sys
 
 import numpy as np
 import pytest
 import ruptures
 
+import optcal.core.recording.pelt as pelt
 import optcal.core.recording.segment as segment
-from optcal.core.recording.pelt import RUPTURES_FROM_BLOCKS, VECTOR_FROM, pelt_l2, pelt_l2_many
+from optcal.core.recording.pelt import VECTOR_FROM, compiled_pelt_l2, pelt_ends, pelt_l2, pelt_l2_many
 from optcal.core.recording.reading import read_recording
 
 
@@ -51,13 +56,51 @@ def test_long_rest_takes_the_vector_pass_and_agrees():
     ("imu_tk/xsens_acc.mat.gz", "counts", None), ("mpu6050/example_data_calibration.csv", "counts", None),
     ("imucal/annotated_session.csv", "counts", 204.8), ("imucal/example_ferraris_session.csv", "m/s2", 102.4)])
 def test_segmentation_of_real_recordings_is_the_same_with_either(path, units, rate, monkeypatch, corpus):
+    """The compiled kernel (the default), the NumPy PELT, and ruptures' public API give the same intervals."""
     rec = read_recording(corpus / path, units=units, rate=rate)
+    compiled = segment.segment_static(rec).intervals
+    assert len(compiled) >= 6
+    monkeypatch.setattr(pelt, "compiled_pelt_l2", lambda: None)  # as where ruptures lays its files out otherwise
     ours = segment.segment_static(rec).intervals
-    assert len(ours) >= 6
-    monkeypatch.setattr(segment, "RUPTURES_FROM_BLOCKS", 0)  # every series through ruptures
+    monkeypatch.setattr(pelt, "RUPTURES_FROM_BLOCKS", 0)  # every series through ruptures' public API
     theirs = segment.segment_static(rec).intervals
+    np.testing.assert_array_equal(ours, compiled)
     np.testing.assert_array_equal(ours, theirs)
-    assert RUPTURES_FROM_BLOCKS > 10_000  # the corpus' recordings are below it: pelt_l2 served them above
+
+
+def test_compiled_kernel_gives_pelt_l2s_change_points():
+    """pelt_ends (ruptures' compiled kernel, loaded from its file) against the NumPy PELT: 100 batches of 1-5
+    random piecewise-constant series, a long rest among them, a one-block series."""
+    assert compiled_pelt_l2() is not None  # the installed ruptures (pyproject.toml) has it where it is looked for
+    rng = np.random.default_rng(5)
+    for _ in range(100):
+        batch = []
+        for _ in range(rng.integers(1, 6)):
+            lens = rng.integers(1, 120, size=rng.integers(1, 14))
+            batch.append(np.concatenate([rng.normal(rng.normal(0, 3, 3), 1, (n, 3)) for n in lens]))
+        pen = float(rng.uniform(1, 60))
+        assert pelt_ends(batch, pen) == [pelt_l2(Z, pen) for Z in batch]
+    rest = np.concatenate([rng.normal(0, 1, (6 * VECTOR_FROM, 3)), rng.normal(5, 1, (40, 3))])
+    assert pelt_ends([rest, rng.normal(0, 1, (1, 3))], 123.0) == [[6 * VECTOR_FROM, len(rest)], [1]]
+
+
+def test_the_compiled_kernel_loads_without_ruptures_or_scipy():
+    """In a fresh process, loading the kernel and segmenting a recording import neither the ruptures package nor
+    scipy (their import is what the compiled kernel is taken on its own to avoid); a later ``import ruptures``
+    still works and gives the same change points."""
+    code = (
+        "import sys, numpy as np\n"
+        "from optcal.core.recording.pelt import compiled_pelt_l2, pelt_ends\n"
+        "assert compiled_pelt_l2() is not None\n"
+        "Z = np.random.default_rng(0).normal(0, 1, (300, 3)); Z[100:200] += 4\n"
+        "ends = pelt_ends([Z], 60.0)[0]\n"
+        "print(ends, 'ruptures' in sys.modules, any(m == 'scipy' or m.startswith('scipy.') for m in sys.modules))\n"
+        "import ruptures\n"
+        "print(ruptures.KernelCPD(kernel='linear', min_size=1, jump=1).fit(Z).predict(pen=60.0) == ends)\n"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout.split("\n")
+    assert out[0] == "[100, 200, 300] False False", out
+    assert out[1] == "True", out
 
 
 def test_shape_is_checked():

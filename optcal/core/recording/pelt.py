@@ -3,19 +3,29 @@ points of the linear-kernel cost that ruptures' ``KernelCPD(kernel="linear", min
 the same to the point (tests/test_segmentation_pelt.py checks both on random series and on raw recordings of
 the real corpus, docs/real_data.md).
 
-Why a second implementation: ruptures' compiled PELT takes milliseconds, but importing ruptures imports
-scipy.stats, scipy.spatial and scipy.signal with it, 0.8 to 1.2 s on the project's machine, more than the
-whole of a calibration from a recording of tens of thousands of samples is meant to take. Here the optimal
+Segmentation calls :func:`pelt_ends`, which takes ruptures' compiled PELT (``ekcpd_pelt_L2``, the kernel behind
+``KernelCPD(kernel="linear").predict(pen=...)``) straight from its extension file (:func:`compiled_pelt_l2`): that
+file needs only NumPy and loads in milliseconds, where importing the ruptures package imports scipy.stats,
+scipy.spatial and scipy.signal with it, 0.8 to 1.2 s on the project's machine, more than the whole of a
+calibration from a recording of tens of thousands of samples is meant to take. The NumPy implementation below
+serves when an installed ruptures lays its files out otherwise, and is the reference the tests hold the compiled
+one to. Here the optimal
 partition F(t) = min_{s ∈ R_t} F(s) + C(s, t) + β is computed with cumulative sums (C(s, t) = Σ‖z‖² −
 ‖Σz‖²/(t − s) over the blocks s..t−1) and PELT's pruning R_{t+1} = {s ∈ R_t ∪ {t}: F(s) + C(s, t) ≤ F(t)}; the
 candidates are scanned in Python while few (the usual case after a change) and in NumPy while many (inside
 a long rest), about 20 µs a block. :func:`pelt_l2_many` runs several series (segmentation's pieces of one
 recording) in lockstep, one NumPy pass over all their candidates per block, which costs about what one series
-costs alone. :mod:`optcal.core.recording.segment` calls ruptures instead for series long enough to amortise its
-import (:data:`RUPTURES_FROM_BLOCKS`).
+costs alone; without the compiled kernel, ruptures' public API serves series long enough to amortise its import
+(:data:`RUPTURES_FROM_BLOCKS`).
 """
 
 from __future__ import annotations
+
+import functools
+import importlib.machinery
+import importlib.util
+import sys
+from pathlib import Path
 
 import numpy as np
 
@@ -122,5 +132,56 @@ def pelt_l2_many(series: list[np.ndarray], penalty: float) -> list[list[int]]:
         while t > 0:
             ends.append(t)
             t = int(last[p * W + t])
+        out.append(ends[::-1])
+    return out
+
+
+EKCPD = "ruptures.detection._detection.ekcpd"  # the extension module that holds ruptures' compiled kernel CPD
+
+
+@functools.cache
+def compiled_pelt_l2():
+    """ruptures' compiled PELT for the linear kernel, ``ekcpd_pelt_L2(signal, penalty, min_size)`` (it returns, for
+    each end t, the start of the last segment), or None. Taken from ``sys.modules`` when ruptures is imported;
+    otherwise its extension file is loaded on its own, without the package's ``__init__`` and the scipy modules
+    that come with it (the extension itself imports only NumPy). None when ruptures is not installed or its files
+    are laid out otherwise (:func:`pelt_ends` then uses :func:`pelt_l2_many`)."""
+    if EKCPD in sys.modules:
+        return getattr(sys.modules[EKCPD], "ekcpd_pelt_L2", None)
+    spec = importlib.util.find_spec("ruptures")  # finds the package without importing it
+    if spec is None or not spec.submodule_search_locations:
+        return None
+    folder = Path(next(iter(spec.submodule_search_locations))) / "detection" / "_detection"
+    files = [f for f in folder.glob("ekcpd*") if f.name.endswith(tuple(importlib.machinery.EXTENSION_SUFFIXES))]
+    if len(files) != 1:
+        return None
+    try:
+        loader = importlib.machinery.ExtensionFileLoader(EKCPD, str(files[0]))
+        module = importlib.util.module_from_spec(importlib.util.spec_from_file_location(EKCPD, files[0],
+                                                                                      loader=loader))
+        loader.exec_module(module)
+    except ImportError:
+        return None
+    return getattr(module, "ekcpd_pelt_L2", None)
+
+
+def pelt_ends(series: list[np.ndarray], penalty: float) -> list[list[int]]:
+    """:func:`pelt_l2` of each (n_i, 3) series: by ruptures' compiled kernel (:func:`compiled_pelt_l2`) when it
+    loads, else :func:`pelt_l2_many` for series of fewer than :data:`RUPTURES_FROM_BLOCKS` blocks in all and
+    ruptures' public API for longer ones."""
+    kernel = compiled_pelt_l2()
+    if kernel is None:
+        if sum(len(Z) for Z in series) < RUPTURES_FROM_BLOCKS:
+            return pelt_l2_many(series, penalty)
+        import ruptures  # here: its import costs a second, repaid only on long recordings
+
+        return [ruptures.KernelCPD(kernel="linear", min_size=1, jump=1).fit(Z).predict(pen=penalty) for Z in series]
+    out = []
+    for Z in series:  # one compiled call per piece: a handful per recording
+        start = kernel(np.ascontiguousarray(Z, dtype=float), float(penalty), 1)
+        ends, t = [], len(Z)
+        while t > 0:
+            ends.append(t)
+            t = int(start[t])
         out.append(ends[::-1])
     return out

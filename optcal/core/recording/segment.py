@@ -35,7 +35,7 @@ import numpy as np
 
 from optcal.core.errors import InputError
 from optcal.core.recording.detection import DetectionResult, runs
-from optcal.core.recording.pelt import RUPTURES_FROM_BLOCKS, pelt_l2_many
+from optcal.core.recording.pelt import pelt_ends
 from optcal.core.recording.reading import Recording
 
 BLOCKS_PER_POSE = 8  # blocks in the shortest pose: the block is an eighth of min_static_s (and ≤ MAX_BLOCK_S)
@@ -342,21 +342,15 @@ def _slow_noise_excess(Z: np.ndarray, good: np.ndarray, w: int) -> np.ndarray:
 
 def _change_points(Z: np.ndarray, good: np.ndarray) -> np.ndarray:
     """Segments [start, end) (blocks) of the good blocks of ``Z`` (normalised block means) by PELT with a
-    linear kernel on pieces of at most :data:`PIECE_BLOCKS` blocks: :func:`optcal.core.recording.pelt.pelt_l2_many`, or
-    ruptures' compiled KernelCPD (the same change points) for a series long enough to pay for its import."""
+    linear kernel on pieces of at most :data:`PIECE_BLOCKS` blocks (:func:`optcal.core.recording.pelt.pelt_ends`:
+    ruptures' compiled kernel, or the same change points in NumPy)."""
     pen = PENALTY
     pieces = []  # [start, end) of each piece: the runs of good blocks (none with drops), cut to PIECE_BLOCKS
     for s, e in runs(good):
         cuts = np.linspace(s, e, -(-(e - s) // PIECE_BLOCKS) + 1).round().astype(int)
         pieces.extend(zip(cuts[:-1].tolist(), cuts[1:].tolist()))
     long = [(ps, pe) for ps, pe in pieces if pe - ps >= 4]
-    if len(Z) >= RUPTURES_FROM_BLOCKS:
-        import ruptures  # here: its import costs a second, repaid only on long recordings
-
-        ends = [ruptures.KernelCPD(kernel="linear", min_size=1, jump=1).fit(Z[ps:pe]).predict(pen=pen)
-                for ps, pe in long]
-    else:
-        ends = pelt_l2_many([Z[ps:pe] for ps, pe in long], pen)
+    ends = pelt_ends([Z[ps:pe] for ps, pe in long], pen)
     found = dict(zip(long, ends))
     bounds = []
     for ps, pe in pieces:
