@@ -200,7 +200,7 @@ def test_calibrate_imu_on_imu_tk_recording(corpus, session):
     imu_tk = 1 / np.array([0.000209295, 0.000209899, 0.000209483])
     assert np.all(np.abs(fit.x[:3] - imu_tk) < 3 * fit.stderr[:3])
     assert not any("found by the gyroscope" in n for n in imu.notes)  # the accelerometer has them all (#29)
-    assert "42 rests, 41 motions; chi2/dof 13.9" in out
+    assert "42 rests, 41 motions; chi2/dof 14.0" in out
     rest = optcal.apply_gyro(imu, ns["W"][:500])
     assert np.all(np.abs(rest.mean(axis=0)) < 2e-3)  # the bias's wander between rests, rad/s
 

@@ -34,7 +34,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from optcal.core.errors import InputError
-from optcal.core.recording.detection import DetectionResult, runs
+from optcal.core.recording.attitude import scale_bound, slow_motions
+from optcal.core.recording.detection import DetectionResult, group_medians, runs
 from optcal.core.recording.pelt import pelt_ends
 from optcal.core.recording.reading import Recording
 
@@ -65,8 +66,6 @@ GYRO_WINDOW_S = 0.25  # s: the gyroscope's rate is averaged over this before it 
 GYRO_Z = 8.0  # an averaged rate this many noise SDs from the level at rest (any axis) is a turn ...
 TURN_FRACTION = 0.005  # ... when it is also this fraction of the recording's turns (the 99th percentile of the
 # averaged rate): about 1 °/s for hand turns at 200 °/s, above a hand's sway in a held pose (tenths of °/s)
-GROW_FRACTION = 0.5  # a turn extends while its averaged rate stays above this fraction of that threshold ...
-GYRO_Z_LOW = 4.0  # ... and this many noise SDs (its slow start, its settling)
 SETTLE_S = 0.15  # s: samples this long after a turn are left out of a rest (a settling fades under the noise)
 GYRO_MARGIN_S = 0.05  # s: and this long before one (the turn's first samples)
 
@@ -498,7 +497,7 @@ def _refine(Z, seg, reason, w, excess, step, b, rate, W):
     n_split, turning = 0, None
     nb = len(Z)
     if W is not None:
-        tb, turning = gyro_turning(W, b, seg, reason == "", rate)
+        tb, turning = gyro_turning(W, b, seg, reason == "", rate, (Z - step.centre) * step.scale)
         seg, reason, n = _cut(Z, seg, reason, tb, ~_still(seg, tb), "turn", w, excess, step)
         n_split += n
         # a piece the gyroscope sees still throughout keeps its gravity direction: a slope of its specific force
@@ -579,43 +578,29 @@ def _rest_level(G: np.ndarray, t: np.ndarray, seg: np.ndarray, rest: np.ndarray)
         quiet = np.argsort(d)[: max(1, len(d) // 5)]
         return np.broadcast_to(np.median(G[quiet], axis=0), (len(t), 3))
     half = (r[:, 0] + r[:, 1]) // 2
-    first = _group_median(G, np.column_stack([r[:, 0], half]))
-    second = _group_median(G, np.column_stack([half, r[:, 1]]))
+    first = group_medians(G, np.column_stack([r[:, 0], half]))
+    second = group_medians(G, np.column_stack([half, r[:, 1]]))
     knots = np.column_stack([r[:, 0], r[:, 1] - 1]).ravel().astype(float)
     values = np.stack([first, second], axis=1).reshape(-1, 3)
     return np.column_stack([np.interp(t, knots, values[:, i]) for i in range(3)])
 
 
-def _group_median(x: np.ndarray, r: np.ndarray) -> np.ndarray:
-    """The median of ``x`` (n, 3) over each range of ``r`` (k, 2; non-empty, not overlapping), per column, all
-    ranges in one sort: the rows of every range, keyed by range then value, sorted once; a range's median is
-    the middle of its run."""
-    lens = r[:, 1] - r[:, 0]
-    which = np.repeat(np.arange(len(r)), lens)
-    rows = np.arange(int(lens.sum())) - np.repeat(np.cumsum(lens) - lens, lens) + np.repeat(r[:, 0], lens)
-    first = np.cumsum(lens) - lens
-    lo, hi = first + (lens - 1) // 2, first + lens // 2
-    out = np.empty((len(r), x.shape[1]))
-    for j in range(x.shape[1]):  # three columns
-        v = x[rows, j]
-        s = v[np.lexsort((v, which))]
-        out[:, j] = (s[lo] + s[hi]) / 2
-    return out
-
-
-def gyro_turning(W: np.ndarray, b: int, seg: np.ndarray, rest: np.ndarray, rate: float):
+def gyro_turning(W: np.ndarray, b: int, seg: np.ndarray, rest: np.ndarray, rate: float, acc=None):
     """Where the gyroscope sees the sensor turn: (blocks (nb,), samples (n,)) bool. ``W`` (n, 3) rates in any
     unit, ``seg``/``rest`` the accelerometer's segments (blocks of ``b`` samples) and rest flags.
 
     The rate is averaged over :data:`GYRO_WINDOW_S` (a hand's tremor averages out; the end of a turn does not)
     and taken from the level at rest (:func:`_rest_level`: a drifting bias is followed), in units of the
     average's white noise (second differences, :func:`_noise_sd`, never below the quantisation step's q/√12);
-    ``z`` is the largest axis. A turn's core is where ``z`` exceeds :data:`GYRO_Z` and :data:`TURN_FRACTION` of
-    the recording's turns (the 99th percentile of ``z``): units-free, that is about 1 °/s for turns by hand at
-    200 °/s, above the sway of a pose held by hand (tenths of °/s, which the accelerometer's rest test judges)
-    and hundreds of times the noise of a MEMS gyroscope. A turn extends from its core while ``z`` stays above
-    :data:`GROW_FRACTION` of that threshold and :data:`GYRO_Z_LOW` (its slow start, its settling), and by
-    :data:`SETTLE_S` after it and :data:`GYRO_MARGIN_S` before it. A block turns when it holds a turning sample.
+    ``z`` is the largest axis. A sample turns where ``z`` exceeds :data:`GYRO_Z` and :data:`TURN_FRACTION` of
+    the recording's turns (the 99th percentile of ``z``): units-free, that is about 0.5-1 °/s for turns by hand
+    at 100-200 °/s, above the sway of a pose held by hand (tenths of °/s) and hundreds of times the noise of a
+    MEMS gyroscope; a turn extends by :data:`SETTLE_S` after it and :data:`GYRO_MARGIN_S` before it. With ``acc``
+    (nb, 3), the accelerometer's block means less their offsets, a slow motion inside a still run turns too
+    (:mod:`optcal.core.recording.attitude`: the attitude straying by more than a few tenths of a degree, in the
+    units the accelerometer's view of the turns gives the rates): a turn's slow start and its settling below
+    the threshold, a held pose that sags. Without ``acc`` (or without a turn of 20° between rests) the rate
+    threshold alone. A block turns when it holds a turning sample.
     """
     W = np.asarray(W, float)
     n = len(W)
@@ -635,34 +620,41 @@ def gyro_turning(W: np.ndarray, b: int, seg: np.ndarray, rest: np.ndarray, rate:
     still = runs(~samples)
     still = np.column_stack([-(-still[:, 0] // b), still[:, 1] // b])
     still = still[still[:, 1] - still[:, 0] >= 2]
+    X = Wf - _rest_level(G, t, seg, rest)
     if len(still):
-        samples = _turning_samples(Wf - _rest_level(G, t, still, np.ones(len(still), bool)), s, w) | ~finite
+        X = Wf - _rest_level(G, t, still, np.ones(len(still), bool))
+        samples = _turning_samples(X, s, w) | ~finite
     per_s = rate if np.isfinite(rate) else 50.0
-    samples = _dilate(samples, int(round(SETTLE_S * per_s)), int(round(GYRO_MARGIN_S * per_s)))
+    turns = _dilate(samples, int(round(SETTLE_S * per_s)), int(round(GYRO_MARGIN_S * per_s)))
+    if acc is not None and np.isfinite(rate):  # slow motions, in units the accelerometer's turns give
+        r = seg[rest & (seg[:, 1] - seg[:, 0] >= 4)]
+        c = np.concatenate([np.zeros((1, 3)), np.cumsum(acc, axis=0)])
+        K = scale_bound(_moving_mean(X, w), (c[r[:, 1]] - c[r[:, 0]]) / (r[:, 1] - r[:, 0])[:, None], r * b,
+                        samples, rate)
+        if np.isfinite(K) and K > 0:  # (no margins: a slow motion has no settling of its own)
+            turns |= slow_motions(X, ~turns, K, s, rate)
+    samples = turns
     blocks = samples[: nb * b].reshape(nb, b).any(axis=1)
     return blocks, samples
+
+
+def _moving_mean(X: np.ndarray, w: int) -> np.ndarray:
+    """(n, 3): each sample's mean of ``X`` over the ``w`` samples centred on it (shifted inside at the ends)."""
+    n = len(X)
+    c = np.concatenate([np.zeros((1, 3)), np.cumsum(X, axis=0)])
+    lo = np.clip(np.arange(n) - w // 2, 0, max(n - w, 0))
+    hi = np.minimum(lo + w, n)
+    return (c[hi] - c[lo]) / (hi - lo)[:, None]
 
 
 def _turning_samples(X: np.ndarray, s: np.ndarray, w: int) -> np.ndarray:
     """Samples (n,) of a turn, from the rates ``X`` (n, 3) less their level at rest and their white noise SD
     ``s`` (3,): the rate averaged over ``w`` samples, in units of the average's noise (the largest axis), is
-    above the threshold at the core and grown while above the lower one (:func:`gyro_turning`)."""
-    n = len(X)
-    c = np.concatenate([np.zeros((1, 3)), np.cumsum(X, axis=0)])
-    lo = np.clip(np.arange(n) - w // 2, 0, max(n - w, 0))
-    hi = np.minimum(lo + w, n)
-    z = np.max(np.abs(c[hi] - c[lo]) / (hi - lo)[:, None] / (s / np.sqrt(w)), axis=1)
-    # a turn: above the noise and above a small fraction of the recording's turns (its 99th percentile), grown
-    # while it stays above a fraction of that (a turn's slow start and its settling)
-    thr = max(GYRO_Z, TURN_FRACTION * float(np.percentile(z, 99)))
-    core = z > thr
-    starts, stops = runs(z > max(GYRO_Z_LOW, GROW_FRACTION * thr)).T
-    cc = np.concatenate([[0], np.cumsum(core)])
-    hit = cc[stops] > cc[starts]  # runs above the low threshold that hold a turn
-    grown = np.zeros(n + 1, np.int64)
-    np.add.at(grown, starts[hit], 1)
-    np.add.at(grown, stops[hit], -1)
-    return (np.cumsum(grown[:n]) > 0) | core
+    above the threshold (:func:`gyro_turning`)."""
+    z = np.max(np.abs(_moving_mean(X, w)) / (s / np.sqrt(w)), axis=1)
+    # a turn: above the noise and above a small fraction of the recording's turns (its 99th percentile); its slow
+    # start and its settling, below that, are the attitude rule's (optcal.core.recording.attitude)
+    return z > max(GYRO_Z, TURN_FRACTION * float(np.percentile(z, 99)))
 
 
 def _loud_blocks(Z: np.ndarray) -> np.ndarray:
