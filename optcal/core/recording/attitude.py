@@ -95,14 +95,13 @@ def slow_motions(X: np.ndarray, still: np.ndarray, K: float, s: np.ndarray, rate
     out[at] = np.linalg.norm(Phi[at] - med[piece_of], axis=1) > thr[piece_of]
     # (b) the centres of windows inside a run that turn
     cp = np.concatenate([np.zeros((1, 3)), np.cumsum(Phi, axis=0)])
-    cs = np.concatenate([[0], np.cumsum(inside)])
     for L in sorted({max(8, int(round(w * rate))) for w in SLOW_WINDOWS_S}):  # two window lengths
         if n < L:
             continue
-        i = np.arange(n - L + 1)
+        # windows inside one run (runs are contiguous: the first and last samples' run is the whole window's)
+        i = np.flatnonzero((run_of[: n - L + 1] >= 0) & (run_of[: n - L + 1] == run_of[L - 1:]))
         q = L // 4
-        one = (run_of[i] == run_of[i + L - 1]) & (cs[i + L] - cs[i] == L)
         turn = np.linalg.norm((cp[i + L] - cp[i + L - q]) - (cp[i + q] - cp[i]), axis=1) / q
-        out[i[one & (turn > max(slow, SLOW_SIGMAS * noise * np.sqrt(L / 4.0)))] + L // 2] = True
+        out[i[turn > max(slow, SLOW_SIGMAS * noise * np.sqrt(L / 4.0))] + L // 2] = True
     return out
 

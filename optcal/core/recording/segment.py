@@ -641,10 +641,11 @@ def gyro_turning(W: np.ndarray, b: int, seg: np.ndarray, rest: np.ndarray, rate:
 def _moving_mean(X: np.ndarray, w: int) -> np.ndarray:
     """(n, 3): each sample's mean of ``X`` over the ``w`` samples centred on it (shifted inside at the ends)."""
     n = len(X)
+    w = min(w, n)
     c = np.concatenate([np.zeros((1, 3)), np.cumsum(X, axis=0)])
-    lo = np.clip(np.arange(n) - w // 2, 0, max(n - w, 0))
-    hi = np.minimum(lo + w, n)
-    return (c[hi] - c[lo]) / (hi - lo)[:, None]
+    m = (c[w:] - c[:-w]) / w  # m[j]: the mean of X[j:j + w]
+    h = w // 2
+    return np.concatenate([np.repeat(m[:1], h, axis=0), m, np.repeat(m[-1:], n - h - len(m), axis=0)])
 
 
 def _turning_samples(X: np.ndarray, s: np.ndarray, w: int) -> np.ndarray:
