@@ -25,7 +25,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from optcal.core.recording.detection import group_medians, runs
+from optcal.core.recording.detection import group_medians, range_rows, runs
 
 SLOW_DEG = 0.2  # °: the attitude straying more than this inside a still run moves (a hand's wobble stays within)
 SLOW_SIGMAS = 5.0  # ... and more than this × the walk of the integrated white noise over the stretch judged
@@ -69,12 +69,11 @@ def slow_motions(X: np.ndarray, still: np.ndarray, K: float, s: np.ndarray, rate
     if not len(r):
         return out
     R = X / K  # rad/s
-    inside = np.zeros(n, bool)
-    run_of = np.full(n, -1)
     lens = r[:, 1] - r[:, 0]
-    idx = np.arange(int(lens.sum())) - np.repeat(np.cumsum(lens) - lens, lens) + np.repeat(r[:, 0], lens)
-    run_of[idx] = np.repeat(np.arange(len(r)), lens)
-    inside[idx] = True
+    idx, which = range_rows(r)
+    run_of = np.full(n, -1)
+    run_of[idx] = which
+    inside = run_of >= 0
     # the attitude (rad) from each run's start, its median rate taken out
     Rl = np.where(inside[:, None], R - group_medians(R, r)[np.maximum(run_of, 0)], 0.0)
     c = np.concatenate([np.zeros((1, 3)), np.cumsum(Rl, axis=0)]) / rate
@@ -90,8 +89,7 @@ def slow_motions(X: np.ndarray, still: np.ndarray, K: float, s: np.ndarray, rate
     plen = pieces[:, 1] - pieces[:, 0]
     thr = np.maximum(slow, SLOW_SIGMAS * noise * np.sqrt(plen / 4.0))
     med = group_medians(Phi, pieces)
-    piece_of = np.repeat(np.arange(len(pieces)), plen)
-    at = np.arange(int(plen.sum())) - np.repeat(np.cumsum(plen) - plen, plen) + np.repeat(pieces[:, 0], plen)
+    at, piece_of = range_rows(pieces)
     out[at] = np.linalg.norm(Phi[at] - med[piece_of], axis=1) > thr[piece_of]
     # (b) the centres of windows inside a run that turn
     cp = np.concatenate([np.zeros((1, 3)), np.cumsum(Phi, axis=0)])

@@ -103,14 +103,21 @@ def runs(mask: np.ndarray) -> np.ndarray:
     return np.column_stack([np.flatnonzero(d == 1), np.flatnonzero(d == -1)])
 
 
+def range_rows(r: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The rows of every range [start, end) of ``r`` (k, 2), in order, and the range each belongs to: the one
+    way the recording path lists ranges' members without a loop over them."""
+    lens = r[:, 1] - r[:, 0]
+    which = np.repeat(np.arange(len(r)), lens)
+    return np.arange(int(lens.sum())) - np.repeat(np.cumsum(lens) - lens, lens) + np.repeat(r[:, 0], lens), which
+
+
 def group_medians(x: np.ndarray, r: np.ndarray) -> np.ndarray:
     """The median of ``x`` (n, 3) over each range of ``r`` (k, 2; non-empty, not overlapping), per column, all
     ranges in one sort: the rows of every range, keyed by range then value (the value shifted by the range's
     number times the column's span, one float key: a third of the time of a two-key lexsort), sorted once; a
     range's median is the middle of its run, taken from the values themselves."""
     lens = r[:, 1] - r[:, 0]
-    which = np.repeat(np.arange(len(r)), lens)
-    rows = np.arange(int(lens.sum())) - np.repeat(np.cumsum(lens) - lens, lens) + np.repeat(r[:, 0], lens)
+    rows, which = range_rows(r)
     first = np.cumsum(lens) - lens
     lo, hi = first + (lens - 1) // 2, first + lens // 2
     out = np.empty((len(r), x.shape[1]))
