@@ -20,11 +20,16 @@ def _ruptures(Z, pen):
     return ruptures.KernelCPD(kernel="linear", min_size=1, jump=1).fit(Z).predict(pen=pen)
 
 
+def _random_series(rng):
+    """A piecewise-constant (n, 3) series with unit noise: 1-13 levels of 1-119 blocks each."""
+    lens = rng.integers(1, 120, size=rng.integers(1, 14))
+    return np.concatenate([rng.normal(rng.normal(0, 3, 3), 1, (n, 3)) for n in lens])
+
+
 def test_same_change_points_as_ruptures_on_random_series():
     rng = np.random.default_rng(7)
     for _ in range(300):
-        lens = rng.integers(1, 120, size=rng.integers(1, 14))
-        Z = np.concatenate([rng.normal(rng.normal(0, 3, 3), 1, (n, 3)) for n in lens])
+        Z = _random_series(rng)
         pen = float(rng.uniform(1, 60))
         assert pelt_l2(Z, pen) == _ruptures(Z, pen)
 
@@ -34,10 +39,7 @@ def test_series_in_lockstep_give_what_each_gives_alone():
     series of different lengths, a long rest among them, and an empty and a one-block series."""
     rng = np.random.default_rng(11)
     for _ in range(100):
-        batch = []
-        for _ in range(rng.integers(2, 6)):
-            lens = rng.integers(1, 120, size=rng.integers(1, 14))
-            batch.append(np.concatenate([rng.normal(rng.normal(0, 3, 3), 1, (n, 3)) for n in lens]))
+        batch = [_random_series(rng) for _ in range(rng.integers(2, 6))]
         pen = float(rng.uniform(1, 60))
         assert pelt_l2_many(batch, pen) == [pelt_l2(Z, pen) for Z in batch]
     rest = np.concatenate([rng.normal(0, 1, (6 * VECTOR_FROM, 3)), rng.normal(5, 1, (40, 3))])
@@ -74,10 +76,7 @@ def test_compiled_kernel_gives_pelt_l2s_change_points():
     assert compiled_pelt_l2() is not None  # the installed ruptures (pyproject.toml) has it where it is looked for
     rng = np.random.default_rng(5)
     for _ in range(100):
-        batch = []
-        for _ in range(rng.integers(1, 6)):
-            lens = rng.integers(1, 120, size=rng.integers(1, 14))
-            batch.append(np.concatenate([rng.normal(rng.normal(0, 3, 3), 1, (n, 3)) for n in lens]))
+        batch = [_random_series(rng) for _ in range(rng.integers(1, 6))]
         pen = float(rng.uniform(1, 60))
         assert pelt_ends(batch, pen) == [pelt_l2(Z, pen) for Z in batch]
     rest = np.concatenate([rng.normal(0, 1, (6 * VECTOR_FROM, 3)), rng.normal(5, 1, (40, 3))])

@@ -25,7 +25,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from optcal.core.recording.detection import group_medians, range_rows, runs
+from optcal.core.recording.detection import chunks, group_medians, range_rows, runs
 
 SLOW_DEG = 0.2  # °: the attitude straying more than this inside a still run moves (a hand's wobble stays within)
 SLOW_SIGMAS = 5.0  # ... and more than this × the walk of the integrated white noise over the stretch judged
@@ -69,7 +69,6 @@ def slow_motions(X: np.ndarray, still: np.ndarray, K: float, s: np.ndarray, rate
     if not len(r):
         return out
     R = X / K  # rad/s
-    lens = r[:, 1] - r[:, 0]
     idx, which = range_rows(r)
     run_of = np.full(n, -1)
     run_of[idx] = which
@@ -81,11 +80,7 @@ def slow_motions(X: np.ndarray, still: np.ndarray, K: float, s: np.ndarray, rate
     noise = float(np.linalg.norm(s / K)) / rate  # rad: the integrated white noise's step
     slow = np.radians(SLOW_DEG)
     # (a) off the median of its piece
-    size = lens
-    k = np.maximum(1, -(-size // max(4, int(round(SLOW_CHUNK_S * rate)))))
-    run = np.repeat(np.arange(len(r)), k)
-    j = np.arange(k.sum()) - np.repeat(np.cumsum(k) - k, k)
-    pieces = np.column_stack([r[run, 0] + (size[run] * j) // k[run], r[run, 0] + (size[run] * (j + 1)) // k[run]])
+    pieces = chunks(r, max(4, int(round(SLOW_CHUNK_S * rate))))
     plen = pieces[:, 1] - pieces[:, 0]
     thr = np.maximum(slow, SLOW_SIGMAS * noise * np.sqrt(plen / 4.0))
     med = group_medians(Phi, pieces)

@@ -111,6 +111,17 @@ def range_rows(r: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return np.arange(int(lens.sum())) - np.repeat(np.cumsum(lens) - lens, lens) + np.repeat(r[:, 0], lens), which
 
 
+def chunks(r: np.ndarray, m: int) -> np.ndarray:
+    """The ranges ``r`` (k, 2) cut into pieces of at most ``m`` samples, equal within a range (one piece per
+    row, in order)."""
+    size = r[:, 1] - r[:, 0]
+    k = np.maximum(1, -(-size // m))  # pieces per range
+    j, run = range_rows(np.column_stack([np.zeros_like(k), k]))  # each piece's number within its range
+    start = r[run, 0] + (size[run] * j) // k[run]
+    end = r[run, 0] + (size[run] * (j + 1)) // k[run]
+    return np.column_stack([start, end]).astype(np.int64)
+
+
 def group_medians(x: np.ndarray, r: np.ndarray) -> np.ndarray:
     """The median of ``x`` (n, 3) over each range of ``r`` (k, 2; non-empty, not overlapping), per column, all
     ranges in one sort: the rows of every range, keyed by range then value (the value shifted by the range's

@@ -71,7 +71,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from optcal.core.errors import InputError
-from optcal.core.recording.detection import runs  # noqa: F401 - the run-finder, also for the tests and the benchmark
+from optcal.core.recording.detection import chunks, group_medians, range_rows, runs
 from optcal.core.recording.reading import Recording
 
 BLOCK_S = 0.25  # s: blocks for the quiet stretches (bias, noise)
@@ -189,21 +189,9 @@ def _centred_mean(X: np.ndarray, L: int) -> np.ndarray:
 def _run_medians(X: np.ndarray, r: np.ndarray) -> np.ndarray:
     """(n, 3): per column, the median of ``X`` over the run [start, end) of ``r`` each sample lies in; 0
     outside the runs."""
-    n = len(X)
     out = np.zeros_like(X)
-    group = np.full(n, -1)
-    inside = _cover(r, n)
-    group[inside] = np.repeat(np.arange(len(r)), r[:, 1] - r[:, 0])
-    idx = np.flatnonzero(inside)
-    g = group[idx]
-    size = r[:, 1] - r[:, 0]
-    first = np.concatenate([[0], np.cumsum(size)[:-1]])
-    for j in range(X.shape[1]):  # three axes
-        order = idx[np.lexsort((X[idx, j], g))]  # sorted by run, then value
-        lo = order[first + (size - 1) // 2]
-        hi = order[first + size // 2]
-        med = (X[lo, j] + X[hi, j]) / 2
-        out[idx, j] = med[g]
+    rows, which = range_rows(r)
+    out[rows] = group_medians(X, r)[which]
     return out
 
 
@@ -228,17 +216,6 @@ def _turning_windows(Phi: np.ndarray, still: np.ndarray, L: int, thr: float) -> 
     out = np.zeros(n, bool)
     out[i[(cs[i + L] - cs[i] == L) & (angle > thr)] + L // 2] = True
     return out
-
-
-def _chunks(r: np.ndarray, m: int) -> np.ndarray:
-    """The runs ``r`` cut into pieces of at most ``m`` samples, equal within a run."""
-    size = r[:, 1] - r[:, 0]
-    k = np.maximum(1, -(-size // m))  # pieces per run
-    run = np.repeat(np.arange(len(r)), k)
-    j = np.arange(k.sum()) - np.repeat(np.cumsum(k) - k, k)  # piece number within its run
-    start = r[run, 0] + (size[run] * j) // k[run]
-    end = r[run, 0] + (size[run] * (j + 1)) // k[run]
-    return np.column_stack([start, end]).astype(np.int64)
 
 
 def _acc_steps(N: np.ndarray, still: np.ndarray, k: int, level: int) -> np.ndarray:
@@ -366,7 +343,7 @@ def gyro_labels(gyro: Recording, acc: Recording | None = None, *, units_per_dps:
     if len(r):
         Rl = R - _run_medians(R, r)
         Phi = np.cumsum(Rl, axis=0) / rate  # °
-        pieces = _chunks(r, max(4, int(round(CHUNK_S * rate))))
+        pieces = chunks(r, max(4, int(round(CHUNK_S * rate))))
         dev = np.linalg.norm(Phi - _run_medians(Phi, pieces), axis=1)
         size = pieces[:, 1] - pieces[:, 0]
         walk = np.linalg.norm(sigma / units_per_dps) / rate * np.sqrt(size / 4.0)  # °: the noise's walk

@@ -35,7 +35,7 @@ import numpy as np
 
 from optcal.core.errors import InputError
 from optcal.core.recording.attitude import scale_bound, slow_motions
-from optcal.core.recording.detection import DetectionResult, group_medians, runs
+from optcal.core.recording.detection import DetectionResult, group_medians, range_rows, runs
 from optcal.core.recording.pelt import pelt_ends
 from optcal.core.recording.reading import Recording
 
@@ -529,9 +529,7 @@ def _split_at(seg: np.ndarray, flag: np.ndarray, which: np.ndarray) -> tuple[np.
     from. Vectorised: boundaries are the segments' ends plus the flag's changes inside the marked segments."""
     nb = len(flag)
     owner = np.full(nb + 1, -1, np.int64)
-    lens = seg[:, 1] - seg[:, 0]
-    idx = np.repeat(np.arange(len(seg)), lens)
-    blocks = np.arange(int(lens.sum())) - np.repeat(np.cumsum(lens) - lens, lens) + np.repeat(seg[:, 0], lens)
+    blocks, idx = range_rows(seg)
     owner[blocks] = idx
     mark = np.zeros(nb + 1, bool)
     mark[seg[:, 0]] = True
@@ -614,23 +612,24 @@ def gyro_turning(W: np.ndarray, b: int, seg: np.ndarray, rest: np.ndarray, rate:
     G = Wf[: nb * b].reshape(nb, b, 3).mean(axis=1)
     t = (np.arange(n, dtype=float) - (b - 1) / 2.0) / b
     w = max(1, int(round(GYRO_WINDOW_S * rate))) if np.isfinite(rate) else 5
-    samples = _turning_samples(Wf - _rest_level(G, t, seg, rest), s, w) | ~finite
+    X = Wf - _rest_level(G, t, seg, rest)
+    M = _moving_mean(X, w)
+    samples = _turning_samples(M, s, w) | ~finite
     # the accelerometer's rests may hold part of a turn, which moves their level (by more than the threshold
     # on a quiet gyroscope): the level again from the gyroscope's own still runs, whole blocks of them
     still = runs(~samples)
     still = np.column_stack([-(-still[:, 0] // b), still[:, 1] // b])
     still = still[still[:, 1] - still[:, 0] >= 2]
-    X = Wf - _rest_level(G, t, seg, rest)
     if len(still):
         X = Wf - _rest_level(G, t, still, np.ones(len(still), bool))
-        samples = _turning_samples(X, s, w) | ~finite
+        M = _moving_mean(X, w)
+        samples = _turning_samples(M, s, w) | ~finite
     per_s = rate if np.isfinite(rate) else 50.0
     turns = _dilate(samples, int(round(SETTLE_S * per_s)), int(round(GYRO_MARGIN_S * per_s)))
     if acc is not None and np.isfinite(rate):  # slow motions, in units the accelerometer's turns give
         r = seg[rest & (seg[:, 1] - seg[:, 0] >= 4)]
         c = np.concatenate([np.zeros((1, 3)), np.cumsum(acc, axis=0)])
-        K = scale_bound(_moving_mean(X, w), (c[r[:, 1]] - c[r[:, 0]]) / (r[:, 1] - r[:, 0])[:, None], r * b,
-                        samples, rate)
+        K = scale_bound(M, (c[r[:, 1]] - c[r[:, 0]]) / (r[:, 1] - r[:, 0])[:, None], r * b, samples, rate)
         if np.isfinite(K) and K > 0:  # (no margins: a slow motion has no settling of its own)
             turns |= slow_motions(X, ~turns, K, s, rate)
     samples = turns
@@ -648,11 +647,11 @@ def _moving_mean(X: np.ndarray, w: int) -> np.ndarray:
     return np.concatenate([np.repeat(m[:1], h, axis=0), m, np.repeat(m[-1:], n - h - len(m), axis=0)])
 
 
-def _turning_samples(X: np.ndarray, s: np.ndarray, w: int) -> np.ndarray:
-    """Samples (n,) of a turn, from the rates ``X`` (n, 3) less their level at rest and their white noise SD
-    ``s`` (3,): the rate averaged over ``w`` samples, in units of the average's noise (the largest axis), is
-    above the threshold (:func:`gyro_turning`)."""
-    z = np.max(np.abs(_moving_mean(X, w)) / (s / np.sqrt(w)), axis=1)
+def _turning_samples(M: np.ndarray, s: np.ndarray, w: int) -> np.ndarray:
+    """Samples (n,) of a turn, from the rates less their level at rest averaged over ``w`` samples, ``M`` (n, 3)
+    (:func:`_moving_mean`), and a sample's white noise SD ``s`` (3,): the average, in units of its noise (the
+    largest axis), is above the threshold (:func:`gyro_turning`)."""
+    z = np.max(np.abs(M) / (s / np.sqrt(w)), axis=1)
     # a turn: above the noise and above a small fraction of the recording's turns (its 99th percentile); its slow
     # start and its settling, below that, are the attitude rule's (optcal.core.recording.attitude)
     return z > max(GYRO_Z, TURN_FRACTION * float(np.percentile(z, 99)))
@@ -748,9 +747,7 @@ def _still_parts(iv: np.ndarray, turning: np.ndarray, m: int) -> tuple[np.ndarra
     # each interval against each run that overlaps it (runs sorted, so a searchsorted range per interval)
     lo = np.searchsorted(still[:, 1], iv[:, 0], side="right")
     hi = np.searchsorted(still[:, 0], iv[:, 1], side="left")
-    cnt = np.maximum(hi - lo, 0)
-    which = np.repeat(np.arange(len(iv)), cnt)
-    r = np.arange(int(cnt.sum())) - np.repeat(np.cumsum(cnt) - cnt, cnt) + np.repeat(lo, cnt)
+    r, which = range_rows(np.column_stack([lo, lo + np.maximum(hi - lo, 0)]))
     parts = np.column_stack([np.maximum(iv[which, 0], still[r, 0]), np.minimum(iv[which, 1], still[r, 1])])
     return parts[parts[:, 1] - parts[:, 0] >= m].reshape(-1, 2), n_cut
 
