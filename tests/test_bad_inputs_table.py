@@ -195,6 +195,14 @@ def _imu_files(d):
                fmt="%.10g")
     (d / "acc_noise.yaml").write_text("accelerometer_noise_density: 1e-3\naccelerometer_random_walk: 1e-4\n")
     (d / "imu_tk_gyro.txt").write_text((d / "imu_tk.txt").read_text())
+    # WitMotion-like exports (issue #29): a time-of-day column that stands still over two samples (a PC's clock),
+    # and rates whose names say rad/s
+    A = np.array([0.0, 0.0, 1.0]) + 1e-3 * np.random.default_rng(9).standard_normal((500, 3))  # at rest, in g
+    clock = [f"12:00:{(i // 2) * 0.02:06.3f}" for i in range(500)]
+    (d / "wit_clock.csv").write_text("Time,ax(g),ay(g),az(g)\n" + "".join(
+        f"{c},{a[0]:.6f},{a[1]:.6f},{a[2]:.6f}\n" for c, a in zip(clock, A)))
+    np.savetxt(d / "wit_rad.csv", np.column_stack([np.arange(500) / 100.0, A, np.zeros((500, 3))]), delimiter=",",
+               comments="", header="time,AccX(g),AccY(g),AccZ(g),gx(rad/s),gy(rad/s),gz(rad/s)", fmt="%.10g")
 
 
 def row(name, argv, fragment, xfail=None):
@@ -319,6 +327,16 @@ CASES = [
     row("apply-height-without-latitude", APPLY + ["--height", "100"], "without a latitude"),
     row("apply-unknown-version", ["apply", "v3.json", "raw_g.csv", "-o", "out.csv"], "format_version 3"),
     # apply with the gyroscope (issue #23): asked for without a gyroscope block, columns missing, times disagree
+    row("apply-gyro-units-contradict-names", ["apply", "imu_g.json", "wit_rad.csv", "-o", "out.csv"],
+        "wit_rad.csv: the gyroscope's columns are in rad/s (gx(rad/s), gy(rad/s), gz(rad/s)), the calibration's "
+        "gyroscope in deg/s"),
+    row("apply-named-gyro-columns-contradict-units", ["apply", "imu_g.json", "wit_rad.csv", "-o", "out.csv",
+                                                      "--gyro-columns", "gx(rad/s),gy(rad/s),gz(rad/s)"],
+        "the calibration's gyroscope in deg/s; give its rates in deg/s, or calibrate in rad/s"),
+    row("imu-gyro-units-contradict-names", ["imu", "wit_rad.csv", "--gyro-units", "deg/s", "-o", "i.json"],
+        "are in rad/s (gx(rad/s), gy(rad/s), gz(rad/s)); give --gyro-units rad/s, or drop it"),
+    row("calibrate-clock-stands-still", ["calibrate", "wit_clock.csv", "--raw"],
+        "give the sample rate with --rate (the clock column is then not read)"),
     row("apply-gyro-columns-without-gyroscope", APPLY + ["--gyro-columns", "gx,gy,gz"], "has no gyroscope block"),
     row("apply-gyro-file-without-gyroscope", APPLY + ["--gyro", "gyro_shifted.csv"], "has no gyroscope block"),
     row("apply-gyro-columns-missing", ["apply", "imu_g.json", "raw_g.csv", "-o", "out.csv", "--gyro-columns",

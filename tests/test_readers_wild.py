@@ -467,3 +467,95 @@ def test_a_column_asked_for_twice_is_read_once(tmp_path):
     lay = sniff_layout(path)
     got = _load_numeric(path, lay, [1, 1, 3])
     np.testing.assert_allclose(got, rows[:, [3, 3, 5]], rtol=1e-9)
+
+
+# == 6. WitMotion's exports =====================================================================================
+# The layouts WitMotion's PC software writes (one of issue #29's labs logged with a WitMotion sensor): a
+# time-of-day text column, the accelerometer in g, the rates in °/s named As or w, angles, and a temperature
+# named T(°) that is no time
+def _wit(path, header, rows, clock, delimiter=","):
+    """``rows`` (_imu_rows) written under ``header`` with ``clock(i)`` as the first field; the angles 0."""
+    lines = [header] + [delimiter.join([clock(i), *(f"{v:.6f}" for v in r[3:9]), "0.00", "0.00", "0.00", "25.1"])
+                        for i, r in enumerate(rows)]
+    path.write_text("\n".join(lines) + "\n", encoding="utf-8")
+    return path
+
+
+def _hms(i, start_s=23 * 3600 + 59 * 60 + 58.5):
+    """Sample i at 100 Hz as a time of day hh:mm:ss.fff, from 23:59:58.500 (midnight passes after 1.5 s)."""
+    s = (start_s + i / 100.0) % 86400
+    return f"{int(s // 3600):02d}:{int(s % 3600 // 60):02d}:{s % 60:06.3f}"
+
+
+@pytest.mark.parametrize("header,clock,delimiter,temp", [
+    ("Time\tax(g)\tay(g)\taz(g)\twx(deg/s)\twy(deg/s)\twz(deg/s)\tAngleX(deg)\tAngleY(deg)\tAngleZ(deg)\tT(°)",
+     _hms, "\t", "T(°)"),
+    ("Chip Time(),Acceleration X(g),Acceleration Y(g),Acceleration Z(g),Angular velocity X(°/s),"
+     "Angular velocity Y(°/s),Angular velocity Z(°/s),Angle X(°),Angle Y(°),Angle Z(°),Temperature(°C)",
+     lambda i: ("2024-5-1 " if i < 150 else "2024-5-2 ") + _hms(i), ",", "Temperature(°C)"),
+    ("time,AccX(g),AccY(g),AccZ(g),AsX(°/s),AsY(°/s),AsZ(°/s),AngleX(°),AngleY(°),AngleZ(°),T(°C)",
+     lambda i: f"{i / 100.0:.3f}", ",", "T(°C)"),
+])
+def test_witmotion_exports_are_read_as_written(tmp_path, header, clock, delimiter, temp):
+    """Times of day are seconds from the first sample, across midnight with and without a date; T(°) is the
+    temperature, not the time; AsX(°/s) and wx(deg/s) are the gyroscope, in deg/s as the names say, without
+    --gyro-units."""
+    from optcal.core.gyro.recording import read_gyro
+
+    rows = _imu_rows()
+    path = _wit(tmp_path / "wit.txt", header, rows, clock, delimiter)
+    rec = read_recording(path)
+    names = header.split(delimiter)
+    assert rec.columns["t"] == names[0] and rec.columns["temp"] == temp
+    assert [rec.columns[r] for r in ("ax", "ay", "az", "gx", "gy", "gz")] == names[1:7]
+    np.testing.assert_allclose(rec.t, rows[:, 1], atol=1e-6)  # the clock's ms, from the first sample
+    assert rec.rate == pytest.approx(100.0) and rec.temp[0] == 25.1
+    np.testing.assert_allclose(rec.N, rows[:, 3:6], atol=1e-6)
+    gyro = read_gyro(path, rec, units=None)
+    assert gyro.reading["gyro_units"] == "deg/s"
+    np.testing.assert_allclose(gyro.N, rows[:, 6:9], atol=1e-6)
+    np.testing.assert_allclose(gyro.t, rec.t)
+
+
+def test_clock_seconds():
+    from optcal.core.recording.clock import clock_seconds
+
+    assert clock_seconds(["23:59:59.5", "00:00:00.0", "00:00:00,5"]).tolist() == [0.0, 0.5, 1.0]
+    assert clock_seconds(["2024-2-28 23:59:59", "2024-02-29 00:00:01", "2024/3/1 00:00:01"]).tolist() == \
+        [0.0, 2.0, 86402.0]
+    assert clock_seconds(["12:00:00", "2024-1-1 12:00:01"]) is None  # a date on some rows only: not one clock
+    assert clock_seconds(["12:00:00", "12:00:0x"]) is None
+    assert clock_seconds(["2024-13-1 12:00:00"]) is None  # no such date
+    assert clock_seconds([]) is None
+
+
+def test_a_clock_that_stands_still_is_refused_and_a_rate_reads_past_it(tmp_path, capsys):
+    """A PC's clock stamps several samples alike: refused in one line that names the way out; with --rate the
+    clock is not read."""
+    rows = _imu_rows()
+    path = _wit(tmp_path / "wit.csv", "Time,ax(g),ay(g),az(g),wx(deg/s),wy(deg/s),wz(deg/s),A,B,C,T(°)", rows,
+                lambda i: _hms(2 * (i // 2)))
+    _refused(["calibrate", path, "--raw"], capsys, "does not increase from sample 0 (t = 0) to 1 (t = 0); give the "
+                                                   "sample rate with --rate (the clock column is then not read)")
+    rec = read_recording(path, rate=50.0)
+    assert "t" not in rec.columns and rec.rate == 50.0 and rec.t[1] == pytest.approx(0.02)
+
+
+def test_gyroscope_units_the_names_contradict_or_do_not_give_are_refused(tmp_path, capsys):
+    from optcal.core.gyro.recording import read_gyro, units_from_names
+
+    assert units_from_names(["wx(deg/s)", "wy(°/s)", "wz(dps)"]) == "deg/s"
+    assert units_from_names(["gx [rad/s]", "gy [rad/s]", "gz [rad/s]"]) == "rad/s"
+    assert units_from_names(["gx(deg/s)", "gy(rad/s)", "gz(rad/s)"]) is None
+    assert units_from_names(["gx", "gy", "gz"]) is None and units_from_names(["GyrX(raw)"] * 3) is None
+    rows = _imu_rows()
+    path = _wit(tmp_path / "wit.csv", "time,AccX(g),AccY(g),AccZ(g),AsX(°/s),AsY(°/s),AsZ(°/s),A,B,C,T(°)", rows,
+                lambda i: f"{i / 100.0:.2f}")
+    _refused(["imu", path, "--gyro-units", "rad/s", "-o", tmp_path / "i.json"], capsys,
+             "--gyro-units rad/s, but the gyroscope's columns in")
+    assert not (tmp_path / "i.json").exists()
+    acc = read_recording(path)
+    assert read_gyro(path, acc, units="counts").reading["gyro_units"] == "counts"  # counts: the names cannot say
+    plain = _write(tmp_path / "plain.csv", "t,ax,ay,az,gx,gy,gz", rows[:, [1, 3, 4, 5, 6, 7, 8]])
+    with pytest.raises(InputError, match=r"give the gyroscope's units with `gyro_units` .* \(the names of its "):
+        read_gyro(plain, read_recording(plain), units=None)

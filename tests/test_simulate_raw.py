@@ -58,7 +58,8 @@ def test_imu_takes_the_gyroscope_the_header_names(recording, capsys):
         assert abs(g["parameters"][f"K_{ax}"] - sim.gyro_scale[i] * 180 / np.pi) < 4 * g["stderr"][f"K_{ax}"]
     code, out, err = run_cli(["imu", recording, "--units", "g"], capsys)
     assert code == 2 and err.strip().splitlines() == [
-        "optcal imu: error: give the gyroscope's units with --gyro-units counts, deg/s, rad/s or volts"]
+        "optcal imu: error: give the gyroscope's units with --gyro-units counts, deg/s, rad/s or volts (the names of "
+        f"its columns in {recording} give none)"]
 
 
 @pytest.mark.parametrize("argv,words", [

@@ -126,7 +126,7 @@ def _positions_for(data, model, units, raw: bool, g_local: float, reading: dict)
 GYRO_UNITS = ("counts", "deg/s", "rad/s", "volts")
 
 
-def calibrate_imu(data, gyro=None, *, gyro_units: str, gyro_columns=None, gyro_scale: float | None = None,
+def calibrate_imu(data, gyro=None, *, gyro_units: str | None = None, gyro_columns=None, gyro_scale: float | None = None,
                   gyro_bias: str = "rests", g_sensitivity: bool = False, model=None, solver: str = "lm",
                   units: str | None = None, g_local: float = 1.0, options: dict | None = None, seed: int = 0,
                   budget=None, force_weak: bool = False, **reading):
@@ -139,7 +139,8 @@ def calibrate_imu(data, gyro=None, *, gyro_units: str, gyro_columns=None, gyro_s
     recording options of :func:`calibrate` (``columns``, ``rate``, ``method``, ``threshold_k``, ...).
     ``gyro``: the path of a second file with the gyroscope's samples at the same times (t, gx, gy, gz, or
     as ``gyro_columns`` names them, as imu_tk's data come); without it, ``gyro_columns`` names the three
-    columns in ``data``. ``gyro_units``: counts, deg/s, rad/s or volts; ``gyro_scale``: nominal output units
+    columns in ``data``. ``gyro_units``: counts, deg/s, rad/s or volts (None: as the gyroscope's columns' names
+    give them, ``wx(deg/s)``; refused when they give none); ``gyro_scale``: nominal output units
     per rad/s (exact for deg/s and rad/s; otherwise searched for from the motions when None);
     ``gyro_bias``: ``rests`` (interpolated between them) or ``fit``; ``g_sensitivity`` (with ``gyro_bias``
     fit): fit G and keep it when the likelihood-ratio test finds it. ``model``, ``solver``, ``options``,
@@ -148,7 +149,7 @@ def calibrate_imu(data, gyro=None, *, gyro_units: str, gyro_columns=None, gyro_s
     from optcal.app.imu import check_imu_options
     from optcal.core.gyro.recording import read_gyro
 
-    if gyro_units not in GYRO_UNITS:
+    if gyro_units is not None and gyro_units not in GYRO_UNITS:
         raise InputError(f"gyro_units {gyro_units!r}: use one of {', '.join(GYRO_UNITS)}")
     _check_reading("calibrate_imu", reading)
     if not _is_path(data):
@@ -169,7 +170,7 @@ def calibrate_imu(data, gyro=None, *, gyro_units: str, gyro_columns=None, gyro_s
     positions = first_found(lambda name: positions_from_raw_recording(acc, opts, gyro=rates, model=name,
                                                                         g_local=g_local), model)
     return fit_imu(positions, rates, model=model, solver=solver, options=options, g_local=g_local, seed=seed,
-                   budget=budget, gyro_units=gyro_units, gyro_scale=gyro_scale, gyro_bias=gyro_bias,
+                   budget=budget, gyro_units=rates.reading["gyro_units"], gyro_scale=gyro_scale, gyro_bias=gyro_bias,
                    g_sensitivity=g_sensitivity, force_weak=force_weak)
 
 

@@ -146,12 +146,15 @@ def gyro_rates(args, cal, rec, A) -> tuple[np.ndarray | None, np.ndarray | None,
         from optcal.app.commands.imu import gyro_recording
         from optcal.core.gyro.recording import join_times
 
-        args.gyro_units = gcal.units_raw
+        args.gyro_units, args.units_of_calibration = gcal.units_raw, True
         gyr = gyro_recording(args, rec)
         if args.gyro:
             join_times(rec.t, gyr.t)
         W, saturated = gyr.N, gyr.saturated
     elif rec.W is not None:
+        from optcal.core.gyro.recording import check_named_units
+
+        check_named_units(gcal.units_raw, [rec.columns[g] for g in ("gx", "gy", "gz")], args.data)
         W, saturated = rec.W, rec.gyro_saturated
     else:
         return None, None, (f"{args.calibration} has a gyroscope calibration, but {args.data} has no gyroscope "

@@ -33,7 +33,8 @@ def add_arguments(p):
                    "in DATA (default: those its header names, e.g. gx or gyr_x), or t,gx,gy,gz in --gyro (default "
                    "for --gyro: its first four columns)")
     p.add_argument("--gyro-units", choices=("counts", "deg/s", "rad/s", "volts"),
-                   help="the gyroscope's output units (a ROS bag's or a ULog's are rad/s: the default there)")
+                   help="the gyroscope's output units (default: as its columns' names give them, e.g. wx(deg/s); a "
+                   "ROS bag's or a ULog's are rad/s)")
     p.add_argument("--gyro-scale", type=float, metavar="PER_RAD_S", help="nominal gyroscope scale, output units per "
                    "rad/s (default: exact for deg/s and rad/s; for counts and volts found from the motions)")
     p.add_argument("--gyro-bias", choices=("rests", "fit"), default="rests", help="the gyroscope's bias: from the "
@@ -61,7 +62,7 @@ def gyro_recording(args, acc_rec):
     from optcal.core.gyro.recording import read_gyro
 
     return read_gyro(args.data, acc_rec, gyro=args.gyro, gyro_columns=args.gyro_columns, units=args.gyro_units,
-                     rate=args.rate, time_unit=args.time_unit)
+                     rate=args.rate, time_unit=args.time_unit, calibration=getattr(args, "units_of_calibration", False))
 
 
 def run(args) -> int:
@@ -70,12 +71,12 @@ def run(args) -> int:
     from optcal.app.imu import calibrate_imu, check_imu_options
 
     check_seed(args.seed)
-    if args.gyro_units is None:
+    if args.gyro_units is None and args.gyro is None:
         from optcal.core.recording.robotlogs import log_kind
 
-        if args.gyro is not None or log_kind(args.data) is None:
-            raise InputError("give the gyroscope's units with --gyro-units counts, deg/s, rad/s or volts")
-        args.gyro_units = "rad/s"  # sensor_msgs/Imu and PX4's sensor_gyro define them
+        if log_kind(args.data) is not None:
+            args.gyro_units = "rad/s"  # sensor_msgs/Imu and PX4's sensor_gyro define them
+    # otherwise, without --gyro-units, the gyroscope's columns' names give them (wx(deg/s)), or it is refused
     if args.budget is not None and args.budget < 1:
         raise InputError(f"--budget {args.budget} must be a number of evaluations of 1 or more")
     check_imu_options(gyro_scale=args.gyro_scale, gyro_bias=args.gyro_bias, g_sensitivity=args.g_sensitivity)
@@ -91,14 +92,19 @@ def run(args) -> int:
 
     def gyro_of(acc):
         read["gyro"] = gyro_recording(args, acc)
+        args.gyro_units = read["gyro"].reading["gyro_units"]
         return read["gyro"]
 
+    units_named = args.gyro_units is None
     positions = load_raw_positions(args, args.data, gyro_of)
     gyr = read["gyro"]
     imu = calibrate_imu(positions, gyr, model=args.model if named else None, solver=args.solver,
                         options=parse_options(args.option), g_local=g_local, seed=args.seed, budget=args.budget,
                         gyro_units=args.gyro_units, gyro_scale=args.gyro_scale, gyro_bias=args.gyro_bias,
                         g_sensitivity=args.g_sensitivity, force_weak=args.force_weak)
+    if units_named:  # said, as the reader's other inferences are
+        imu.notes.insert(0, f"gyroscope in {args.gyro_units}, as its columns' names give it "
+                            f"({', '.join(str(gyr.columns[a]) for a in ('ax', 'ay', 'az'))})")
     cal, fit, data = imu.accelerometer, imu.gyroscope, imu.data
     block = imu.gyro_block()
     if args.output:

@@ -4,6 +4,7 @@ force (imu_tk's data come as two files sharing times; Tedaldi et al., ICRA 2014,
 
 from __future__ import annotations
 
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -11,9 +12,14 @@ import numpy as np
 from optcal.core.errors import InputError
 from optcal.core.gyro.data import GyroData
 from optcal.core.model import Context, get_model
+from optcal.core.recording.clock import CLOCK_TIME
 
 # How the gyroscope's units are given to the reader, which only labels the samples with them
 _READER_UNITS = {"counts": "counts", "deg/s": "volts", "rad/s": "volts", "volts": "volts"}
+
+# The gyroscope's units as its columns' names give them (wx(deg/s), AsX(°/s), gyro_x [rad/s]), lower case
+NAMED_UNITS = {**{u: "deg/s" for u in ("°/s", "deg/s", "dps", "degree/s", "degrees/s", "deg/sec", "°/sec", "º/s")},
+               **{u: "rad/s" for u in ("rad/s", "rad/sec", "rads/s")}}
 
 # Two time columns agree when no sample differs by more than this fraction of the median step.
 TIME_TOLERANCE = 0.1
@@ -43,25 +49,62 @@ def _columns(spec, n: int) -> list[str] | None:
     return parts
 
 
-def read_gyro(data, acc, *, gyro=None, gyro_columns=None, units: str, rate: float | None = None,
-              time_unit: str | None = None):
+def units_from_names(names) -> str | None:
+    """The gyroscope's units (deg/s or rad/s) its three columns' names give (:data:`NAMED_UNITS`), the same for
+    all three; else None."""
+    from optcal.core.tablefile import unit_of
+
+    found = {NAMED_UNITS.get(unit_of(str(n)) or "") for n in names}
+    return found.pop() if len(found) == 1 and None not in found else None
+
+
+def check_named_units(units: str, names, where) -> None:
+    """Refuse a calibration whose gyroscope is in ``units`` for a recording whose gyroscope's columns' ``names``
+    say other units (:func:`units_from_names`)."""
+    _units(units, names, where, calibration=True)
+
+
+def _units(units: str | None, names, where, calibration: bool = False) -> str:
+    """``units`` checked against those the columns' ``names`` give (:func:`units_from_names`), or taken from
+    them when None. ``calibration``: the units are a calibration's (the refusal says so)."""
+    named = units_from_names(names) if names is not None and len(names) == 3 else None
+    if calibration and named is not None and units in NAMED_UNITS.values() and units != named:
+        raise InputError(f"{where}: the gyroscope's columns are in {named} ({', '.join(map(str, names))}), the "
+                         f"calibration's gyroscope in {units}; give its rates in {units}, or calibrate in {named}")
+    if units is None:
+        if named is None:
+            raise InputError("give the gyroscope's units with `gyro_units` counts, deg/s, rad/s or volts (the names of "
+                             f"its columns in {where} give none)")
+        return named
+    if named is not None and units in NAMED_UNITS.values() and units != named:
+        raise InputError(f"`gyro_units` {units}, but the gyroscope's columns in {where} are in {named} "
+                         f"({', '.join(map(str, names))}); give `gyro_units` {named}, or drop it")
+    return units
+
+
+def read_gyro(data, acc, *, gyro=None, gyro_columns=None, units: str | None, rate: float | None = None,
+              time_unit: str | None = None, calibration: bool = False):
     """The gyroscope's samples as a :class:`~optcal.core.recording.Recording` (its ``N`` holds them), read from the
     file ``gyro`` (times and three rates; ``gyro_columns`` names the four, "t,gx,gy,gz", or its first four
     columns are taken) or from the accelerometer's file ``data``, whose recording ``acc`` is, in the columns
     ``gyro_columns`` ("gx,gy,gz" or a list) beside its time column, by default those its header names as the
     gyroscope's (gx, gyr_x, GyroX, ...: the columns ``optcal calibrate`` judges stillness on), also when the
     accelerometer's columns were named (``columns``) and the gyroscope's were not. ``units``: the
-    gyroscope's (counts, deg/s, rad/s, volts). A ROS bag's or a ULog's gyroscope was read with its
-    accelerometer: it is ``acc``'s (:func:`log_gyro`)."""
+    gyroscope's (counts, deg/s, rad/s, volts); None takes them from its columns' names (``wx(deg/s)``), and
+    given units that the names contradict are refused (``calibration``: the units are a calibration file's,
+    which the refusal says). The units used are the recording's ``reading["gyro_units"]``. A ROS bag's or a
+    ULog's gyroscope was read with its accelerometer: it is ``acc``'s (:func:`log_gyro`)."""
     from optcal.core.recording.reading import read_recording
 
     if gyro is None and acc.reading.get("topic") is not None:
-        return log_gyro(acc, units, gyro_columns)
-    label = _READER_UNITS.get(units, "volts")
+        rec = log_gyro(acc, units or "rad/s", gyro_columns)
+        return replace(rec, reading={**rec.reading, "gyro_units": units or "rad/s"})
     if gyro is not None:
         cols = _columns(gyro_columns, 4)
         spec = None if cols is None else f"t={cols[0]},ax={cols[1]},ay={cols[2]},az={cols[3]}"
-        return read_recording(gyro, spec, rate, label, time_unit=time_unit)
+        rec = read_recording(gyro, spec, rate, _READER_UNITS.get(units, "volts"), time_unit=time_unit)
+        units = _units(units, [rec.columns[a] for a in ("ax", "ay", "az")], gyro, calibration)
+        return replace(rec, reading={**rec.reading, "gyro_units": units})
     cols = _columns(gyro_columns, 3)
     if cols is None and all(k in acc.columns for k in ("gx", "gy", "gz")):
         cols = [str(acc.columns[k]) for k in ("gx", "gy", "gz")]  # the header names them, as calibrate reads them
@@ -70,9 +113,16 @@ def read_gyro(data, acc, *, gyro=None, gyro_columns=None, units: str, rate: floa
     if cols is None:
         raise InputError("name the gyroscope's columns in DATA with `gyro_columns` gx,gy,gz, or give them in a "
                          "second file with `gyro`")
+    units = _units(units, cols, data, calibration)
+    label = _READER_UNITS.get(units, "volts")
     time = acc.columns.get("t")
+    if acc.reading.get("time_unit") == CLOCK_TIME:  # a time-of-day column: the accelerometer's seconds serve both
+        rec = read_recording(data, f"ax={cols[0]},ay={cols[1]},az={cols[2]}", acc.rate, label)
+        return replace(rec, t=acc.t, columns={**rec.columns, "t": time},
+                       reading={**rec.reading, "time_unit": CLOCK_TIME, "gyro_units": units})
     spec = (f"t={time}," if time is not None else "") + f"ax={cols[0]},ay={cols[1]},az={cols[2]}"
-    return read_recording(data, spec, rate, label, time_unit=time_unit)
+    rec = read_recording(data, spec, rate, label, time_unit=time_unit)
+    return replace(rec, reading={**rec.reading, "gyro_units": units})
 
 
 def _header_gyro_names(path, acc) -> list[str] | None:
@@ -93,8 +143,6 @@ def log_gyro(acc, units: str, gyro_columns=None):
     """The gyroscope of a ROS bag or a ULog, read with its accelerometer as the Recording ``acc`` (its ``W``), as
     a Recording of its own whose ``N`` holds the rates: what :func:`read_gyro` gives for a table's gyroscope
     columns (labelled as it labels rad/s, saturation found as for them). The log defines the units: rad/s."""
-    from dataclasses import replace
-
     from optcal.core.recording.reading import saturation_of
     from optcal.core.recording.robotlogs import check_gyro_units
 

@@ -22,6 +22,7 @@ import numpy as np
 from optcal.core.data import UNITS, PositionsData, check_units
 from optcal.core.errors import InputError
 from optcal.core.fixed_width import read_fixed_width
+from optcal.core.recording.clock import CLOCK_TIME
 from optcal.core.recording.sniff import (
     KIND_ROWS,
     ROLES,
@@ -153,16 +154,22 @@ def read_recording(path, columns=None, rate: float | None = None, units: str = "
     meta_rate = rate_from_meta(lay.meta)
     if rate is not None and not rate > 0:
         raise InputError(f"`rate` {rate} must be a positive sample rate in Hz")
-    unit = None
+    unit = clock = None
+    if "t" not in data and columns is None and rate is None and meta_rate is None and table is None:
+        clock = _clock_column(path, lay, n)  # a time-of-day column (hh:mm:ss.fff), when the header names one
+        if clock is not None:
+            j, data["t"] = clock
+            time_unit = "s"
     if "t" in data:
         t = data["t"]
         steps = np.diff(t)
         if np.any(steps <= 0):
             i = int(np.flatnonzero(steps <= 0)[0])
+            way = ("give the sample rate with `rate` (the clock column is then not read)" if clock is not None
+                   else "sort the samples, or drop the time column from `columns` and give `rate`")
             raise InputError(
                 f"{path}: the time column does not increase from sample {i} (t = {t[i]:g}) to {i + 1} "
-                f"(t = {t[i + 1]:g}); "
-                "sort the samples, or drop the time column from `columns` and give `rate`"
+                f"(t = {t[i + 1]:g}); {way}"
             )
         given = rate if rate is not None else meta_rate
         unit = time_unit or time_scale(float(np.median(steps)), given, path)
@@ -187,6 +194,9 @@ def read_recording(path, columns=None, rate: float | None = None, units: str = "
         gyro_sat, gyro_how = gyro_saturation_of(W, units, fmt)
         how.update(gyro_how)
     names = {r: (lay.header[j] if lay.header else j) for r, j in cols.items()}
+    if clock is not None:
+        names["t"] = lay.header[clock[0]]
+        unit = CLOCK_TIME
     if log is not None:
         how.update(log.how)
     else:
@@ -412,6 +422,28 @@ def _load_arrow(path: Path, lay: Layout, usecols: list[int]) -> np.ndarray | Non
     if len(out) == 0 or not np.array_equal(out[0], first, equal_nan=True):
         return None  # it did not start on the first data row (e.g. blank lines in the preamble, a BOM)
     return out
+
+
+def _clock_column(path: Path, lay: Layout, n: int) -> tuple[int, np.ndarray] | None:
+    """The first text column the header names as a time (:func:`~optcal.core.recording.clock.is_clock_name`)
+    whose every row is a time of day: its index and the seconds since the first row; else None."""
+    if lay.header is None:
+        return None
+    from optcal.core.recording.clock import clock_seconds, is_clock_name  # (its re and datetime on this path only)
+
+    for j, name in enumerate(lay.header):
+        if lay.numeric[j] or not is_clock_name(name):
+            continue
+        with _text(path) as fh:
+            try:
+                values = np.loadtxt(fh, delimiter=lay.delimiter, skiprows=lay.skiprows, usecols=[j], dtype=str,
+                                    comments=_comment_marks(path), ndmin=1)
+            except ValueError:
+                continue
+        t = clock_seconds(values) if len(values) == n else None
+        if t is not None:
+            return j, t
+    return None
 
 
 def _read_labels(path: Path, lay: Layout, column: str, n: int) -> np.ndarray:

@@ -6,6 +6,7 @@ detector's threshold and its search), the notes (docs/design.md, "Raw recordings
 from __future__ import annotations
 
 from optcal.core.data import PositionsData
+from optcal.core.recording.clock import CLOCK_TIME
 from optcal.core.recording.detection import DetectionResult
 
 
@@ -63,7 +64,9 @@ def reading_line(how: dict, n_saturated: int) -> str:
         if how.get("decimal") == ",":
             what += ", decimal comma"
         parts.append(what)
-    if how.get("time_unit"):
+    if how.get("time_unit") == CLOCK_TIME:
+        parts.append("times of day (hh:mm:ss) in the time column, in s from the first sample")
+    elif how.get("time_unit"):
         parts.append(f"time column in {how['time_unit'].replace('us', 'µs')}")
     if "adc" in how:
         lo, hi = how["rails"]

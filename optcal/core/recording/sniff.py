@@ -50,7 +50,8 @@ GYRO = ("gx", "gy", "gz")  # angular rate, in the file's units (rad/s, °/s or c
 # wx, omega_x, ... Names are compared as column_keys (case, a trailing unit in parentheses or brackets, and
 # spaces, underscores, dots and hyphens aside), so acc_x stands for accx, Acc_X, ACC X and acc_x [m/s^2] too.
 ACC_STEMS = ("a", "acc", "accel", "acceleration", "accelerometer", "accl")
-GYRO_STEMS = ("g", "gyr", "gyro", "gyroscope", "w", "omega", "angvel", "ang_vel", "angular_velocity", "rate")
+GYRO_STEMS = ("g", "gyr", "gyro", "gyroscope", "w", "omega", "angvel", "ang_vel", "angular_velocity", "rate",
+              "as")  # as: WitMotion's exports (AsX(°/s): angular speed)
 ALIASES = {
     "t": ("t", "time", "timestamp", "time_s", "t_s", "seconds", "tx", "time_ms", "t_ms", "timestamp_ms"),
     **{a: tuple(f"{stem}_{a[1]}" for stem in ACC_STEMS) + tuple(f"{stem}_{a[1]}_raw" for stem in ACC_STEMS[1:3])
@@ -60,6 +61,8 @@ ALIASES = {
 }
 ALIAS_KEYS = {r: frozenset(column_key(a) for a in names) for r, names in ALIASES.items()}
 CELSIUS = ("c", "°c", "degc", "deg c", "celsius", "degrees c")  # a temperature column's unit, if its name gives one
+# a column named t in degrees is a temperature, not the time (WitMotion's exports: T(°) beside a clock-time column)
+T_IN_DEGREES = (*CELSIUS, "°", "deg", "℃")
 # columns by position when a file has no header (or `columns` lists bare columns): 3, 4 and 5 as always; 7 is
 # an IMU's row, time, the accelerometer's three axes and the gyroscope's three
 POSITIONAL = {3: ("ax", "ay", "az"), 4: ("t", "ax", "ay", "az"), 5: ("t", "ax", "ay", "az", "temp"),
@@ -310,10 +313,12 @@ def _named(lay: Layout, keys: list[str], role: str) -> list[int]:
     """The numeric columns whose names are an alias of ``role`` (:data:`ALIASES`; a temperature only in °C or
     without a unit). ``tx`` is a time only when no ``ty`` and ``tz`` stand beside it (then it is the x of an
     axis triple, as in a header ``time tx ty tz wx wy wz``)."""
-    found = [j for j, k in enumerate(keys) if k in ALIAS_KEYS[role] and lay.numeric[j]
-             and (role != "temp" or unit_of(lay.header[j]) in (None, *CELSIUS))]
+    found = [j for j, k in enumerate(keys) if lay.numeric[j]
+             and (k in ALIAS_KEYS[role] or role == "temp" and k == "t" and unit_of(lay.header[j]) in T_IN_DEGREES)
+             and (role != "temp" or unit_of(lay.header[j]) in (None, *T_IN_DEGREES))]
     if role == "t":
-        found = [j for j in found if not (keys[j] == "tx" and {"ty", "tz"} <= set(keys))]
+        found = [j for j in found if not (keys[j] == "tx" and {"ty", "tz"} <= set(keys))
+                 and unit_of(lay.header[j]) not in T_IN_DEGREES]
     return found
 
 
