@@ -73,9 +73,18 @@ def step_quaternions(wa, wb, h) -> np.ndarray:
     s2 = dot(s, s)
     h2 = h * h
     h4 = h2 * h2
-    mu0 = 1.0 - h2 * s2 / 32.0 + h4 * s2 * dot(wa, wb) / 1536.0
-    vec = (h / 4.0 - h2 * h * s2 / 384.0) * s + (h2 / 24.0 - h4 * s2 / 1536.0) * cross(wa, wb)
-    return np.concatenate([mu0[None], vec])
+    # written into one array row by row, the same numbers as stacking mu0 and the vector part (which costs a
+    # third of the time on a population's steps)
+    out = np.empty((4,) + s2.shape)
+    np.multiply(h4 * s2, dot(wa, wb), out=out[0])
+    out[0] /= 1536.0
+    out[0] += 1.0 - h2 * s2 / 32.0
+    a = h / 4.0 - h2 * h * s2 / 384.0
+    c = h2 / 24.0 - h4 * s2 / 1536.0
+    for i, (j, k) in enumerate(((1, 2), (2, 0), (0, 1))):  # (wa × wb)_i = wa_j wb_k − wa_k wb_j
+        np.multiply(a, s[i], out=out[1 + i])
+        out[1 + i] += c * (wa[j] * wb[k] - wa[k] * wb[j])
+    return out
 
 
 def rotate_back(Q, u) -> np.ndarray:
