@@ -559,3 +559,46 @@ def test_gyroscope_units_the_names_contradict_or_do_not_give_are_refused(tmp_pat
     plain = _write(tmp_path / "plain.csv", "t,ax,ay,az,gx,gy,gz", rows[:, [1, 3, 4, 5, 6, 7, 8]])
     with pytest.raises(InputError, match=r"give the gyroscope's units with `gyro_units` .* \(the names of its "):
         read_gyro(plain, read_recording(plain), units=None)
+
+
+# == 7. the accelerometer's units from its columns' names ========================================================
+@pytest.mark.parametrize("names,units,factor", [
+    ("t,ax(g),ay(g),az(g)", "g", 1.0),
+    ('"Time (s)","Acceleration x (m/s^2)","Acceleration y (m/s^2)","Acceleration z (m/s^2)"', "m/s2", 9.81),
+    ("time [s],Acc X [m/s²],Acc Y [m/s²],Acc Z [m/s²]", "m/s2", 9.81),
+    ("t,AccX(mg),AccY(mg),AccZ(mg)", "mg", 1000.0),
+    ("t,ax,ay,az", "g", 1.0),  # no unit named: g, as before
+])
+def test_the_accelerometers_units_come_from_its_names_when_not_given(tmp_path, capsys, names, units, factor):
+    """A phone's log (phyphox writes "Acceleration x (m/s^2)") is read in m/s² without --units, and the report says
+    where the units came from; given units are taken as given (and checked against the data as always)."""
+    rows = _imu_rows()
+    data = np.column_stack([rows[:, 1], rows[:, 3:6] * factor])
+    path = _write(tmp_path / "acc.csv", names, data)
+    rec = read_recording(path, units=None)
+    assert rec.units == units and rec.reading.get("units_from_names", False) == (units != "g" or "(g)" in names)
+    if factor == 1.0:
+        assert read_recording(path).units == "g"
+    else:  # the library's default stays g: the data are then refused as not in g
+        with pytest.raises(InputError, match="the outputs. norms are about"):
+            read_recording(path)
+
+
+def test_calibrate_reads_a_phone_log_in_the_units_its_names_give(tmp_path, capsys, poses):
+    rec, _ = poses
+    path = _write(tmp_path / "phone.csv", '"Time (s)","Acceleration x (m/s^2)","Acceleration y (m/s^2)",'
+                                          '"Acceleration z (m/s^2)"', np.column_stack([rec.t, rec.N * 9.80665]))
+    code, out, err = _cli(["calibrate", path, "--raw", "-o", tmp_path / "cal.json"], capsys)
+    assert code == 0, err
+    assert "units m/s2 (as the columns' names give them)" in out.splitlines()[0]
+    assert json.loads((tmp_path / "cal.json").read_text())["units"]["raw"] == "m/s2"
+
+
+def test_accelerometer_units_from_names():
+    from optcal.core.recording.sniff import units_from_names
+
+    assert units_from_names(["ax(g)", "ay (g)", "az [g]"]) == "g"
+    assert units_from_names(["a_x [m/s^2]", "a_y [m/s2]", "a_z (m/s²)"]) == "m/s2"
+    assert units_from_names(["AccX(LSB)", "AccY(lsb)", "AccZ(counts)"]) == "counts"
+    assert units_from_names(["ax(g)", "ay(g)", "az(m/s^2)"]) is None  # not one unit
+    assert units_from_names(["ax", "ay", "az"]) is None and units_from_names(["ax(raw)"] * 3) is None

@@ -52,7 +52,7 @@ def _positions(data, units: str | None, raw: bool, g_local: float, model, readin
         if raw:
             from optcal.app.workflows.recording import positions_from_raw
 
-            return positions_from_raw(path, units=units or "g", model=model, g_local=g_local, **reading)
+            return positions_from_raw(path, units=units, model=model, g_local=g_local, **reading)
         if reading:
             raise InputError(f"{', '.join(sorted(reading))} read a raw recording; pass raw=True with them")
         from optcal.core.recording.positions import read_positions_file
@@ -163,7 +163,7 @@ def calibrate_imu(data, gyro=None, *, gyro_units: str | None = None, gyro_column
 
     # the recording is read once, and the gyroscope before the rests are found: their detection judges its
     # stillness too
-    opts = RawOptions(units=units or "g", **reading)
+    opts = RawOptions(units=units, **reading)
     acc = opts.read(os.fspath(data))
     rates = read_gyro(os.fspath(data), acc, gyro=None if gyro is None else os.fspath(gyro), gyro_columns=gyro_columns,
                       units=gyro_units, rate=opts.rate, time_unit=opts.time_unit)

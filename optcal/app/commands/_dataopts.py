@@ -37,11 +37,12 @@ def add_gravity_options(p: argparse.ArgumentParser) -> None:
     g.add_argument("--height", type=float, metavar="M", help="ellipsoidal height, m (with --latitude; default 0)")
 
 
-def add_data_options(p: argparse.ArgumentParser, *, units_default: str | None = "g") -> None:
+def add_data_options(p: argparse.ArgumentParser, *, units_of_calibration: bool = False) -> None:
     d = p.add_argument_group("data")
     units_help = "output units of the data: g, m/s2, counts, volts, mg"
-    units_help += f" (default {units_default})" if units_default else " (default: the calibration file's)"
-    d.add_argument("--units", default=units_default, help=units_help)
+    units_help += (" (default: the calibration file's)" if units_of_calibration else
+                   " (default: as the columns' names give them, e.g. ax(g) or Acc X [m/s^2]; else g)")
+    d.add_argument("--units", help=units_help)
     d.add_argument("--raw", action="store_true", help="DATA is a raw recording (t, ax, ay, az per sample)")
     r = p.add_argument_group("raw recordings (with --raw; docs/design.md, 'Raw recordings')")
     r.add_argument("--topic", metavar="NAME[,GYRO]", help="a ROS bag's or PX4 ULog's IMU topic (default: its one IMU "
@@ -119,7 +120,7 @@ def raw_options(args) -> RawOptions:
     column, values = (labels.split("=", 1) if labels is not None and "=" in labels else (labels, None))
     return RawOptions(
         columns=getattr(args, "columns", None), rate=getattr(args, "rate", None),
-        units=getattr(args, "units", "g") or "g", saturation=getattr(args, "saturation", None),
+        units=getattr(args, "units", None), saturation=getattr(args, "saturation", None),
         adc=getattr(args, "adc", None), time_unit=getattr(args, "time_unit", None), topic=getattr(args, "topic", None),
         labels=column, label_values=None if values is None else values.split(","),
         intervals=getattr(args, "intervals", None) or None, method=getattr(args, "method", None),
@@ -153,4 +154,4 @@ def load_positions(args, path) -> PositionsData:
     from optcal.core.recording.positions import read_positions_file
 
     with flag_names():
-        return read_positions_file(path, units=args.units)
+        return read_positions_file(path, units=args.units or "g")

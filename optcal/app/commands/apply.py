@@ -38,7 +38,7 @@ def add_arguments(p):
     g.add_argument("--gyro-columns", metavar="SPEC", help="the gyroscope's columns by name or 0-based index: "
                    "gx,gy,gz in RAW, or t,gx,gy,gz in --gyro (default: columns RAW's header names gx, gy, gz, "
                    "gyr_x, ...; for --gyro its first four columns)")
-    add_data_options(p, units_default=None)
+    add_data_options(p, units_of_calibration=True)
 
 
 def write_csv(path: Path, columns: dict[str, np.ndarray], fmt: dict[str, str], *, overwrite: bool = True) -> None:

@@ -24,7 +24,8 @@ class RawOptions:
     its rests (the others, :func:`optcal.app.workflows.recording.positions_from_raw_recording`'s).
 
     - ``columns``: the columns' roles ("ax,ay,az", "t=0,ax=1,...", or a list); ``rate``: the sample rate, Hz,
-      when the file has no time column; ``units``: the outputs' (g, m/s2, counts, volts, mg); ``saturation``:
+      when the file has no time column; ``units``: the outputs' (g, m/s2, counts, volts, mg; None: as the
+      accelerometer's columns' names give them, ``ax(g)``, ``Acc X [m/s^2]``, else g); ``saturation``:
       the outputs' rail, in ``units``; ``adc``: the counts' format ("uint16", ...); ``time_unit``: the time
       column's (s, ms, us, ns); ``topic``: a ROS bag's or a ULog's IMU topic.
     - ``intervals``: a file of the rests ([start, end) samples), else ``labels``, a label column whose runs of
@@ -35,7 +36,7 @@ class RawOptions:
 
     columns: str | Sequence[str] | None = _option("--columns")
     rate: float | None = _option("--rate")
-    units: str = _option("--units", "g")
+    units: str | None = _option("--units")
     saturation: float | None = _option("--saturation")
     adc: str | None = _option("--adc")
     time_unit: str | None = _option("--time-unit")

@@ -37,6 +37,7 @@ from optcal.core.recording.sniff import (
     role_columns,
     sniff_layout,
     table_kind,
+    units_from_names,
 )
 from optcal.core.tablefile import COMMENT, DECODE_ERRORS, is_comment, open_text
 
@@ -91,13 +92,14 @@ class Recording:
         return float(self.t[-1] - self.t[0]) if len(self) else 0.0
 
 
-def read_recording(path, columns=None, rate: float | None = None, units: str = "g", *,
+def read_recording(path, columns=None, rate: float | None = None, units: str | None = "g", *,
                    saturation: float | None = None, labels: str | None = None, need_time: bool = True,
                    adc: str | None = None, time_unit: str | None = None,
                    refuse_positions: bool = False, topic: str | None = None) -> Recording:
     """Read a raw recording (docs/design.md, "Raw recordings"). ``columns``: ``"t,ax,ay,az"`` (names or 0-based indices;
     3 entries mean ax,ay,az, 5 add temp) or ``"ax=acc_x,..."``; ``rate`` (Hz) when there is no time column;
-    ``units`` of the outputs; ``saturation``: |value| at which a sample is saturated; ``adc``: the counts'
+    ``units`` of the outputs (None: as the accelerometer's columns' names give them, ``ax(g)``, ``Acc X
+    [m/s^2]``, else g; ``reading["units_from_names"]`` says which); ``saturation``: |value| at which a sample is saturated; ``adc``: the counts'
     format (``int16``, ``uint16``, ``int12``, ...: its rails are saturation; by default inferred from the
     data for counts, :func:`saturation_of`); ``time_unit``: s, ms, us or ns (default: inferred from the
     median step, :func:`time_scale`); ``labels``: a column of section labels, ``COLUMN`` or
@@ -108,7 +110,7 @@ def read_recording(path, columns=None, rate: float | None = None, units: str = "
     messages (:func:`read_log`; ``topic`` picks among them) in the units and at the stamps the log gives.
     Every problem is an InputError."""
     path = Path(path)
-    if units not in UNITS:
+    if units is not None and units not in UNITS:
         raise InputError(f"unknown units {units!r}; use one of {', '.join(UNITS)}")
     if time_unit is not None and time_unit not in TIME_UNITS:
         raise InputError(f"`time_unit` {time_unit!r}: use one of {', '.join(TIME_UNITS)}")
@@ -131,6 +133,10 @@ def read_recording(path, columns=None, rate: float | None = None, units: str = "
             f"{path} has a single column; a raw recording needs ax, ay, az (and t, or `rate`) on each row"
         )
     cols = role_columns(columns, lay, path)
+    named_units = None
+    if units is None:
+        named_units = units_from_names([lay.header[cols[a]] for a in ("ax", "ay", "az")]) if lay.header else None
+        units = named_units or "g"
     if log is not None:
         from optcal.core.recording.robotlogs import log_units
 
@@ -194,6 +200,8 @@ def read_recording(path, columns=None, rate: float | None = None, units: str = "
         gyro_sat, gyro_how = gyro_saturation_of(W, units, fmt)
         how.update(gyro_how)
     names = {r: (lay.header[j] if lay.header else j) for r, j in cols.items()}
+    if named_units is not None:
+        how["units_from_names"] = True
     if clock is not None:
         names["t"] = lay.header[clock[0]]
         unit = CLOCK_TIME

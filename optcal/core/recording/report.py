@@ -18,6 +18,7 @@ def describe_detection(obj: DetectionResult | PositionsData) -> str:
     frac = det.n_static_samples / max(len(rec), 1)
     squared = f"({rec.units})²" if "/" in rec.units else f"{rec.units}²"  # ς is a norm of variances
     head = (f"recording {rec.path}: {len(rec)} samples, {rec.duration:.1f} s at {rec.rate:.6g} Hz, units {rec.units}"
+            + (" (as the columns' names give them)" if rec.reading.get("units_from_names") else "")
             + (f", {int(rec.saturated.sum())} saturated sample(s)" if rec.saturated.any() else ""))
     read = reading_line(rec.reading, int(rec.saturated.sum()))
     if det.method == "variance":

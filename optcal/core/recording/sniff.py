@@ -68,6 +68,10 @@ T_IN_DEGREES = (*CELSIUS, "°", "deg", "℃")
 POSITIONAL = {3: ("ax", "ay", "az"), 4: ("t", "ax", "ay", "az"), 5: ("t", "ax", "ay", "az", "temp"),
               7: ("t", "ax", "ay", "az", "gx", "gy", "gz")}
 KNOWN = {a for names in ALIASES.values() for a in names}  # the names a commented header line may hold
+# the accelerometer's units as its columns' names give them (ax(g), Acc X [m/s^2], AccX(mg)), lower case
+NAMED_UNITS = {"g": "g", "mg": "mg", **{u: "m/s2" for u in ("m/s2", "m/s^2", "m/s²", "m s-2", "m s^-2", "ms-2",
+                                                             "ms^-2", "m/s/s", "m/sec^2", "m/sec2")},
+               **{u: "counts" for u in ("counts", "count", "lsb", "adc")}, **{u: "volts" for u in ("v", "volts")}}
 NUMERIC_MAT_CLASSES = {"double", "single", "logical", *(f"{u}int{b}" for u in ("", "u") for b in (8, 16, 32, 64))}
 RATE_KEYS = ("fs", "rate", "sample rate", "sampling rate", "sample_rate", "sampling_rate", "fs_hz", "rate_hz")
 # columns only a positions file has (docs/design.md, "Positions CSV"): a raw recording has one row per sample
@@ -320,6 +324,13 @@ def _named(lay: Layout, keys: list[str], role: str) -> list[int]:
         found = [j for j in found if not (keys[j] == "tx" and {"ty", "tz"} <= set(keys))
                  and unit_of(lay.header[j]) not in T_IN_DEGREES]
     return found
+
+
+def units_from_names(names) -> str | None:
+    """The accelerometer's units (:data:`NAMED_UNITS`) its three columns' names give, the same for all three;
+    else None."""
+    found = {NAMED_UNITS.get(unit_of(str(n)) or "") for n in names}
+    return found.pop() if len(found) == 1 and None not in found else None
 
 
 def header_gyro(lay: Layout) -> dict[str, int]:
