@@ -96,19 +96,19 @@ def read_recording(path, columns=None, rate: float | None = None, units: str | N
                    saturation: float | None = None, labels: str | None = None, need_time: bool = True,
                    adc: str | None = None, time_unit: str | None = None,
                    refuse_positions: bool = False, topic: str | None = None) -> Recording:
-    """Read a raw recording (docs/design.md, "Raw recordings"). ``columns``: ``"t,ax,ay,az"`` (names or 0-based indices;
-    3 entries mean ax,ay,az, 5 add temp) or ``"ax=acc_x,..."``; ``rate`` (Hz) when there is no time column;
-    ``units`` of the outputs (None: as the accelerometer's columns' names give them, ``ax(g)``, ``Acc X
-    [m/s^2]``, else g; ``reading["units_from_names"]`` says which); ``saturation``: |value| at which a sample is saturated; ``adc``: the counts'
-    format (``int16``, ``uint16``, ``int12``, ...: its rails are saturation; by default inferred from the
-    data for counts, :func:`saturation_of`); ``time_unit``: s, ms, us or ns (default: inferred from the
-    median step, :func:`time_scale`); ``labels``: a column of section labels, ``COLUMN`` or
+    """Read a raw recording (docs/design.md, "Raw recordings"). ``columns``: ``"t,ax,ay,az"`` (names or 0-based
+    indices; 3 entries mean ax,ay,az, 5 add temp) or ``"ax=acc_x,..."``; ``rate`` (Hz) when there is no time column;
+    ``units`` of the outputs (None: as the accelerometer's columns' names give them, ``ax(g)``, ``Acc X [m/s^2]``,
+    else g; ``reading["units_from_names"]`` says which); ``saturation``: |value| at which a sample is saturated;
+    ``adc``: the counts' format (``int16``, ``uint16``, ``int12``, ...: its rails are saturation; by default
+    inferred from the data for counts, :func:`saturation_of`); ``time_unit``: s, ms, us or ns (default: inferred
+    from the median step, :func:`time_scale`); ``labels``: a column of section labels, ``COLUMN`` or
     ``COLUMN=L1,L2`` (kept as strings; the labels after ``=`` are for
-    :func:`~optcal.core.recording.label_intervals`); ``need_time=False`` accepts a file without time or rate
-    (time is then the sample index and the rate NaN); ``refuse_positions``: a file that looks like a
-    positions file is an error that says so (calibration's path). A ROS bag or a PX4 ULog is read from its IMU
-    messages (:func:`read_log`; ``topic`` picks among them) in the units and at the stamps the log gives.
-    Every problem is an InputError."""
+    :func:`~optcal.core.recording.label_intervals`); ``need_time=False`` accepts a file without time or rate (time
+    is then the sample index and the rate NaN); ``refuse_positions``: a file that looks like a positions file is an
+    error that says so (calibration's path). A ROS bag or a PX4 ULog is read from its IMU messages
+    (:func:`read_log`; ``topic`` picks among them) in the units and at the stamps the log gives. Every problem is an
+    InputError."""
     path = Path(path)
     if units is not None and units not in UNITS:
         raise InputError(f"unknown units {units!r}; use one of {', '.join(UNITS)}")
