@@ -602,3 +602,19 @@ def test_accelerometer_units_from_names():
     assert units_from_names(["AccX(LSB)", "AccY(lsb)", "AccZ(counts)"]) == "counts"
     assert units_from_names(["ax(g)", "ay(g)", "az(m/s^2)"]) is None  # not one unit
     assert units_from_names(["ax", "ay", "az"]) is None and units_from_names(["ax(raw)"] * 3) is None
+
+
+@pytest.mark.parametrize("units_line", ["s,g,g,g", "[s],[g],[g],[g]", "(s),(g),(g),(g)", "s,g,g,", "-,g,g,g"])
+def test_a_line_of_units_under_the_names_is_not_the_header(tmp_path, units_line):
+    """A logger's header of names, then a line of their units: the names are the header (the units line was
+    taken for it, and refused as naming column 'g' twice)."""
+    rows = _imu_rows()
+    body = "\n".join(",".join(f"{v:.6f}" for v in r) for r in rows[:, [1, 3, 4, 5]])
+    (tmp_path / "u.csv").write_text("t,ax,ay,az\n" + units_line + "\n" + body + "\n")
+    rec = read_recording(tmp_path / "u.csv")
+    assert rec.columns == {"t": "t", "ax": "ax", "ay": "ay", "az": "az"}
+    np.testing.assert_allclose(rec.N, rows[:, 3:6], atol=1e-6)
+    # a second line of other words is still refused as a header of its own
+    (tmp_path / "w.csv").write_text("t,ax,ay,az\nfoo,bar,baz,qux\n" + body + "\n")
+    with pytest.raises(InputError, match="cannot tell which columns are ax, ay, az"):
+        read_recording(tmp_path / "w.csv")

@@ -141,6 +141,10 @@ def header_fields(line: str, delim: str | None, width: int) -> list[str] | None:
 
 
 _UNIT_SUFFIX = re.compile(r"\s*[(\[]([^()\[\]]*)[)\]]\s*$")  # ``Timestamp(Ms)``, ``acc_x [m/s^2]``
+# what a line of units under the names holds in each field (``s,g,g,g``; ``[s] [m/s^2] ...``), lower case
+UNIT_WORDS = frozenset({"", "-", "s", "sec", "ms", "us", "µs", "ns", "g", "mg", "m/s^2", "m/s2", "m/s²", "m s-2",
+                        "deg/s", "°/s", "dps", "rad/s", "counts", "count", "lsb", "adc", "raw", "°c", "c", "degc",
+                        "deg", "°", "ut", "µt", "gauss", "mgauss", "v", "mv", "hz", "%", "k"})
 _SEPARATORS = re.compile(r"[\s_.\-]+")
 
 
@@ -155,6 +159,13 @@ def unit_of(name: str) -> str | None:
     """The unit a column's name gives in parentheses or brackets at its end (``Temp(Raw)`` → ``raw``), or None."""
     m = _UNIT_SUFFIX.search(str(name))
     return m.group(1).strip().lower() if m else None
+
+
+def _units_line(fields: list[str]) -> bool:
+    """Whether a line's fields are all units (:data:`UNIT_WORDS`, bare or in parentheses or brackets), one at
+    least not empty."""
+    words = [str(f).strip().strip("()[]").strip().lower() for f in fields]
+    return all(w in UNIT_WORDS for w in words) and any(words)
 
 
 def commented_header(line: str, delim: str | None, width: int, known: Collection[str]) -> list[str] | None:
@@ -217,6 +228,11 @@ def sniff_layout(path: Path, known: Collection[str] = (), what: str = "a raw rec
             d and is_number(x, dec) for x, d in zip(before[-1][1], ref[1])):
         header = before[-1][1]
         before = before[:-1]
+        # a line of units under the names (``t,ax,ay,az`` then ``s,g,g,g``): the names are the line above it
+        if (before and _units_line(header) and len(before[-1][1]) == ref[0]
+                and not any(d and is_number(x, dec) for x, d in zip(before[-1][1], ref[1]))):
+            header = before[-1][1]
+            before = before[:-1]
     elif known:  # the last comment line above the data that is a header (a units line may follow it)
         after = before[-1][0] if before else -1
         above = [ln for i, ln in comments if after < i < rows[start][0]]
