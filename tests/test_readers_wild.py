@@ -618,3 +618,20 @@ def test_a_line_of_units_under_the_names_is_not_the_header(tmp_path, units_line)
     (tmp_path / "w.csv").write_text("t,ax,ay,az\nfoo,bar,baz,qux\n" + body + "\n")
     with pytest.raises(InputError, match="cannot tell which columns are ax, ay, az"):
         read_recording(tmp_path / "w.csv")
+
+
+@pytest.mark.parametrize("device,values", [("DeviceName", ("WT901(AA:01)", "WT901(AA:02)")), ("imu", (0, 1)),
+                                           ("Sensor ID", ("left", "right"))])
+def test_rows_of_several_devices_are_refused(tmp_path, capsys, device, values):
+    """WitMotion's app logs several sensors into one file, a row each in turn (its DeviceName column): no
+    calibration fits them as one sensor, and a clock that stands still would have pointed to --rate, which
+    would then have fitted them anyway. One device's rows are read."""
+    rows = _imu_rows()
+    lines = [f"time,{device},ax,ay,az"] + [f"{r[1]:.2f},{values[i % 2]},{r[3]:.6f},{r[4]:.6f},{r[5]:.6f}"
+                                           for i, r in enumerate(rows)]
+    (tmp_path / "two.csv").write_text("\n".join(lines) + "\n")
+    line = _refused(["calibrate", tmp_path / "two.csv", "--raw", "--rate", "100"], capsys, "rows come from 2 devices")
+    assert str(values[0]) in line and "keep one device's rows in a file of their own" in line
+    one = [ln for i, ln in enumerate(lines) if i == 0 or i % 2 == 1]
+    (tmp_path / "one.csv").write_text("\n".join(one) + "\n")
+    assert len(read_recording(tmp_path / "one.csv")) == len(one) - 1

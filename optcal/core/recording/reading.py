@@ -20,7 +20,7 @@ from pathlib import Path
 import numpy as np
 
 from optcal.core.data import UNITS, PositionsData, check_units
-from optcal.core.errors import InputError
+from optcal.core.errors import InputError, listing
 from optcal.core.fixed_width import read_fixed_width
 from optcal.core.recording.clock import CLOCK_TIME
 from optcal.core.recording.sniff import (
@@ -39,7 +39,7 @@ from optcal.core.recording.sniff import (
     table_kind,
     units_from_names,
 )
-from optcal.core.tablefile import COMMENT, DECODE_ERRORS, is_comment, open_text
+from optcal.core.tablefile import COMMENT, DECODE_ERRORS, column_key, is_comment, open_text
 
 INT16_RAILS = (-32768.0, 32767.0)
 TIME_UNITS = {"s": 1.0, "ms": 1e-3, "us": 1e-6, "ns": 1e-9}  # to seconds
@@ -157,6 +157,8 @@ def read_recording(path, columns=None, rate: float | None = None, units: str | N
     if bad.any():
         r, c = np.argwhere(bad)[0]
         raise InputError(f"{path}: sample {r} has {raw[r, c]} in column {order[c]!r}; remove or fix that row")
+    if table is None and log is None:
+        _refuse_several_devices(path, lay)
     meta_rate = rate_from_meta(lay.meta)
     if rate is not None and not rate > 0:
         raise InputError(f"`rate` {rate} must be a positive sample rate in Hz")
@@ -430,6 +432,32 @@ def _load_arrow(path: Path, lay: Layout, usecols: list[int]) -> np.ndarray | Non
     if len(out) == 0 or not np.array_equal(out[0], first, equal_nan=True):
         return None  # it did not start on the first data row (e.g. blank lines in the preamble, a BOM)
     return out
+
+
+DEVICE_KEYS = ("device", "devicename", "deviceid", "sensor", "sensorname", "sensorid", "imu", "imuid")
+
+
+def _refuse_several_devices(path: Path, lay: Layout) -> None:
+    """A column that names the device of each row (WitMotion's ``DeviceName``, a ``sensor`` or ``imu`` number)
+    holding more than one: the rows interleave several sensors, which no calibration fits as one; refused, naming
+    them."""
+    if lay.header is None:
+        return
+    for j, name in enumerate(lay.header):
+        if column_key(name) not in DEVICE_KEYS:
+            continue
+        if lay.numeric[j]:  # a device's number
+            names = np.unique(_load_numeric(path, lay, [j])[:, 0])
+        else:
+            with _text(path) as fh:
+                try:
+                    names = np.unique(np.loadtxt(fh, delimiter=lay.delimiter, skiprows=lay.skiprows, usecols=[j],
+                                                 dtype=str, comments=_comment_marks(path), ndmin=1))
+                except ValueError:
+                    continue
+        if len(names) > 1:
+            raise InputError(f"{path}: its rows come from {len(names)} devices (column {name}: "
+                             f"{listing(names, 3)}); keep one device's rows in a file of their own")
 
 
 def _clock_column(path: Path, lay: Layout, n: int) -> tuple[int, np.ndarray] | None:
