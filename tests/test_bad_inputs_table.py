@@ -201,6 +201,8 @@ def _imu_files(d):
     clock = [f"12:00:{(i // 2) * 0.02:06.3f}" for i in range(500)]
     (d / "wit_clock.csv").write_text("Time,ax(g),ay(g),az(g)\n" + "".join(
         f"{c},{a[0]:.6f},{a[1]:.6f},{a[2]:.6f}\n" for c, a in zip(clock, A)))
+    (d / "wit_two.csv").write_text("time,DeviceName,AccX(g),AccY(g),AccZ(g)\n" + "".join(
+        f"{i / 100.0:.2f},WT901({'AB'[i % 2]}),{a[0]:.6f},{a[1]:.6f},{a[2]:.6f}\n" for i, a in enumerate(A)))
     np.savetxt(d / "wit_rad.csv", np.column_stack([np.arange(500) / 100.0, A, np.zeros((500, 3))]), delimiter=",",
                comments="", header="time,AccX(g),AccY(g),AccZ(g),gx(rad/s),gy(rad/s),gz(rad/s)", fmt="%.10g")
 
@@ -335,6 +337,8 @@ CASES = [
         "the calibration's gyroscope in deg/s; give its rates in deg/s, or calibrate in rad/s"),
     row("imu-gyro-units-contradict-names", ["imu", "wit_rad.csv", "--gyro-units", "deg/s", "-o", "i.json"],
         "are in rad/s (gx(rad/s), gy(rad/s), gz(rad/s)); give --gyro-units rad/s, or drop it"),
+    row("calibrate-rows-of-two-devices", ["calibrate", "wit_two.csv", "--raw"],
+        "its rows come from 2 devices (column DeviceName: WT901(A), WT901(B))"),
     row("calibrate-clock-stands-still", ["calibrate", "wit_clock.csv", "--raw"],
         "give the sample rate with --rate (the clock column is then not read)"),
     row("apply-gyro-columns-without-gyroscope", APPLY + ["--gyro-columns", "gx,gy,gz"], "has no gyroscope block"),
