@@ -511,6 +511,8 @@ def test_witmotion_exports_are_read_as_written(tmp_path, header, clock, delimite
     np.testing.assert_allclose(rec.t, rows[:, 1], atol=1e-6)  # the clock's ms, from the first sample
     assert rec.rate == pytest.approx(100.0) and rec.temp[0] == 25.1
     np.testing.assert_allclose(rec.N, rows[:, 3:6], atol=1e-6)
+    if not header.startswith("time,"):
+        assert rec.reading["clock_column"] == names[0]
     gyro = read_gyro(path, rec, units=None)
     assert gyro.reading["gyro_units"] == "deg/s"
     np.testing.assert_allclose(gyro.N, rows[:, 6:9], atol=1e-6)
@@ -635,3 +637,16 @@ def test_rows_of_several_devices_are_refused(tmp_path, capsys, device, values):
     one = [ln for i, ln in enumerate(lines) if i == 0 or i % 2 == 1]
     (tmp_path / "one.csv").write_text("\n".join(one) + "\n")
     assert len(read_recording(tmp_path / "one.csv")) == len(one) - 1
+
+
+def test_the_chips_clock_is_read_before_the_pcs(tmp_path):
+    """WitMotion's PC software writes the PC's time (which stamps packets of samples alike) and the chip's; the
+    chip's is read."""
+    rows = _imu_rows()
+    lines = ["Time,Chip Time(),ax(g),ay(g),az(g)"] + [
+        f"10:00:{(i // 3) * 0.03:06.3f},2024-5-{1 + (i >= 150)} {_hms(i)},{r[3]:.6f},{r[4]:.6f},{r[5]:.6f}"
+        for i, r in enumerate(rows)]
+    (tmp_path / "pc.csv").write_text("\n".join(lines) + "\n")
+    rec = read_recording(tmp_path / "pc.csv")
+    assert rec.columns["t"] == rec.reading["clock_column"] == "Chip Time()"
+    np.testing.assert_allclose(rec.t, rows[:, 1], atol=1e-6)

@@ -205,7 +205,7 @@ def read_recording(path, columns=None, rate: float | None = None, units: str | N
     if named_units is not None:
         how["units_from_names"] = True
     if clock is not None:
-        names["t"] = lay.header[clock[0]]
+        names["t"] = how["clock_column"] = lay.header[clock[0]]
         unit = CLOCK_TIME
     if log is not None:
         how.update(log.how)
@@ -461,13 +461,17 @@ def _refuse_several_devices(path: Path, lay: Layout) -> None:
 
 
 def _clock_column(path: Path, lay: Layout, n: int) -> tuple[int, np.ndarray] | None:
-    """The first text column the header names as a time (:func:`~optcal.core.recording.clock.is_clock_name`)
-    whose every row is a time of day: its index and the seconds since the first row; else None."""
+    """The first text column the header names as a time (:func:`~optcal.core.recording.clock.is_clock_name`; a
+    chip's clock before the others) whose every row is a time of day: its index and the seconds since the first
+    row; else None."""
     if lay.header is None:
         return None
     from optcal.core.recording.clock import clock_seconds, is_clock_name  # (its re and datetime on this path only)
 
-    for j, name in enumerate(lay.header):
+    # the sensor's own clock first (WitMotion's "Chip Time()" beside the PC's "Time", which stamps packets)
+    order = sorted(range(len(lay.header)), key=lambda j: "chip" not in column_key(lay.header[j]))
+    for j in order:
+        name = lay.header[j]
         if lay.numeric[j] or not is_clock_name(name):
             continue
         with _text(path) as fh:

@@ -66,7 +66,8 @@ def reading_line(how: dict, n_saturated: int) -> str:
             what += ", decimal comma"
         parts.append(what)
     if how.get("time_unit") == CLOCK_TIME:
-        parts.append("times of day (hh:mm:ss) in the time column, in s from the first sample")
+        parts.append(f"times of day (hh:mm:ss) in column {how.get('clock_column', 'time')}, in s from the first "
+                     "sample")
     elif how.get("time_unit"):
         parts.append(f"time column in {how['time_unit'].replace('us', 'µs')}")
     if "adc" in how:
