@@ -446,15 +446,8 @@ def _refuse_several_devices(path: Path, lay: Layout) -> None:
     for j, name in enumerate(lay.header):
         if column_key(name) not in DEVICE_KEYS:
             continue
-        if lay.numeric[j]:  # a device's number
-            names = np.unique(_load_numeric(path, lay, [j])[:, 0])
-        else:
-            with _text(path) as fh:
-                try:
-                    names = np.unique(np.loadtxt(fh, delimiter=lay.delimiter, skiprows=lay.skiprows, usecols=[j],
-                                                 dtype=str, comments=_comment_marks(path), ndmin=1))
-                except ValueError:
-                    continue
+        values = _load_numeric(path, lay, [j])[:, 0] if lay.numeric[j] else _strings(path, lay, j)
+        names = np.unique(values) if values is not None else ()
         if len(names) > 1:
             raise InputError(f"{path}: its rows come from {len(names)} devices (column {name}: "
                              f"{listing(names, 3)}); keep one device's rows in a file of their own")
@@ -474,23 +467,29 @@ def _clock_column(path: Path, lay: Layout, n: int) -> tuple[int, np.ndarray] | N
         name = lay.header[j]
         if lay.numeric[j] or not is_clock_name(name):
             continue
-        with _text(path) as fh:
-            try:
-                values = np.loadtxt(fh, delimiter=lay.delimiter, skiprows=lay.skiprows, usecols=[j], dtype=str,
-                                    comments=_comment_marks(path), ndmin=1)
-            except ValueError:
-                continue
-        t = clock_seconds(values) if len(values) == n else None
+        values = _strings(path, lay, j)
+        t = clock_seconds(values) if values is not None and len(values) == n else None
         if t is not None:
             return j, t
     return None
 
 
-def _read_labels(path: Path, lay: Layout, column: str, n: int) -> np.ndarray:
-    j = resolve_column(column, lay, path)
+def _strings(path: Path, lay: Layout, j: int) -> np.ndarray | None:
+    """Column ``j`` of the data rows as strings (a label, a clock, a device's name); None where the rows do not
+    split into it (a quoted field holding the delimiter)."""
     with _text(path) as fh:
-        lab = np.loadtxt(fh, delimiter=lay.delimiter, skiprows=lay.skiprows, usecols=[j], dtype=str,
-                         comments=COMMENT, ndmin=1)
+        try:
+            return np.loadtxt(fh, delimiter=lay.delimiter, skiprows=lay.skiprows, usecols=[j], dtype=str,
+                              comments=_comment_marks(path), ndmin=1)
+        except ValueError:
+            return None
+
+
+def _read_labels(path: Path, lay: Layout, column: str, n: int) -> np.ndarray:
+    lab = _strings(path, lay, resolve_column(column, lay, path))
+    if lab is None:
+        raise InputError(f"{path}: label column {column!r} does not split from its rows (a quoted field holding "
+                         f"the delimiter?); give the labels as a file of intervals with `intervals`")
     if len(lab) != n:  # pragma: no cover - the same rows were read as numbers
         raise InputError(f"{path}: label column {column!r} has {len(lab)} rows, the data {n}")
     return lab
