@@ -495,6 +495,8 @@ def _hms(i, start_s=23 * 3600 + 59 * 60 + 58.5):
      lambda i: ("2024-5-1 " if i < 150 else "2024-5-2 ") + _hms(i), ",", "Temperature(°C)"),
     ("time,AccX(g),AccY(g),AccZ(g),AsX(°/s),AsY(°/s),AsZ(°/s),AngleX(°),AngleY(°),AngleZ(°),T(°C)",
      lambda i: f"{i / 100.0:.3f}", ",", "T(°C)"),
+    ("时间\t加速度X(g)\t加速度Y(g)\t加速度Z(g)\t角速度X(°/s)\t角速度Y(°/s)\t角速度Z(°/s)\t角度X(°)\t角度Y(°)\t角度Z(°)\t温度(°C)",
+     lambda i: ("2024-05-01T" if i < 150 else "2024-05-02T") + _hms(i), "\t", "温度(°C)"),  # the software in Chinese
 ])
 def test_witmotion_exports_are_read_as_written(tmp_path, header, clock, delimiter, temp):
     """Times of day are seconds from the first sample, across midnight with and without a date; T(°) is the

@@ -1,7 +1,7 @@
 """Times of day as a recording's time column (issue #29: WitMotion's exports and other loggers write
 ``14:25:31.123`` or ``2024-5-1 14:25:31.123`` rather than seconds).
 
-A text column whose name holds "time" (Time, Chip Time(), timestamp, DateTime) is read as clock times when every
+A text column whose name holds "time" (Time, Chip Time(), timestamp, DateTime; 时间) is read as clock times when every
 row is one: ``[date ]hh:mm:ss[.fff]``, the date ``yyyy-m-d`` (also with ``/`` or ``.``). The seconds count from
 the first row; a day's date carries them across midnight, and without a date a step back of more than half a
 day is taken as midnight passed. Whether the times increase is the reader's to check, as for any time column.
@@ -23,7 +23,7 @@ CLOCK_TIME = "clock (hh:mm:ss)"  # the reading's time unit when a time-of-day co
 
 def is_clock_name(name: str) -> bool:
     """Whether a column's name may be a clock time: its key (case, units and separators aside) holds "time"."""
-    return "time" in column_key(name)
+    return "time" in (key := column_key(name)) or "时间" in key
 
 
 def clock_seconds(values) -> np.ndarray | None:

@@ -434,7 +434,7 @@ def _load_arrow(path: Path, lay: Layout, usecols: list[int]) -> np.ndarray | Non
     return out
 
 
-DEVICE_KEYS = ("device", "devicename", "deviceid", "sensor", "sensorname", "sensorid", "imu", "imuid")
+DEVICE_KEYS = ("device", "devicename", "deviceid", "sensor", "sensorname", "sensorid", "imu", "imuid", "设备名称")
 
 
 def _refuse_several_devices(path: Path, lay: Layout) -> None:
