@@ -277,7 +277,7 @@ def noise(source, rate: float | None = None, *, units: str | None = None, column
 
     kw = {"scale": scale, "tau_max_s": tau_max_s, **({} if ci is None else {"ci": ci})}
     if _is_path(source):
-        return noise_from_recording(os.fspath(source), columns=columns, rate=rate, units=units or "g",
+        return noise_from_recording(os.fspath(source), columns=columns, rate=rate, units=units,
                                     interval=interval, topic=topic, **kw)
     if interval is not None or columns is not None or topic is not None:
         raise InputError("interval, columns and topic apply to a recording file; slice the samples instead")

@@ -25,7 +25,8 @@ def add_arguments(p):
                    help="the static stretch, seconds from the first sample (either may be empty; default the "
                    "whole file)")
     d = p.add_argument_group("reading the recording (as optcal calibrate --raw)")
-    d.add_argument("--units", default="g", help="output units: g, m/s2, counts, volts, mg (default g)")
+    d.add_argument("--units", help="output units: g, m/s2, counts, volts, mg (default: as the columns' names give "
+                   "them, e.g. ax(g) or Acc X [m/s^2]; else g)")
     d.add_argument("--columns", help="columns by name or 0-based index: t,ax,ay,az or ax,ay,az (with --rate), "
                    "or role=column items (default: from the header)")
     d.add_argument("--rate", type=float, metavar="HZ", help="sample rate when the recording has no time column "

@@ -149,7 +149,7 @@ def analyse(N, rate: float, *, units: str = "g", scale: float | None = None, ci:
                        float(ci), source, notes)
 
 
-def noise_from_recording(path, *, columns=None, rate: float | None = None, units: str = "g",
+def noise_from_recording(path, *, columns=None, rate: float | None = None, units: str | None = "g",
                          interval=None, scale: float | None = None, ci: float = DEFAULT_CI,
                          tau_max_s: float | None = None, topic: str | None = None) -> NoiseReport:
     """Read a raw recording (:func:`optcal.core.recording.read_recording`: the same columns, units, rate and
