@@ -68,17 +68,17 @@ def _units(units: str | None, names, where, calibration: bool = False) -> str:
     """``units`` checked against those the columns' ``names`` give (:func:`units_from_names`), or taken from
     them when None. ``calibration``: the units are a calibration's (the refusal says so)."""
     named = units_from_names(names) if names is not None and len(names) == 3 else None
-    if calibration and named is not None and units in NAMED_UNITS.values() and units != named:
-        raise InputError(f"{where}: the gyroscope's columns are in {named} ({', '.join(map(str, names))}), the "
-                         f"calibration's gyroscope in {units}; give its rates in {units}, or calibrate in {named}")
     if units is None:
         if named is None:
             raise InputError("give the gyroscope's units with `gyro_units` counts, deg/s, rad/s or volts (the names of "
                              f"its columns in {where} give none)")
         return named
     if named is not None and units in NAMED_UNITS.values() and units != named:
-        raise InputError(f"`gyro_units` {units}, but the gyroscope's columns in {where} are in {named} "
-                         f"({', '.join(map(str, names))}); give `gyro_units` {named}, or drop it")
+        listed = ", ".join(map(str, names))
+        raise InputError(f"{where}: the gyroscope's columns are in {named} ({listed}), the calibration's gyroscope "
+                         f"in {units}; give its rates in {units}, or calibrate in {named}" if calibration else
+                         f"`gyro_units` {units}, but the gyroscope's columns in {where} are in {named} ({listed}); "
+                         f"give `gyro_units` {named}, or drop it")
     return units
 
 
