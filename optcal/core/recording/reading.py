@@ -166,7 +166,7 @@ def read_recording(path, columns=None, rate: float | None = None, units: str | N
     if "t" not in data and columns is None and rate is None and meta_rate is None and table is None:
         clock = _clock_column(path, lay, n)  # a time-of-day column (hh:mm:ss.fff), when the header names one
         if clock is not None:
-            j, data["t"] = clock
+            data["t"] = clock[1]
             time_unit = "s"
     if "t" in data:
         t = data["t"]
