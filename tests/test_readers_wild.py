@@ -531,6 +531,10 @@ def test_clock_seconds():
     assert clock_seconds(["12:00:00", "12:00:0x"]) is None
     assert clock_seconds(["2024-13-1 12:00:00"]) is None  # no such date
     assert clock_seconds([]) is None
+    assert clock_seconds([" 1:02:03 ", "2024-5-1T01:02:04"]) is None  # undated, then dated
+    assert clock_seconds(["2024-05-01T14:25:31.123", "2024-5-1  14:25:31.133"]).tolist() == pytest.approx([0, 0.01])
+    for bad in ("01:2:03", "10:00:00.", "10:00:00.5.5", "null", "10:00", "100:00:00", "x 10:00:00"):
+        assert clock_seconds([bad]) is None, bad
 
 
 def test_a_clock_that_stands_still_is_refused_and_a_rate_reads_past_it(tmp_path, capsys):
