@@ -656,3 +656,15 @@ def test_the_chips_clock_is_read_before_the_pcs(tmp_path):
     rec = read_recording(tmp_path / "pc.csv")
     assert rec.columns["t"] == rec.reading["clock_column"] == "Chip Time()"
     np.testing.assert_allclose(rec.t, rows[:, 1], atol=1e-6)
+
+
+def test_noise_reads_a_witmotion_export_with_its_clock_and_units(tmp_path, capsys):
+    """optcal noise takes the gyroscope's units from the --gyro-columns named (AsX(°/s)) and its times from the
+    clock column, as optcal imu does."""
+    rows = _imu_rows()
+    path = _wit(tmp_path / "wit.txt", "Time\tax(g)\tay(g)\taz(g)\tAsX(°/s)\tAsY(°/s)\tAsZ(°/s)\tA\tB\tC\tT(°)", rows,
+                _hms, "\t")
+    code, out, err = _cli(["noise", path, "--gyro-columns", "AsX(°/s),AsY(°/s),AsZ(°/s)"], capsys)
+    assert code == 0, err
+    assert "gyroscope, " in out and "units deg/s, 57.2958 deg/s per rad/s (deg/s, exact)" in out
+    assert "accelerometer, " in out and "at 100 Hz" in out

@@ -87,9 +87,14 @@ def _check_output(path: str | None, force: bool) -> None:
 
 def gyro_scale(args) -> float | None:
     """The gyroscope's output units per rad/s, or None when the gyroscope is not asked for: --gyro-scale, or
-    exact for deg/s and rad/s; gyroscope options without --gyro-units are refused."""
+    exact for deg/s and rad/s; gyroscope options without --gyro-units are refused, unless the --gyro-columns
+    named say the units (``wx(deg/s)``)."""
     given = [flag for flag, v in (("--gyro", args.gyro), ("--gyro-columns", args.gyro_columns),
                                   ("--gyro-scale", args.gyro_scale)) if v is not None]
+    if args.gyro_units is None and args.gyro is None and args.gyro_columns is not None:
+        from optcal.core.gyro.recording import units_from_names
+
+        args.gyro_units = units_from_names(args.gyro_columns.split(","))  # AsX(°/s),AsY(°/s),AsZ(°/s): deg/s
     if args.gyro_units is None:
         if given:
             raise InputError(f"{', '.join(given)} need the gyroscope's output units: give --gyro-units "
@@ -140,9 +145,14 @@ def gyro_report(args, scale: float, interval):
                          "--gyro")
     # the gyroscope's columns read in the accelerometer's roles; "volts" only labels the samples (the reader
     # checks no magnitude for it), the scale turns them into rad/s
-    spec = ",".join(f"{role}={col}" for role, col in columns.items() if role in ("t", "ax", "ay", "az"))
-    report = noise_from_recording(args.gyro or args.recording, columns=spec, rate=args.rate, units="volts",
-                                  interval=interval, scale=scale, ci=args.ci, tau_max_s=args.tau_max,
+    # a time-of-day column is read by name only where no columns are given: its seconds come as the rate's
+    from optcal.core.recording.clock import CLOCK_TIME
+
+    clock = args.gyro is None and acc.reading.get("time_unit") == CLOCK_TIME
+    roles = ("ax", "ay", "az") if clock else ("t", "ax", "ay", "az")
+    spec = ",".join(f"{role}={col}" for role, col in columns.items() if role in roles)
+    report = noise_from_recording(args.gyro or args.recording, columns=spec, rate=acc.rate if clock else args.rate,
+                                  units="volts", interval=interval, scale=scale, ci=args.ci, tau_max_s=args.tau_max,
                                   topic=None if args.gyro else args.topic)
     report.sensor, report.units = "gyroscope", args.gyro_units
     report.scale_source = "--gyro-scale" if args.gyro_scale is not None else f"{args.gyro_units}, exact"
