@@ -668,3 +668,23 @@ def test_noise_reads_a_witmotion_export_with_its_clock_and_units(tmp_path, capsy
     assert code == 0, err
     assert "gyroscope, " in out and "units deg/s, 57.2958 deg/s per rad/s (deg/s, exact)" in out
     assert "accelerometer, " in out and "at 100 Hz" in out
+
+
+def test_several_accelerometers_side_by_side_are_refused_with_the_columns_of_one(tmp_path, capsys):
+    """Six IMUs on one bar logged into one file (imu1_ax … imu6_gz): refused in one line that counts them and gives
+    the --columns of the first, which then reads."""
+    rows = _imu_rows()
+    names = ["time"] + [f"imu{k}_{a}" for k in range(1, 7) for a in ("ax", "ay", "az", "gx", "gy", "gz")]
+    table = np.column_stack([rows[:, 1]] + [rows[:, 3:9]] * 6)
+    path = _write(tmp_path / "six.csv", ",".join(names), table)
+    line = _refused(["calibrate", path, "--raw"], capsys, "its columns hold 6 accelerometers (imu1, imu2, imu3, "
+                                                          "imu4, … (2 more)); calibrate one at a time: --columns "
+                                                          "t=time,ax=imu1_ax,ay=imu1_ay,az=imu1_az")
+    rec = read_recording(path, columns=line.rsplit("--columns ", 1)[1])
+    np.testing.assert_allclose(rec.N, rows[:, 3:6], rtol=1e-9)
+    # one accelerometer under a prefix: the usual refusal naming the columns, with its columns as the example
+    one = _write(tmp_path / "one.csv", "time,imu1_ax,imu1_ay,imu1_az,other", np.column_stack([rows[:, [1, 3, 4, 5]],
+                                                                                          rows[:, 6]]))
+    with pytest.raises(InputError, match="cannot tell which columns are ax, ay, az .* name them with `columns`, e.g. "
+                                         "t=time,ax=imu1_ax,ay=imu1_ay,az=imu1_az$"):
+        read_recording(one)

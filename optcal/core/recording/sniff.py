@@ -362,10 +362,34 @@ def header_roles(lay: Layout, path: Path) -> dict[str, int]:
                              "the columns with `columns`, e.g. t,ax,ay,az with names or 0-based indices")
     if all(r in out for r in ("ax", "ay", "az")):
         return out
+    sensors = _prefixed_triples(lay, keys)  # imu1_ax … imu6_az: sensors side by side; say how to take one
+    example = ",".join(f"{r}={lay.header[j]}" for r, j in
+                       (({"t": out["t"]} if "t" in out else {}) | sensors[0][1]).items()) if sensors else None
+    if len(sensors) > 1:
+        raise InputError(f"{path}: its columns hold {len(sensors)} accelerometers "
+                         f"({listing((p for p, _ in sensors), 4)}); calibrate one at a time: `columns` {example}")
     raise InputError(
         f"{path}: cannot tell which columns are ax, ay, az (columns: {listing(lay.header)}); "
-        "name them with `columns`, e.g. t,ax,ay,az with names or 0-based indices"
+        "name them with `columns`, e.g. " + (example or "t,ax,ay,az with names or 0-based indices")
     )
+
+
+def _prefixed_triples(lay: Layout, keys: list[str]) -> list[tuple[str, dict[str, int]]]:
+    """The accelerometers a header holds side by side under prefixes (``imu1_ax``, ``IMU2 Acc X``, ``s3.acc_x``):
+    for each prefix whose columns end in an alias of each of ax, ay and az (numeric columns, one each), the
+    prefix and those columns, in the order of the header."""
+    found: dict[str, dict[str, list[int]]] = {}
+    for j, key in enumerate(keys):
+        if not lay.numeric[j]:
+            continue
+        for r in ("ax", "ay", "az"):
+            for alias in ALIAS_KEYS[r]:
+                if len(key) > len(alias) and key.endswith(alias) and len(alias) > 1:
+                    prefix = key[: -len(alias)]
+                    found.setdefault(prefix, {}).setdefault(r, []).append(j)
+    triples = [(p, {r: js[0] for r, js in roles.items()}) for p, roles in found.items()
+               if set(roles) == {"ax", "ay", "az"} and all(len(js) == 1 for js in roles.values())]
+    return sorted(triples, key=lambda pr: min(pr[1].values()))
 
 
 def _spec_items(spec) -> list[str]:
