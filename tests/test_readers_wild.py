@@ -688,3 +688,11 @@ def test_several_accelerometers_side_by_side_are_refused_with_the_columns_of_one
     with pytest.raises(InputError, match="cannot tell which columns are ax, ay, az .* name them with `columns`, e.g. "
                                          "t=time,ax=imu1_ax,ay=imu1_ay,az=imu1_az$"):
         read_recording(one)
+
+
+@pytest.mark.parametrize("typed", ["dps", "°/s", "DPS", "deg/sec"])
+def test_gyro_units_spelt_otherwise_are_deg_s(typed):
+    from optcal.app.commands._dataopts import gyro_units_arg
+
+    assert gyro_units_arg(typed) == "deg/s" and gyro_units_arg("rad/sec") == "rad/s"
+    assert gyro_units_arg("counts") == "counts" and gyro_units_arg("degs") == "degs"  # argparse's choices refuse it

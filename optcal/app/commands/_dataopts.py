@@ -18,6 +18,14 @@ if TYPE_CHECKING:
     from optcal.core.recording.options import RawOptions
 
 
+GYRO_UNIT_SPELLINGS = {"dps": "deg/s", "°/s": "deg/s", "deg/sec": "deg/s", "degrees/s": "deg/s", "rad/sec": "rad/s"}
+
+
+def gyro_units_arg(value: str) -> str:
+    """``--gyro-units`` as typed: the other spellings of deg/s and rad/s (dps, °/s) are taken for them."""
+    return GYRO_UNIT_SPELLINGS.get(value.strip().lower(), value.strip())
+
+
 def flags() -> dict[str, str]:
     """Parameter of optcal.core.recording (as its errors name it) -> the option that sets it: RawOptions' own list
     (``units`` is every command's --units, named as the parameter in the library's errors). Imported when an

@@ -3,7 +3,7 @@ file (docs/exchange.md)."""
 
 from __future__ import annotations
 
-from optcal.app.commands._dataopts import add_gravity_options
+from optcal.app.commands._dataopts import add_gravity_options, gyro_units_arg
 from optcal.app.commands.export import FORMATS, add_format_option  # noqa: F401 - FORMATS: tests check the copy
 
 NAME = "import"
@@ -24,7 +24,7 @@ def add_arguments(p):
                    help="imu_tk only: unit of its calibrated output (default m/s2, as imu_tk's g_mag is 9.81)")
     p.add_argument("--gyro", metavar="FILE", help="imu_tk only: its gyroscope's calibration file (imu_tk keeps it "
                    "apart from the accelerometer's; imucal and kalibr files hold both sensors)")
-    p.add_argument("--gyro-units", choices=GYRO_UNITS,
+    p.add_argument("--gyro-units", choices=GYRO_UNITS, type=gyro_units_arg,
                    help="the gyroscope's raw units: imu_tk (required with --gyro), imucal with an unknown "
                    "from_gyr_unit, kalibr (default rad/s; deg/s if its rad/s were converted from those)")
     p.add_argument("--model", help="optcal model to hold it: diag6, linear9 or scale+bias+misalignment6 "

@@ -18,7 +18,7 @@ from optcal.app.commands._common import (
     refuse_overwrite,
     refuse_same_file,
 )
-from optcal.app.commands._dataopts import add_data_options, gravity_from_args, load_raw_positions
+from optcal.app.commands._dataopts import add_data_options, gravity_from_args, gyro_units_arg, load_raw_positions
 from optcal.core.errors import InputError
 
 HELP = "calibrate an IMU's accelerometer and gyroscope from one recording of rests with rotations between them"
@@ -32,7 +32,7 @@ def add_arguments(p):
     p.add_argument("--gyro-columns", metavar="SPEC", help="the gyroscope's columns by name or 0-based index: gx,gy,gz "
                    "in DATA (default: those its header names, e.g. gx or gyr_x), or t,gx,gy,gz in --gyro (default "
                    "for --gyro: its first four columns)")
-    p.add_argument("--gyro-units", choices=("counts", "deg/s", "rad/s", "volts"),
+    p.add_argument("--gyro-units", choices=("counts", "deg/s", "rad/s", "volts"), type=gyro_units_arg,
                    help="the gyroscope's output units (default: as its columns' names give them, e.g. wx(deg/s); a "
                    "ROS bag's or a ULog's are rad/s)")
     p.add_argument("--gyro-scale", type=float, metavar="PER_RAD_S", help="nominal gyroscope scale, output units per "

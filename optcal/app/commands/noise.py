@@ -10,6 +10,7 @@ import math
 from pathlib import Path
 
 from optcal.app.commands._common import refuse_overwrite, refuse_same_file
+from optcal.app.commands._dataopts import gyro_units_arg
 from optcal.core.errors import InputError
 
 HELP = ("noise of a static recording from its Allan deviation: white-noise density, bias instability, "
@@ -36,8 +37,9 @@ def add_arguments(p):
     d.add_argument("--scale", type=float, metavar="UNITS_PER_G", help="output units per g, for counts or volts "
                    "(default: the magnitude of the mean output, as a static sensor reads 1 g)")
     g = p.add_argument_group("the gyroscope (its columns as optcal imu reads them)")
-    g.add_argument("--gyro-units", choices=GYRO_UNITS, help="the gyroscope's output units: analyse the gyroscope "
-                   "too (columns from --gyro-columns, --gyro, or RECORDING's header: gx, gyr_x, ...)")
+    g.add_argument("--gyro-units", choices=GYRO_UNITS, type=gyro_units_arg, help="the gyroscope's output units: "
+                   "analyse the gyroscope too (columns from --gyro-columns, --gyro, or RECORDING's header: gx, gyr_x, "
+                   "...)")
     g.add_argument("--gyro", metavar="FILE", help="the gyroscope's samples in a second file with the same times "
                    "(t, gx, gy, gz per row, or as --gyro-columns names them)")
     g.add_argument("--gyro-columns", metavar="SPEC", help="the gyroscope's columns by name or 0-based index: "
