@@ -696,3 +696,15 @@ def test_gyro_units_spelt_otherwise_are_deg_s(typed):
 
     assert gyro_units_arg(typed) == "deg/s" and gyro_units_arg("rad/sec") == "rad/s"
     assert gyro_units_arg("counts") == "counts" and gyro_units_arg("degs") == "degs"  # argparse's choices refuse it
+
+
+def test_bare_x_y_z_are_named_in_the_refusals_example(tmp_path, capsys):
+    """A phone logger's accelerometer file (time, seconds_elapsed, z, y, x): x, y, z are not taken for the axes
+    unasked (too generic), but the refusal gives them as the example, which then reads."""
+    rows = _imu_rows()
+    path = _write(tmp_path / "Accelerometer.csv", "time,seconds_elapsed,z,y,x",
+                  np.column_stack([rows[:, 1] * 1e9, rows[:, 1], rows[:, [5, 4, 3]]]))
+    line = _refused(["calibrate", path, "--raw"], capsys, "name them with --columns, e.g. t=time,ax=x,ay=y,az=z")
+    rec = read_recording(path, columns=line.rsplit("e.g. ", 1)[1])
+    np.testing.assert_allclose(rec.N, rows[:, 3:6], rtol=1e-9)
+    assert rec.rate == pytest.approx(100.0) and rec.reading["time_unit"] == "ns"

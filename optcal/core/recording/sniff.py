@@ -363,8 +363,10 @@ def header_roles(lay: Layout, path: Path) -> dict[str, int]:
     if all(r in out for r in ("ax", "ay", "az")):
         return out
     sensors = _prefixed_triples(lay, keys)  # imu1_ax … imu6_az: sensors side by side; say how to take one
+    bare = {r: keys.index(r[1]) for r in ("ax", "ay", "az") if keys.count(r[1]) == 1 and lay.numeric[keys.index(r[1])]}
+    triple = sensors[0][1] if sensors else bare if len(bare) == 3 else None  # a phone logger's bare x, y, z
     example = ",".join(f"{r}={lay.header[j]}" for r, j in
-                       (({"t": out["t"]} if "t" in out else {}) | sensors[0][1]).items()) if sensors else None
+                       (({"t": out["t"]} if "t" in out else {}) | triple).items()) if triple else None
     if len(sensors) > 1:
         raise InputError(f"{path}: its columns hold {len(sensors)} accelerometers "
                          f"({listing((p for p, _ in sensors), 4)}); calibrate one at a time: `columns` {example}")
