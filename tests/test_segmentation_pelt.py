@@ -34,23 +34,33 @@ def test_same_change_points_as_ruptures_on_random_series():
         assert pelt_l2(Z, pen) == _ruptures(Z, pen)
 
 
+def _agrees_series_by_series(batched, rng, smallest):
+    """``batched`` (several series in one call) gives pelt_l2's change points series by series on 100 batches of
+    ``smallest``-5 random series."""
+    for _ in range(100):
+        batch = [_random_series(rng) for _ in range(rng.integers(smallest, 6))]
+        pen = float(rng.uniform(1, 60))
+        assert batched(batch, pen) == [pelt_l2(Z, pen) for Z in batch]
+
+
+def _long_rest(rng):
+    """A rest long enough that PELT keeps more than VECTOR_FROM candidates (the NumPy pass), then a step."""
+    return np.concatenate([rng.normal(0, 1, (6 * VECTOR_FROM, 3)), rng.normal(5, 1, (40, 3))])
+
+
 def test_series_in_lockstep_give_what_each_gives_alone():
     """pelt_l2_many (segmentation's pieces side by side) against pelt_l2 series by series: 100 batches of 2-5
     series of different lengths, a long rest among them, and an empty and a one-block series."""
     rng = np.random.default_rng(11)
-    for _ in range(100):
-        batch = [_random_series(rng) for _ in range(rng.integers(2, 6))]
-        pen = float(rng.uniform(1, 60))
-        assert pelt_l2_many(batch, pen) == [pelt_l2(Z, pen) for Z in batch]
-    rest = np.concatenate([rng.normal(0, 1, (6 * VECTOR_FROM, 3)), rng.normal(5, 1, (40, 3))])
+    _agrees_series_by_series(pelt_l2_many, rng, smallest=2)
+    rest = _long_rest(rng)
     batch = [rest, np.zeros((0, 3)), rng.normal(0, 1, (1, 3)), rest[::-1]]
     assert pelt_l2_many(batch, 123.0) == [pelt_l2(Z, 123.0) for Z in batch]
 
 
 def test_long_rest_takes_the_vector_pass_and_agrees():
     """A rest long enough that PELT keeps more than VECTOR_FROM candidates (the NumPy pass), then a step."""
-    rng = np.random.default_rng(3)
-    Z = np.concatenate([rng.normal(0, 1, (6 * VECTOR_FROM, 3)), rng.normal(5, 1, (40, 3))])
+    Z = _long_rest(np.random.default_rng(3))
     assert pelt_l2(Z, 123.0) == _ruptures(Z, 123.0) == [6 * VECTOR_FROM, len(Z)]
 
 
@@ -75,11 +85,8 @@ def test_compiled_kernel_gives_pelt_l2s_change_points():
     random piecewise-constant series, a long rest among them, a one-block series."""
     assert compiled_pelt_l2() is not None  # the installed ruptures (pyproject.toml) has it where it is looked for
     rng = np.random.default_rng(5)
-    for _ in range(100):
-        batch = [_random_series(rng) for _ in range(rng.integers(1, 6))]
-        pen = float(rng.uniform(1, 60))
-        assert pelt_ends(batch, pen) == [pelt_l2(Z, pen) for Z in batch]
-    rest = np.concatenate([rng.normal(0, 1, (6 * VECTOR_FROM, 3)), rng.normal(5, 1, (40, 3))])
+    _agrees_series_by_series(pelt_ends, rng, smallest=1)
+    rest = _long_rest(rng)
     assert pelt_ends([rest, rng.normal(0, 1, (1, 3))], 123.0) == [[6 * VECTOR_FROM, len(rest)], [1]]
 
 

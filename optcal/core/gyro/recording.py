@@ -51,11 +51,10 @@ def _columns(spec, n: int) -> list[str] | None:
 
 def units_from_names(names) -> str | None:
     """The gyroscope's units (deg/s or rad/s) its three columns' names give (:data:`NAMED_UNITS`), the same for
-    all three; else None."""
-    from optcal.core.tablefile import unit_of
+    all three; else None (:func:`optcal.core.recording.sniff.units_from_names` with the gyroscope's table)."""
+    from optcal.core.recording.sniff import units_from_names as named_units
 
-    found = {NAMED_UNITS.get(unit_of(str(n)) or "") for n in names}
-    return found.pop() if len(found) == 1 and None not in found else None
+    return named_units(names, NAMED_UNITS)
 
 
 def check_named_units(units: str, names, where) -> None:

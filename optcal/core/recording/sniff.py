@@ -327,10 +327,10 @@ def _named(lay: Layout, keys: list[str], role: str) -> list[int]:
     return found
 
 
-def units_from_names(names) -> str | None:
-    """The accelerometer's units (:data:`NAMED_UNITS`) its three columns' names give, the same for all three;
-    else None."""
-    found = {NAMED_UNITS.get(unit_of(str(n)) or "") for n in names}
+def units_from_names(names, table=NAMED_UNITS) -> str | None:
+    """The units a sensor's three columns' names give, the same for all three (``table``: a unit as a name writes
+    it, lower case, to the units it is; the accelerometer's :data:`NAMED_UNITS` by default); else None."""
+    found = {table.get(unit_of(str(n)) or "") for n in names}
     return found.pop() if len(found) == 1 and None not in found else None
 
 
