@@ -5,6 +5,7 @@ import numpy as np
 import pytest
 
 import optcal.core.recording.attitude as attitude
+import optcal.core.recording.segment as segment
 from optcal.core.recording import segment_static
 from optcal.core.recording.reading import Recording
 from optcal.core.synthetic_imu import handheld_imu
@@ -65,6 +66,32 @@ def test_a_wobble_within_a_tenth_of_a_degree_stays_a_rest():
     assert _spans(det.intervals, theta)[2] == pytest.approx(0.1, abs=0.005)
 
 
+@pytest.mark.parametrize("seed", range(4))
+def test_a_shaking_hold_the_gyroscope_sees_still_is_a_rest(seed, monkeypatch):
+    """The third hold shakes (6 mg of white vibration on the accelerometer, six times its noise; 0.5 °/s on the
+    gyroscope, which averages out over its 0.25-s window): step 4a calls its segments shaking, and the
+    accelerometer alone keeps nothing of it. With the gyroscope, a shaking segment it sees still throughout and
+    lasting two shortest poses is a rest: one interval of at least 1 s inside the hold (1.3-3.8 s measured),
+    none without that rule."""
+    rng = np.random.default_rng(seed)
+    acc, W, theta = _sag_recording(rng, 0.0)
+    third = slice(2 * (HOLD + TURN), 2 * (HOLD + TURN) + HOLD)
+    A = acc.N.copy()
+    A[third] += 0.006 * rng.standard_normal((HOLD, 3))
+    W[third] += 0.5 * rng.standard_normal((HOLD, 3))
+    shaking = Recording(acc.t, A, None, "g", RATE, acc.saturated)
+
+    def inside(det):
+        iv = det.intervals
+        return iv[(iv[:, 1] > third.start) & (iv[:, 0] < third.stop)]
+
+    kept = inside(segment_static(shaking, gyro=W))
+    assert len(kept) == 1 and kept[0, 1] - kept[0, 0] >= RATE
+    assert len(inside(segment_static(shaking, gyro=False))) == 0
+    monkeypatch.setattr(segment, "SHAKING_HOLD_POSES", 10**6)
+    assert len(inside(segment_static(shaking, gyro=W))) == 0
+
+
 @pytest.mark.parametrize("seed", range(8))
 def test_scale_bound_is_the_gyroscopes_scale_within_a_few_percent(seed):
     """On simulated hand-held recordings (turns of 60-180 °/s about body axes, tremor, settling; each sensor's axes
@@ -76,6 +103,69 @@ def test_scale_bound_is_the_gyroscopes_scale_within_a_few_percent(seed):
     K = attitude.scale_bound(X, A, s.rests, ~s.still, s.acc.rate)
     scale = s.gyro_scale * 180.0 / np.pi
     assert 0.97 * scale.min() <= K <= 1.05 * scale.max(), (K, scale)
+
+
+@pytest.mark.parametrize("seed", range(8))
+def test_gyro_scale_is_the_gyroscopes_scale_within_its_axes_spread(seed):
+    """The fitted scale (the one K under which the motions carry each rest's gravity onto the next's) lies within
+    the gyroscope's axes' scales widened by 1 % (the accelerometer's scale errors tilt the gravity directions),
+    inside the bound's wider 0.97-1.05."""
+    s = handheld_imu(np.random.default_rng(seed), p_reseat=0.0)
+    X = s.gyro.N - s.gyro_bias
+    A = np.array([s.acc.N[a:b].mean(axis=0) - s.acc_offset for a, b in s.rests])
+    K = attitude.gyro_scale(X, X, A, s.rests, ~s.still, s.acc.rate)
+    scale = s.gyro_scale * 180.0 / np.pi
+    assert 0.99 * scale.min() <= K <= 1.01 * scale.max(), (K, scale)
+
+
+def _tilted_turns(rng, tilt_deg):
+    """Rests joined by 90° turns about axes ``tilt_deg`` from gravity (in the body frame, gravity's direction at
+    the rest leaning by the tilt toward a perpendicular that alternates): gravity's direction turns by
+    2·asin(sin(tilt)·sin(45°)), far less than the sensor, so the bound ∫|W| dt / θ lies well above K. Rates in
+    output units of 100 per rad/s."""
+    hold, turn = 100, 100
+    R = np.eye(3)
+    W, rests, A, t0 = [], [], [], 0
+    for k in range(8):
+        rests.append([t0, t0 + hold])
+        A.append(R.T @ np.array([0.0, 0.0, 1.0]))
+        W.append(np.zeros((hold, 3)))
+        t0 += hold
+        lean = np.radians(tilt_deg)
+        u = A[-1]
+        p = np.cross(u, [1.0, 0.0, 0.0] if k % 2 else [0.0, 1.0, 0.0])
+        axis = np.cos(lean) * u + np.sin(lean) * p / np.linalg.norm(p)
+        w = np.outer(np.full(turn, (np.pi / 2) * RATE / turn), axis)  # rad/s, body frame
+        for wi in w:  # the body turns by wi/RATE about its own axis
+            v = wi / RATE
+            a = np.linalg.norm(v)
+            Kx = np.array([[0, -v[2], v[1]], [v[2], 0, -v[0]], [-v[1], v[0], 0]]) / a
+            R = R @ (np.eye(3) + np.sin(a) * Kx + (1 - np.cos(a)) * Kx @ Kx)
+        W.append(100.0 * w + 0.01 * rng.standard_normal((turn, 3)))
+        t0 += turn
+    rests.append([t0, t0 + hold])
+    A.append(R.T @ np.array([0.0, 0.0, 1.0]))
+    W.append(np.zeros((hold, 3)))
+    X = np.vstack(W)
+    turning = np.linalg.norm(X, axis=1) > 1.0
+    return X, np.array(A), np.array(rests), turning
+
+
+def test_gyro_scale_where_the_turns_are_not_across_gravity():
+    """Turns of 90° about axes 50° from gravity turn gravity by 65.6°: the bound is 1.37 times K, the fit K
+    within 0.5 %."""
+    X, A, rests, turning = _tilted_turns(np.random.default_rng(3), 50.0)
+    bound = attitude.scale_bound(X, A, rests, turning, RATE)
+    assert bound == pytest.approx(100.0 * 90.0 / 65.6, rel=0.01)
+    assert attitude.gyro_scale(X, X, A, rests, turning, RATE) == pytest.approx(100.0, rel=5e-3)
+
+
+def test_gyro_scale_falls_back_to_the_bound_when_the_rotations_do_not_carry_gravity():
+    """A gyroscope whose rates are not the rotations the accelerometer saw (its axes swapped: the turns about x
+    read about z, which does not move gravity) is not fitted: the scale is the bound."""
+    X, A, rests, turning = _tilted_turns(np.random.default_rng(4), 50.0)
+    X = X[:, [2, 0, 1]]
+    assert attitude.gyro_scale(X, X, A, rests, turning, RATE) == attitude.scale_bound(X, A, rests, turning, RATE)
 
 
 def test_scale_bound_leaves_out_joins_the_gyroscope_did_not_see():

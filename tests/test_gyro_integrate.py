@@ -1,4 +1,4 @@
-"""optcal.core.gyro.integrate, the gyroscope's integration in NumPy (the least-squares fits of ``optcal imu``),
+"""optcal.core.motion_integrator, the gyroscope's integration in NumPy (the least-squares fits of ``optcal imu``),
 against the compiled integrator of optcal.core.kernels.gyro: the same residuals to rounding, the same exact
 Jacobian, the closed-form Runge-Kutta step against the four stages written out, and the fit itself."""
 
@@ -9,8 +9,8 @@ import pytest
 
 from optcal.core.errors import InputError
 from optcal.core.gyro import GyroProblem, draw_truth, get_gyro_model, simulate_imu
-from optcal.core.gyro.integrate import BLOCK, CHUNK, NumpyRotations, qmul, step_quaternions
 from optcal.core.kernels import gyro as kernel
+from optcal.core.motion_integrator import BLOCK, CHUNK, NumpyRotations, qmul, step_quaternions
 from optcal.solvers.registry import get
 
 SCALE = 1000.0

@@ -425,15 +425,13 @@ def test_interval_labels_without_a_gyroscope_call_moving_only_what_moved():
 # Where the detection does not yet meet the issue's targets (measured with docs/scripts/rest_benchmark.py; recall,
 # precision by sample): strict expected failures, each naming why, so that a fix shows as an unexpected pass.
 SHORT_OF_TARGET = {
-    ("mpu6050", "gyroscope"): "recall 0.769, precision 0.972: hand-held poses of 0.5-0.7 s that sway at 1-2 °/s",
-    ("mpu6050", "source: static_intervals.csv (10)"): "recall 0.857, precision 0.972 (by the gyroscope's labels): "
+    ("mpu6050", "gyroscope"): "recall 0.769 (precision 0.992): hand-held poses of 0.5-0.7 s that sway at 1-2 °/s",
+    ("mpu6050", "source: static_intervals.csv (10)"): "recall 0.857 (precision 0.992 by the gyroscope's labels): "
                                                        "the same sway",
     ("mikov_imu0", "gyroscope"): "recall 0.920, precision 0.989: a twitch (0.25°) the labels see after a glitch of "
                                  "the accelerometer, and a 0.96-s rest that the detection sees wobble at 0.5 °/s",
     ("mikov_imu3", "gyroscope"): "recall 0.923: two rests the labels split at a wobble of 0.1-0.2 s that the "
                                  "detection keeps whole",
-    ("sdr_long", "gyroscope"): "recall 0.933: 20 Hz; a 3.9-s hold that vibrates at 10 Hz is refused as shaking, and "
-                               "a 0.85-s rest with a jolt",
     ("ck_explorer", "source: the logger's 160 blocks"): "recall 0.756: no gyroscope; 1-s poses that vibrate at "
                                                         "3-8 times the recording's quietest noise are refused as "
                                                         "shaking",
@@ -459,6 +457,39 @@ def test_find_rests_on_the_labelled_corpus(key, source):
     found = find_rests(case.acc, case.gyro).intervals
     sc = score_rests(found, case.labels[source], min_static=case.min_static)
     assert sc["recall"] >= RECALL_MIN and sc["precision"] >= PRECISION_MIN, sc
+
+
+@pytest.mark.usefixtures("corpus")
+def test_the_detections_gyroscope_scale_on_the_corpus(monkeypatch):
+    """The scale the slow-motion rule works in (attitude.gyro_scale, fitted to the rotations of gravity) is each
+    corpus gyroscope's declared sensitivity within 2 % (measured: 0.990-1.009), where the bound alone was up to
+    19 % above it (the hand-turned MPU-6050); on imucal's labelled session, whose few turns are about gravity and
+    joined where the recording was cut, the fit explains nothing and the bound stands (4.0 times)."""
+    import optcal.core.recording.attitude as attitude
+    import optcal.core.recording.segment as segment
+
+    seen = {}
+
+    def scale(X, M, A, rests, turning, rate):
+        seen["fit"] = attitude.gyro_scale(X, M, A, rests, turning, rate)
+        seen["bound"] = attitude.scale_bound(M, A, rests, turning, rate)
+        return seen["fit"]
+
+    monkeypatch.setattr(segment, "gyro_scale", scale)
+    ratios = {}
+    for key in LABELLED:
+        case = _case(key)
+        lab = case.labels[LABEL_SETS[key][0]]
+        if case.gyro is None:
+            continue
+        seen.clear()
+        find_rests(case.acc, case.gyro)
+        true = lab.info["units_per_dps"] * 180.0 / np.pi
+        ratios[key] = (seen["fit"] / true, seen["bound"] / true)
+    fits = {k: f for k, (f, b) in ratios.items() if k != "imucal_labelled"}
+    assert all(0.98 <= f <= 1.02 for f in fits.values()), ratios
+    assert ratios["mpu6050"][1] > 1.15
+    assert ratios["imucal_labelled"][0] == ratios["imucal_labelled"][1] > 3.5
 
 
 @pytest.mark.usefixtures("corpus")

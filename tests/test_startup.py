@@ -205,7 +205,7 @@ def test_calibrating_a_raw_recording_imports_no_heavy_module(tmp_path, corpus):
 
 def test_calibrating_an_imu_imports_no_heavy_module(tmp_path, corpus):
     """The whole ``optcal imu`` on imu_tk's Xsens pair (issue #23: the process's time against imu_tk's): the
-    gyroscope's least squares integrate in NumPy (optcal.core.gyro.integrate), so neither numba nor scipy is
+    gyroscope's least squares integrate in NumPy (optcal.core.motion_integrator), so neither numba nor scipy is
     loaded, and of the command modules only imu's."""
     out = tmp_path / "imu.json"
     argv = ["imu", str(IMU_TK / "xsens_acc.mat.gz"), "--gyro", str(IMU_TK / "xsens_gyro.mat.gz"), "--gyro-units",

@@ -6,6 +6,10 @@ corpus and on simulated hand-held IMU recordings. Prints one markdown table to s
 docs/segmentation.md).
 
     .venv/bin/python docs/scripts/rest_benchmark.py
+    .venv/bin/python docs/scripts/rest_benchmark.py --slow-line
+
+The second prints how the new detection scores against the gyroscope's labels made with other values of their
+attitude line (optcal.core.recording.labels.SLOW_DEG, 0.2° by default), one row per recording with a gyroscope.
 
 The corpus: where tests/corpus.py finds it (OPTCAL_CORPUS, else its default beside the clone); its
 labelled recordings and their labels are tests/test_rest_labels.py's LABELLED table. Labels (independent of
@@ -43,6 +47,7 @@ from test_rest_labels import (  # noqa: E402
 from optcal.app.workflows.recording import choose_threshold  # noqa: E402
 from optcal.core.errors import InputError  # noqa: E402
 from optcal.core.recording import segment_static  # noqa: E402
+import optcal.core.recording.labels as labels  # noqa: E402
 from optcal.core.recording.labels import gyro_labels, interval_labels, score_rests  # noqa: E402
 from optcal.core.synthetic_imu import handheld_imu  # noqa: E402
 
@@ -112,7 +117,38 @@ def simulated():
             _row(f"simulated hand-held: {case}", "truth", det, scores, total / len(SEEDS))
 
 
-if __name__ == "__main__":
+SLOW_LINES = (0.15, 0.2, 0.25, 0.3, 0.4)  # °
+
+
+def slow_line():
+    """Recall / precision of the new detection against gyroscope labels made with each of SLOW_LINES."""
+    print("| recording | " + " | ".join(f"labels at {d}°" for d in SLOW_LINES) + " |")
+    print("|---|" + "---|" * len(SLOW_LINES))
+    default = labels.SLOW_DEG
+    try:
+        for load in LABELLED.values():
+            case = load(corpus_root())
+            lab = case.labels.get("gyroscope")
+            if lab is None:
+                continue
+            found = find_rests(case.acc, case.gyro).intervals
+            cells = []
+            for d in SLOW_LINES:
+                labels.SLOW_DEG = d
+                sc = score_rests(found, gyro_labels(case.gyro, case.acc, units_per_dps=lab.info["units_per_dps"]),
+                                 min_static=case.min_static)
+                met = sc["recall"] >= 0.95 and sc["precision"] >= 0.99
+                cell = f"{sc['recall']:.3f} / {sc['precision']:.4f}"
+                cells.append(f"**{cell}**" if met else cell)
+            print(f"| {case.name} | " + " | ".join(cells) + " |")
+    finally:
+        labels.SLOW_DEG = default
+    print("\n(bold: both targets met)")
+
+
+if __name__ == "__main__" and sys.argv[1:] == ["--slow-line"]:
+    slow_line()
+elif __name__ == "__main__":
     print("| recording | labels | detector | rests labelled | found | recall | precision by sample | time (s) |")
     print("|---|---|---|---|---|---|---|---|")
     if corpus_present():

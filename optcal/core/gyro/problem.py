@@ -48,7 +48,7 @@ BACKENDS = ("kernel", "numpy")
 
 class _KernelRotations:
     """The compiled integrator (:mod:`optcal.core.kernels.gyro`) behind the interface of
-    :class:`optcal.core.gyro.integrate.NumpyRotations`, over the motions ``motions`` (indices; all by default)."""
+    :class:`optcal.core.motion_integrator.NumpyRotations`, over the motions ``motions`` (indices; all by default)."""
 
     def __init__(self, data: GyroData, motions=None):
         k = np.arange(data.n_motions) if motions is None else np.asarray(motions, np.intp)
@@ -74,7 +74,7 @@ def rotations(data: GyroData, backend: str, motions=None):
     """The residuals and Jacobian of ``data``'s motions (``motions``: indices, all by default) by ``backend``
     (:data:`BACKENDS`)."""
     if backend == "numpy":
-        from optcal.core.gyro.integrate import NumpyRotations
+        from optcal.core.motion_integrator import NumpyRotations
 
         k = np.arange(data.n_motions) if motions is None else np.asarray(motions, np.intp)
         return NumpyRotations(data.W, data.F, data.t, data.start[k], data.stop[k], data.u0[k], data.E[k])
@@ -195,7 +195,7 @@ class GyroProblem(ParameterViews):
     and the bias parameters are the rate bias beyond it. ``scale``: nominal scale factor (output units per
     rad/s, one number or three); without it, :func:`common_scale` finds one. ``presets``: a
     :class:`GyroPresets` to centre the search elsewhere. ``backend``: ``"kernel"``, the compiled integrator
-    (:mod:`optcal.core.kernels.gyro`, for populations), or ``"numpy"`` (:mod:`optcal.core.gyro.integrate`: the same
+    (:mod:`optcal.core.kernels.gyro`, for populations), or ``"numpy"`` (:mod:`optcal.core.motion_integrator`: the same
     residuals and Jacobian to rounding without loading numba, for the tens of evaluations of least squares)."""
 
     reference = False
@@ -324,7 +324,7 @@ class GyroProblem(ParameterViews):
     def rotation(self, x_full, start: int, stop: int) -> np.ndarray:
         """Rotation vector (3,) in rad, body frame, of the attitude change from sample ``start`` to ``stop``
         integrated with the rate ``x_full`` calibrates (the integrator of the residuals)."""
-        from optcal.core.gyro.integrate import NumpyRotations
+        from optcal.core.motion_integrator import NumpyRotations
 
         d = self.data
         one = NumpyRotations(d.W, d.F, d.t, [int(start)], [int(stop)], d.u0[:1], d.E[:1])

@@ -4,14 +4,21 @@ attitude straying by more than :data:`SLOW_DEG` while the rate stays under the t
 second, a settling that creeps on).
 
 The rule needs the rates in physical units, which a raw recording does not give. The accelerometer gives them
-from above (:func:`scale_bound`): a motion between two rests turns the gravity direction by θ, the angle between
-the rests' mean specific forces, and the gyroscope's outputs, less their level at rest, integrate over it to at
-least K·θ for a scale factor of K output units per rad/s (a turn about gravity adds to the path and not to θ);
-the least ratio over the motions that turn gravity by :data:`SCALE_MIN_TURN_DEG` or more is K's bound (a turn
-the gyroscope did not see, in a recording cut and joined, left out: no turning sample between the rests, or a
-ratio under half the others' median). The accelerometer is not calibrated yet: its axes' scale errors (a few %)
-move θ by as much, so the bound is K within a few % (tests/test_attitude.py), above it where the turns are not
-about axes across gravity; a bound above K makes the rule lenient, not strict.
+(:func:`gyro_scale`). First from above (:func:`scale_bound`): a motion between two rests turns the gravity
+direction by θ, the angle between the rests' mean specific forces, and the gyroscope's outputs, less their level
+at rest, integrate over it to at least K·θ for a scale factor of K output units per rad/s (a turn about gravity
+adds to the path and not to θ); the least ratio over the motions that turn gravity by :data:`SCALE_MIN_TURN_DEG`
+or more is K's bound (a turn the gyroscope did not see, in a recording cut and joined, left out: no turning
+sample between the rests, or a ratio under half the others' median). The bound is K where a motion turns about
+one axis across gravity, and above it otherwise (19 % on a hand-turned MPU-6050, 4 times on a session whose
+motions turn about gravity), which would make the rule lenient. Then the one K under which the motions, the
+rates integrated as rotations (:class:`optcal.core.motion_integrator.MotionIntegrator`), best carry each rest's
+gravity direction onto the next's (the residual of imu_tk's gyroscope fit, Tedaldi et al. ICRA 2014 §IV-B,
+with a single scale): on a grid near the bound, else over the whole bracket below it, refined by a parabola's
+vertex; it is kept when it explains the turns (what is left of them at most :data:`SCALE_FIT_MAX_LEFT` of their
+size), else the bound. The accelerometer is not calibrated yet: its axes'
+scale errors (a few %) move the gravity directions by as much, so K is known within a few %
+(tests/test_attitude.py).
 
 Within each still run the attitude is the rate integrated, the run's median rate taken out first (a rate
 offset that changes with the pose, a gyroscope's g-sensitivity, is not a turn). A sample moves when (a) the
@@ -25,6 +32,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from optcal.core.motion_integrator import MotionIntegrator, rotate_back
 from optcal.core.recording.detection import chunks, group_medians, range_rows, runs
 
 SLOW_DEG = 0.2  # °: the attitude straying more than this inside a still run moves (a hand's wobble stays within)
@@ -32,6 +40,12 @@ SLOW_SIGMAS = 5.0  # ... and more than this × the walk of the integrated white 
 SLOW_CHUNK_S = 4.0  # s: a still run's attitude is compared with its median over pieces of at most this
 SLOW_WINDOWS_S = (0.5, 1.0)  # s: windows whose centre moves when they turn by as much
 SCALE_MIN_TURN_DEG = 20.0  # °: motions that turn gravity less than this give no useful bound on the scale
+SCALE_FIT_MOTIONS = 8  # the scale is fitted on this many motions, those that turn gravity the most
+SCALE_FIT_BRACKET = (0.2, 1.1)  # × the bound: the fit's candidates (a bound 4 × K seen on turns about gravity)
+SCALE_FIT_NEAR = (0.88, 1.1)  # × the bound: the candidates tried first (5.7 % apart)
+SCALE_FIT_POINTS = (14, 5)  # candidates of the whole bracket (14 % apart), and of a fine grid
+SCALE_FIT_PAD_S = 0.25  # s: each motion is integrated from this before its first turning sample to this after its last
+SCALE_FIT_MAX_LEFT = 0.25  # the fit is kept when the RMS angle it leaves is at most this × the turns' RMS
 
 
 def scale_bound(X: np.ndarray, A: np.ndarray, rests: np.ndarray, turning: np.ndarray, rate: float) -> float:
@@ -43,24 +57,83 @@ def scale_bound(X: np.ndarray, A: np.ndarray, rests: np.ndarray, turning: np.nda
     :data:`SCALE_MIN_TURN_DEG`."""
     if len(rests) < 2:
         return float("nan")
-    u = A / np.maximum(np.linalg.norm(A, axis=1, keepdims=True), 1e-300)
-    theta = np.arccos(np.clip(np.sum(u[1:] * u[:-1], axis=1), -1.0, 1.0))
-    path = np.concatenate([[0.0], np.cumsum(np.linalg.norm(X, axis=1))]) / rate
-    seen = np.concatenate([[0], np.cumsum(turning)])
-    mid = (rests[:, 0] + rests[:, 1]) // 2
-    moved = path[mid[1:]] - path[mid[:-1]]
     # a turn the gyroscope did not see (a recording cut and joined, a sensor re-seated while logging paused) has
     # no turning sample between the rests, or next to nothing of the others' ratio: no bound
-    big = (theta >= np.radians(SCALE_MIN_TURN_DEG)) & (seen[mid[1:]] > seen[mid[:-1]])
+    _, theta, mid, big = _motions(A, rests, turning)
+    path = np.concatenate([[0.0], np.cumsum(np.linalg.norm(X, axis=1))]) / rate
+    moved = path[mid[1:]] - path[mid[:-1]]
     if not big.any():
         return float("nan")
     ratio = moved[big] / theta[big]
     return float(np.min(ratio[ratio >= 0.5 * np.median(ratio)]))
 
 
+def _motions(A: np.ndarray, rests: np.ndarray, turning: np.ndarray):
+    """The rests' unit gravity directions (k, 3), the angles θ (k − 1,) between neighbours, each rest's middle
+    sample, and which motions bound the scale (θ of :data:`SCALE_MIN_TURN_DEG` or more, a turning sample seen
+    between the middles)."""
+    u = A / np.maximum(np.linalg.norm(A, axis=1, keepdims=True), 1e-300)
+    theta = np.arccos(np.clip(np.sum(u[1:] * u[:-1], axis=1), -1.0, 1.0))
+    seen = np.concatenate([[0], np.cumsum(turning)])
+    mid = (rests[:, 0] + rests[:, 1]) // 2
+    big = (theta >= np.radians(SCALE_MIN_TURN_DEG)) & (seen[mid[1:]] > seen[mid[:-1]])
+    return u, theta, mid, big
+
+
+def gyro_scale(X: np.ndarray, M: np.ndarray, A: np.ndarray, rests: np.ndarray, turning: np.ndarray,
+               rate: float) -> float:
+    """Output units per rad/s (module docstring): the scale fitted to the motions' rotations of gravity, or, when
+    that fit does not explain them, :func:`scale_bound`. ``X`` (n, 3) the rates less their level at rest, ``M``
+    the same averaged (for the bound); ``A``, ``rests``, ``turning``, ``rate`` as :func:`scale_bound`. NaN
+    without a motion that turns gravity by :data:`SCALE_MIN_TURN_DEG`."""
+    bound = scale_bound(M, A, rests, turning, rate)
+    if not (np.isfinite(bound) and bound > 0):
+        return bound
+    u, theta, mid, big = _motions(A, rests, turning)
+    k = np.flatnonzero(big)
+    k = np.sort(k[np.argsort(theta[k], kind="stable")[::-1][:SCALE_FIT_MOTIONS]])
+    # each motion from its first turning sample to its last, with a margin (the rests between add nothing but
+    # their noise to the rotation, and most of the integration's cost)
+    on = np.flatnonzero(turning)
+    pad = int(round(SCALE_FIT_PAD_S * rate))
+    first = on[np.searchsorted(on, mid[k])]
+    last = on[np.searchsorted(on, mid[k + 1]) - 1]
+    start = np.maximum(first - pad, mid[k])
+    stop = np.minimum(last + 1 + pad, mid[k + 1])
+    it = MotionIntegrator(np.arange(len(X)) / rate, start, stop)
+    w = np.ascontiguousarray(np.asarray(X, float)[it.samples].T)  # (3, samples)
+    u0, u1 = u[k].T[:, None, :], u[k + 1].T[:, None, :]  # (3, 1, m)
+
+    def cost(ks):  # Σ over the motions of |R(K)ᵀ u_before − u_after|², per candidate K
+        v = rotate_back(it.attitudes(w[:, None, :] / ks[None, :, None]), u0)
+        return np.sum((v - u1) ** 2, axis=(0, 2))
+
+    # first near the bound, where K lies when some motion turns across gravity; else the whole bracket
+    fine = np.geomspace(SCALE_FIT_NEAR[0] * bound, SCALE_FIT_NEAR[1] * bound, SCALE_FIT_POINTS[1])
+    c = cost(fine)
+    j = int(np.argmin(c))
+    if j in (0, len(fine) - 1):
+        ks = np.geomspace(SCALE_FIT_BRACKET[0] * bound, SCALE_FIT_BRACKET[1] * bound, SCALE_FIT_POINTS[0])
+        i = int(np.argmin(cost(ks)))
+        if i in (0, len(ks) - 1):  # the best at the bracket's edge: no minimum inside, the fit says nothing
+            return bound
+        fine = np.geomspace(ks[i - 1], ks[i + 1], SCALE_FIT_POINTS[1])
+        c = cost(fine)
+        j = int(np.argmin(c))
+    left = np.sqrt(c[j] / len(k))  # the RMS chord left, about the angle in rad
+    if left > SCALE_FIT_MAX_LEFT * np.sqrt(np.mean(theta[k] ** 2)):
+        return bound  # the rotations do not carry gravity (a recording cut and joined, a gyroscope's other axes)
+    if 0 < j < len(fine) - 1:  # the parabola's vertex in log K through the best and its neighbours
+        x, y = np.log(fine[j - 1:j + 2]), c[j - 1:j + 2]
+        curv = y[0] - 2 * y[1] + y[2]
+        if curv > 0:
+            return float(np.exp(x[1] + (x[1] - x[0]) * (y[0] - y[2]) / (2 * curv)))
+    return float(fine[j])
+
+
 def slow_motions(X: np.ndarray, still: np.ndarray, K: float, s: np.ndarray, rate: float) -> np.ndarray:
     """Samples (n,) of the still runs of ``still`` whose attitude strays (module docstring, rules a and b): ``X``
-    (n, 3) rates less their level at rest, ``K`` output units per rad/s (:func:`scale_bound`), ``s`` (3,) their
+    (n, 3) rates less their level at rest, ``K`` output units per rad/s (:func:`gyro_scale`), ``s`` (3,) their
     white noise SD of a sample. Vectorised over runs, pieces and windows through cumulative sums."""
     n = len(X)
     out = np.zeros(n, bool)

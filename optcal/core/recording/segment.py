@@ -34,7 +34,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from optcal.core.errors import InputError
-from optcal.core.recording.attitude import scale_bound, slow_motions
+from optcal.core.recording.attitude import gyro_scale, slow_motions
 from optcal.core.recording.detection import DetectionResult, group_medians, range_rows, runs
 from optcal.core.recording.pelt import pelt_ends
 from optcal.core.recording.reading import Recording
@@ -66,6 +66,7 @@ GYRO_WINDOW_S = 0.25  # s: the gyroscope's rate is averaged over this before it 
 GYRO_Z = 8.0  # an averaged rate this many noise SDs from the level at rest (any axis) is a turn ...
 TURN_FRACTION = 0.005  # ... when it is also this fraction of the recording's turns (the 99th percentile of the
 # averaged rate): about 1 °/s for hand turns at 200 °/s, above a hand's sway in a held pose (tenths of °/s)
+SHAKING_HOLD_POSES = 2  # a shaking segment the gyroscope sees still is a rest when it lasts this many shortest poses
 SETTLE_S = 0.15  # s: samples this long after a turn are left out of a rest (a settling fades under the noise)
 GYRO_MARGIN_S = 0.05  # s: and this long before one (the turn's first samples)
 
@@ -117,6 +118,25 @@ def _sums(x: np.ndarray) -> np.ndarray:
     return np.concatenate([np.zeros((1,) + x.shape[1:]), np.cumsum(x, axis=0)])
 
 
+def _shaking(M: np.ndarray, seg: np.ndarray):
+    """Each segment's inner blocks [a, b) (the blocks at its ends may hold the start of a motion or a step: tested
+    without them) and whether it shakes (step 4a): the scatter of its block-mean differences (``M`` in units of
+    the block noise), per axis, beyond :data:`NOISE_RATIO` (a ramp's slope is the differences' mean and is left
+    to step 4b)."""
+    inner = (seg[:, 1] - seg[:, 0]) >= 4
+    a = np.where(inner, seg[:, 0] + 1, seg[:, 0])
+    b = np.where(inner, seg[:, 1] - 1, seg[:, 1])
+    L = b - a
+    D = np.diff(M, axis=0)
+    cD, cD2 = _sums(D), _sums(D * D)
+    nd = np.maximum(L - 1, 1)[:, None]
+    sD = cD[b - 1] - cD[a]
+    sD2 = cD2[b - 1] - cD2[a]
+    var_d = np.where(L[:, None] > 2, (sD2 - sD * sD / nd) / np.maximum(nd - 1, 1), sD2 / nd)
+    sigma_loc = np.sqrt(np.maximum(var_d, 0.0) / 2.0)  # in units of σ_b
+    return a, b, (L > 1) & (sigma_loc.max(axis=1) > NOISE_RATIO)
+
+
 def _rest_test(M: np.ndarray, seg: np.ndarray, w: int, excess=None, noise: SampleNoise | None = None) -> np.ndarray:
     """For each segment [a, b) of block means ``M`` (in units of the recording's block noise, so σ_b = 1
     per axis): "" at rest, "noisy" or "trend" (step 4 of the module docstring). Vectorised over segments
@@ -125,21 +145,8 @@ def _rest_test(M: np.ndarray, seg: np.ndarray, w: int, excess=None, noise: Sampl
     out = np.full(k, "", dtype=object)
     if not k:
         return out
-    # the blocks at a segment's ends may hold the start of a motion or a step: tested without them
-    inner = (seg[:, 1] - seg[:, 0]) >= 4
-    a = np.where(inner, seg[:, 0] + 1, seg[:, 0])
-    b = np.where(inner, seg[:, 1] - 1, seg[:, 1])
+    a, b, noisy = _shaking(M, seg)
     L = b - a
-    # (a) the scatter of the block-mean differences inside each segment, per axis (a ramp's slope is the
-    # differences' mean and is left to (b))
-    D = np.diff(M, axis=0)
-    cD, cD2 = _sums(D), _sums(D * D)
-    nd = np.maximum(L - 1, 1)[:, None]
-    sD = cD[b - 1] - cD[a]
-    sD2 = cD2[b - 1] - cD2[a]
-    var_d = np.where(L[:, None] > 2, (sD2 - sD * sD / nd) / np.maximum(nd - 1, 1), sD2 / nd)
-    sigma_loc = np.sqrt(np.maximum(var_d, 0.0) / 2.0)  # in units of σ_b
-    noisy = (L > 1) & (sigma_loc.max(axis=1) > NOISE_RATIO)
     # (b) windows of w blocks from each segment's start; a remainder shorter than w/2 joins the last window
     nwin = np.maximum(1, np.where(L % w >= (w + 1) // 2, L // w + 1, L // w))
     seg_of = np.repeat(np.arange(k), nwin)
@@ -505,6 +512,12 @@ def _refine(Z, seg, reason, w, excess, step, b, rate, W):
         reason[(reason == "trend") & _still(seg, tb)] = ""
     loud = _loud_blocks(Z)[:nb]
     seg, reason, n = _cut(Z, seg, reason, loud, reason == "noisy", "noisy", w, excess, step)
+    if W is not None:
+        # a piece that still shakes (step 4a) while the gyroscope sees it still throughout is a hold that
+        # vibrates (a board on a running bench), when it lasts twice the shortest pose: a shorter one beside a
+        # turn is its settling as often as not (docs/segmentation.md, step 8)
+        long = seg[:, 1] - seg[:, 0] >= SHAKING_HOLD_POSES * BLOCKS_PER_POSE
+        reason[(reason == "noisy") & _still(seg, tb) & long] = ""
     return seg, reason, n_split + n, turning
 
 
@@ -629,7 +642,7 @@ def gyro_turning(W: np.ndarray, b: int, seg: np.ndarray, rest: np.ndarray, rate:
     if acc is not None and np.isfinite(rate):  # slow motions, in units the accelerometer's turns give
         r = seg[rest & (seg[:, 1] - seg[:, 0] >= 4)]
         c = np.concatenate([np.zeros((1, 3)), np.cumsum(acc, axis=0)])
-        K = scale_bound(M, (c[r[:, 1]] - c[r[:, 0]]) / (r[:, 1] - r[:, 0])[:, None], r * b, samples, rate)
+        K = gyro_scale(X, M, (c[r[:, 1]] - c[r[:, 0]]) / (r[:, 1] - r[:, 0])[:, None], r * b, samples, rate)
         if np.isfinite(K) and K > 0:  # (no margins: a slow motion has no settling of its own)
             turns |= slow_motions(X, ~turns, K, s, rate)
     samples = turns
