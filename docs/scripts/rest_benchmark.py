@@ -44,10 +44,10 @@ from test_rest_labels import (  # noqa: E402
     find_rests,
 )
 
+import optcal.core.recording.labels as labels  # noqa: E402
 from optcal.app.workflows.recording import choose_threshold  # noqa: E402
 from optcal.core.errors import InputError  # noqa: E402
 from optcal.core.recording import segment_static  # noqa: E402
-import optcal.core.recording.labels as labels  # noqa: E402
 from optcal.core.recording.labels import gyro_labels, interval_labels, score_rests  # noqa: E402
 from optcal.core.synthetic_imu import handheld_imu  # noqa: E402
 
