@@ -110,7 +110,9 @@ SCALE_SEARCH_MOTIONS = 8
 # gravity; a hand's turns are near that, and a gyroscope's axes differ by a few % (the gates refuse 25 %)
 SCALE_BRACKET = (0.5, 1.1)
 SCALE_BRACKET_POINTS = 24
-SCALE_FINE_POINTS = 9
+SCALE_NEAR = (0.88, 1.1)  # × the bound: the candidates tried first (5.7 % apart)
+SCALE_NEAR_POINTS = 5
+SCALE_FINE_POINTS = 7
 BOUND_MIN_TURN = np.deg2rad(20.0)  # motions that turn gravity less than this give no useful bound
 
 
@@ -132,9 +134,11 @@ def common_scale(model: GyroModel, data: GyroData, k_min: float, k_max: float, n
     rest's gravity direction onto the next's. For raw counts with no nominal scale; ``backend``: the
     integrator's (:data:`BACKENDS`).
 
-    The search is bracketed by the motions themselves (:func:`scale_bound`): :data:`SCALE_BRACKET_POINTS`
-    log-spaced candidates over :data:`SCALE_BRACKET` times the bound, on the :data:`SCALE_SEARCH_MOTIONS`
-    motions that turn gravity the most (a wrong scale by a few % shows on any turn); then
+    The search is bracketed by the motions themselves (:func:`scale_bound`): :data:`SCALE_NEAR_POINTS`
+    log-spaced candidates over :data:`SCALE_NEAR` times the bound (where the scale lies when some motion turns
+    about an axis across gravity), or, when the best of them is at an end, :data:`SCALE_BRACKET_POINTS` over
+    :data:`SCALE_BRACKET` times it, on the :data:`SCALE_SEARCH_MOTIONS` motions that turn gravity the most (a
+    wrong scale by a few % shows on any turn); then
     :data:`SCALE_FINE_POINTS` over the two neighbours of the best, on every motion, and the vertex of the
     parabola in log k through the best of those and its neighbours. Without a bound, or when the best lies at
     the bracket's edge (turns mostly about gravity), the bracket is a log-spaced grid of ``n`` candidates
@@ -149,10 +153,14 @@ def common_scale(model: GyroModel, data: GyroData, k_min: float, k_max: float, n
     bound = scale_bound(data)
     ks = None
     if np.isfinite(bound) and bound > 0:
-        ks = np.geomspace(SCALE_BRACKET[0] * bound, SCALE_BRACKET[1] * bound, SCALE_BRACKET_POINTS)
+        # first near the bound, where the scale lies when a motion turns about an axis across gravity
+        ks = np.geomspace(SCALE_NEAR[0] * bound, SCALE_NEAR[1] * bound, SCALE_NEAR_POINTS)
         i = int(np.argmin(cost(few, ks)))
         if i in (0, len(ks) - 1):
-            ks = None
+            ks = np.geomspace(SCALE_BRACKET[0] * bound, SCALE_BRACKET[1] * bound, SCALE_BRACKET_POINTS)
+            i = int(np.argmin(cost(few, ks)))
+            if i in (0, len(ks) - 1):
+                ks = None
     if ks is None:
         ks = np.geomspace(k_min, k_max, n)
         i = int(np.argmin(cost(few, ks)))
