@@ -95,12 +95,14 @@ def _noise_sd(d2: np.ndarray) -> np.ndarray:
     |d2| (robust while a tenth of the recording is at rest) sets a cut at 3 SDs; the SD is then the RMS of
     the differences inside the cut, corrected for the cut (a normal cut at ±3σ keeps 97.33 % of its
     variance). Second differences cancel a constant rate of change: a slow turn does not pass for noise."""
-    s0 = np.percentile(np.abs(d2), 10.0, axis=0) / (Q10_HALF_NORMAL * np.sqrt(6.0))
-    # coarse outputs (a gyroscope at 0.06 °/s per count, sampled faster than it changes) can hold a tenth of their
-    # second differences at exactly 0: then the median, 0.6745 SDs of |d2|, sets the first guess
-    s0 = np.where(s0 > 0, s0, np.percentile(np.abs(d2), 50.0, axis=0) / (0.6745 * np.sqrt(6.0)))
-    inside = np.abs(d2) <= 3.0 * np.sqrt(6.0) * s0
-    ms = np.sum(np.where(inside, d2 * d2, 0.0), axis=0) / np.maximum(inside.sum(axis=0), 1)
+    a = np.abs(np.ascontiguousarray(np.asarray(d2, float).T))  # (3, n): each axis one contiguous row, 3× faster
+    s0 = np.percentile(a, 10.0, axis=1) / (Q10_HALF_NORMAL * np.sqrt(6.0))
+    if not np.all(s0 > 0):
+        # coarse outputs (a gyroscope at 0.06 °/s per count, sampled faster than it changes) can hold a tenth of
+        # their second differences at exactly 0: then the median, 0.6745 SDs of |d2|, sets the first guess
+        s0 = np.where(s0 > 0, s0, np.percentile(a, 50.0, axis=1) / (0.6745 * np.sqrt(6.0)))
+    inside = a <= (3.0 * np.sqrt(6.0) * s0)[:, None]
+    ms = np.sum(np.where(inside, a * a, 0.0), axis=1) / np.maximum(inside.sum(axis=1), 1)
     return np.sqrt(ms / (6.0 * TRUNCATED_VARIANCE_3SD))
 
 
