@@ -124,20 +124,22 @@ def chunks(r: np.ndarray, m: int) -> np.ndarray:
 
 def group_medians(x: np.ndarray, r: np.ndarray) -> np.ndarray:
     """The median of ``x`` (n, 3) over each range of ``r`` (k, 2; non-empty, not overlapping), per column, all
-    ranges in one sort: the rows of every range, keyed by range then value (the value shifted by the range's
-    number times the column's span, one float key: a third of the time of a two-key lexsort), sorted once; a
-    range's median is the middle of its run, taken from the values themselves."""
+    ranges in one partition: the rows of every range, keyed by range then value (the value shifted by the range's
+    number times the column's span, one float key: a third of the time of a two-key lexsort), partitioned about
+    the places of every range's middle (half the time of sorting them all); a range's median is the middle of
+    its run, taken from the values themselves."""
     lens = r[:, 1] - r[:, 0]
     rows, which = range_rows(r)
     first = np.cumsum(lens) - lens
     lo, hi = first + (lens - 1) // 2, first + lens // 2
+    kth = np.unique(np.concatenate([lo, hi]))
     out = np.empty((len(r), x.shape[1]))
     for j in range(x.shape[1]):  # three columns
         v = x[rows, j]
         if not len(v):
             continue
         base = v.min()
-        s = v[np.argsort((v - base) + which * (2.0 * (v.max() - base) + 1.0))]
+        s = v[np.argpartition((v - base) + which * (2.0 * (v.max() - base) + 1.0), kth)]
         out[:, j] = (s[lo] + s[hi]) / 2
     return out
 
