@@ -10,8 +10,8 @@ at rest, integrate over it to at least K·θ for a scale factor of K output unit
 adds to the path and not to θ); the least ratio over the motions that turn gravity by :data:`SCALE_MIN_TURN_DEG`
 or more is K's bound (a turn the gyroscope did not see, in a recording cut and joined, left out: no turning
 sample between the rests, or a ratio under half the others' median). The bound is K where a motion turns about
-one axis across gravity, and above it otherwise (19 % on a hand-turned MPU-6050, 4 times on a session whose
-motions turn about gravity), which would make the rule lenient. Then the one K under which the motions, the
+one axis across gravity, and above it otherwise (far above where the motions turn about gravity;
+docs/segmentation.md gives the corpus's), which would make the rule lenient. Then the one K under which the motions, the
 rates integrated as rotations (:class:`optcal.core.motion_integrator.MotionIntegrator`), best carry each rest's
 gravity direction onto the next's (the residual of imu_tk's gyroscope fit, Tedaldi et al. ICRA 2014 §IV-B,
 with a single scale): on a grid near the bound, else over the whole bracket below it, refined by a parabola's

@@ -95,7 +95,7 @@ def _noise_sd(d2: np.ndarray) -> np.ndarray:
     |d2| (robust while a tenth of the recording is at rest) sets a cut at 3 SDs; the SD is then the RMS of
     the differences inside the cut, corrected for the cut (a normal cut at ±3σ keeps 97.33 % of its
     variance). Second differences cancel a constant rate of change: a slow turn does not pass for noise."""
-    a = np.abs(np.ascontiguousarray(np.asarray(d2, float).T))  # (3, n): each axis one contiguous row, 3× faster
+    a = np.abs(np.ascontiguousarray(np.asarray(d2, float).T))  # (3, n): each axis one contiguous row (faster)
     s0 = np.percentile(a, 10.0, axis=1) / (Q10_HALF_NORMAL * np.sqrt(6.0))
     if not np.all(s0 > 0):
         # coarse outputs (a gyroscope at 0.06 °/s per count, sampled faster than it changes) can hold a tenth of
