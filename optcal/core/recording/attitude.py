@@ -133,8 +133,9 @@ def gyro_scale(X: np.ndarray, M: np.ndarray, A: np.ndarray, rests: np.ndarray, t
 
 def slow_motions(X: np.ndarray, still: np.ndarray, K: float, s: np.ndarray, rate: float) -> np.ndarray:
     """Samples (n,) of the still runs of ``still`` whose attitude strays (module docstring, rules a and b): ``X``
-    (n, 3) rates less their level at rest, ``K`` output units per rad/s (:func:`gyro_scale`), ``s`` (3,) their
-    white noise SD of a sample. Vectorised over runs, pieces and windows through cumulative sums."""
+    (n, 3) the rates as output (each run's median is taken out: one bias per run, which does not drift in
+    seconds), ``K`` output units per rad/s (:func:`gyro_scale`), ``s`` (3,) their white noise SD of a sample.
+    Vectorised over runs, pieces and windows through cumulative sums."""
     n = len(X)
     out = np.zeros(n, bool)
     r = runs(still)

@@ -646,7 +646,9 @@ def gyro_turning(W: np.ndarray, b: int, seg: np.ndarray, rest: np.ndarray, rate:
         c = np.concatenate([np.zeros((1, 3)), np.cumsum(acc, axis=0)])
         K = gyro_scale(X, M, (c[r[:, 1]] - c[r[:, 0]]) / (r[:, 1] - r[:, 0])[:, None], r * b, samples, rate)
         if np.isfinite(K) and K > 0:  # (no margins: a slow motion has no settling of its own)
-            turns |= slow_motions(X, ~turns, K, s, rate)
+            # the rates as output, each still run's median taken out (its bias): the level at rest, a line from
+            # a rest's first half to its second, would take up part of a slow turn through the rest
+            turns |= slow_motions(Wf, ~turns, K, s, rate)
     samples = turns
     blocks = samples[: nb * b].reshape(nb, b).any(axis=1)
     return blocks, samples
