@@ -87,6 +87,22 @@ def step_quaternions(wa, wb, h) -> np.ndarray:
     return out
 
 
+def log_vertex(ks: np.ndarray, costs: np.ndarray) -> float:
+    """The scale searches' last step (:func:`optcal.core.gyro.problem.common_scale`,
+    :func:`optcal.core.recording.attitude.gyro_scale`): the vertex of the parabola in log k through the best of the
+    candidates ``ks`` (costs ``costs``) and its two neighbours, kept within them; the best candidate itself at an
+    end of the grid or where the parabola opens downward."""
+    j = int(np.argmin(costs))
+    if 0 < j < len(ks) - 1:
+        x, y = np.log(ks[j - 1:j + 2]), costs[j - 1:j + 2]
+        den = (x[0] - x[1]) * (x[0] - x[2]) * (x[1] - x[2])
+        A = (x[2] * (y[1] - y[0]) + x[1] * (y[0] - y[2]) + x[0] * (y[2] - y[1])) / den
+        B = (x[2] ** 2 * (y[0] - y[1]) + x[1] ** 2 * (y[2] - y[0]) + x[0] ** 2 * (y[1] - y[2])) / den
+        if A > 0:
+            return float(np.exp(np.clip(-B / (2 * A), x[0], x[2])))
+    return float(ks[j])
+
+
 def rotate_back(Q, u) -> np.ndarray:
     """R(Q)ᵀ·u (3, ...) for unit quaternions Q (4, ...): u, fixed at a motion's start, in the body frame at its
     end (u − q₀ t + v × t with t = 2 v × u, v = (q₁, q₂, q₃), as the kernel's ``_rotate_back``)."""

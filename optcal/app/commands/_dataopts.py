@@ -18,12 +18,12 @@ if TYPE_CHECKING:
     from optcal.core.recording.options import RawOptions
 
 
-GYRO_UNIT_SPELLINGS = {"dps": "deg/s", "°/s": "deg/s", "deg/sec": "deg/s", "degrees/s": "deg/s", "rad/sec": "rad/s"}
-
-
 def gyro_units_arg(value: str) -> str:
-    """``--gyro-units`` as typed: the other spellings of deg/s and rad/s (dps, °/s) are taken for them."""
-    return GYRO_UNIT_SPELLINGS.get(value.strip().lower(), value.strip())
+    """``--gyro-units`` as typed: the other spellings of deg/s and rad/s (dps, °/s), as the gyroscope's columns'
+    names write them (:data:`optcal.core.gyro.recording.NAMED_UNITS`), are taken for them."""
+    from optcal.core.gyro.recording import NAMED_UNITS
+
+    return NAMED_UNITS.get(value.strip().lower(), value.strip())
 
 
 def flags() -> dict[str, str]:

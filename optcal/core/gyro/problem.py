@@ -31,6 +31,7 @@ from optcal.core.budget import Counter
 from optcal.core.errors import InputError
 from optcal.core.gyro.data import GyroData
 from optcal.core.gyro.model import GyroModel, get_gyro_model
+from optcal.core.motion_integrator import log_vertex
 from optcal.core.view import ParameterViews
 
 
@@ -165,16 +166,8 @@ def common_scale(model: GyroModel, data: GyroData, k_min: float, k_max: float, n
         ks = np.geomspace(k_min, k_max, n)
         i = int(np.argmin(cost(few, ks)))
     fine = np.geomspace(ks[max(i - 1, 0)], ks[min(i + 1, len(ks) - 1)], SCALE_FINE_POINTS)
-    c = cost(rotations(data, backend) if every is None else every, fine)
-    j = int(np.argmin(c))
-    if 0 < j < len(fine) - 1:  # the parabola's vertex in log k: the grid's spacing no longer limits the start
-        x, y = np.log(fine[j - 1:j + 2]), c[j - 1:j + 2]
-        den = (x[0] - x[1]) * (x[0] - x[2]) * (x[1] - x[2])
-        A = (x[2] * (y[1] - y[0]) + x[1] * (y[0] - y[2]) + x[0] * (y[2] - y[1])) / den
-        B = (x[2] ** 2 * (y[0] - y[1]) + x[1] ** 2 * (y[2] - y[0]) + x[0] ** 2 * (y[1] - y[2])) / den
-        if A > 0:
-            return float(np.exp(np.clip(-B / (2 * A), x[0], x[2])))
-    return float(fine[j])
+    # the parabola's vertex in log k: the grid's spacing no longer limits the start
+    return log_vertex(fine, cost(rotations(data, backend) if every is None else every, fine))
 
 
 BIAS_MODES = ("fit", "rests")

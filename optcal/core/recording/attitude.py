@@ -32,7 +32,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from optcal.core.motion_integrator import MotionIntegrator, rotate_back
+from optcal.core.motion_integrator import MotionIntegrator, log_vertex, rotate_back
 from optcal.core.recording.detection import chunks, group_medians, range_rows, runs
 
 SLOW_DEG = 0.2  # °: the attitude straying more than this inside a still run moves (a hand's wobble stays within)
@@ -123,12 +123,7 @@ def gyro_scale(X: np.ndarray, M: np.ndarray, A: np.ndarray, rests: np.ndarray, t
     left = np.sqrt(c[j] / len(k))  # the RMS chord left, about the angle in rad
     if left > SCALE_FIT_MAX_LEFT * np.sqrt(np.mean(theta[k] ** 2)):
         return bound  # the rotations do not carry gravity (a recording cut and joined, a gyroscope's other axes)
-    if 0 < j < len(fine) - 1:  # the parabola's vertex in log K through the best and its neighbours
-        x, y = np.log(fine[j - 1:j + 2]), c[j - 1:j + 2]
-        curv = y[0] - 2 * y[1] + y[2]
-        if curv > 0:
-            return float(np.exp(x[1] + (x[1] - x[0]) * (y[0] - y[2]) / (2 * curv)))
-    return float(fine[j])
+    return log_vertex(fine, c)
 
 
 def slow_motions(X: np.ndarray, still: np.ndarray, K: float, s: np.ndarray, rate: float) -> np.ndarray:

@@ -28,9 +28,9 @@ def is_clock_name(name: str) -> bool:
 
 
 def clock_seconds(values) -> np.ndarray | None:
-    """Seconds (n,) since the first of ``values`` (strings), or None when any is not a clock time. Row by row
-    (0.28 s per 200,000 rows): NumPy's string functions were slower on NumPy 2.3 with ``numpy.char`` (0.40 s), the
-    one set that NumPy 1.x, which the project supports, has too."""
+    """Seconds (n,) since the first of ``values`` (strings), or None when any is not a clock time. Row by row:
+    ``numpy.char``, the string functions NumPy 1.x (which the project supports) has too, was slower
+    (docs/real_data.md gives the times)."""
     out = np.empty(len(values))
     ordinals: dict[tuple, int] = {}
     first = dated = None
