@@ -26,10 +26,13 @@ hand-held pose (a tenth or two of a degree) are not motion; a turn, a settling a
    compared with its median over pieces of at most :data:`CHUNK_S`; a sample off it by more than
    :data:`SLOW_DEG` and :data:`SLOW_SIGMAS` times the walk of the integrated white noise over the piece moves;
    so does the centre of a window of :data:`WINDOWS_S` inside the run over which the attitude (the means of its
-   first and last quarters) turns by as much (the middle of a slow turn, near the median); step 4's filling
-   follows again. The run's median rate is removed because a rate offset that changes with
-   the pose (a gyroscope's g-sensitivity: 0.05-0.2 °/s on imu_tk's Xsens, where the accelerometer shows no
-   turn) is not a turn; nor, to a gyroscope alone, is a turn at one constant rate through a whole rest.
+   first and last quarters) turns by as much (the middle of a slow turn, near the median). But an excursion of
+   at most :data:`SMOOTH_S` (one period of a tremor) after which the attitude, over up to :data:`LEVEL_S` either
+   side (medians of at least :data:`SMOOTH_S`), is back within :data:`SLOW_DEG` is a wobble and stays still, as
+   a knock does in step 6: a rest is not split where its pose comes back. Step 4's filling follows again. The
+   run's median rate is removed because a rate offset that changes with the pose (a gyroscope's
+   g-sensitivity: 0.05-0.2 °/s on imu_tk's Xsens, where the accelerometer shows no turn) is not a turn; nor,
+   to a gyroscope alone, is a turn at one constant rate through a whole rest.
 6. *Re-seats without motion* (with the accelerometer): a still run is split where the accelerometer's outputs
    step, i.e. the medians of :data:`STEP_SAMPLES` samples (at least 0.05 s) before and after a sample differ
    by χ² > :data:`CHI2_STEP` in units of that difference's own robust scatter inside the still runs (a
@@ -218,6 +221,34 @@ def _turning_windows(Phi: np.ndarray, still: np.ndarray, L: int, thr: float) -> 
     return out
 
 
+def _wobbles_back(slow: np.ndarray, moving: np.ndarray, Phi: np.ndarray, short: int, L: int) -> np.ndarray:
+    """``slow`` less its excursions that come back: a run of at most ``short`` samples inside a still run whose
+    attitude ``Phi`` (°) over up to ``L`` still samples after it is within :data:`SLOW_DEG` of that before it
+    (medians, not beyond the neighbouring excursions, and over at least ``short`` samples each) is a wobble,
+    not a motion (step 5)."""
+    n = len(slow)
+    r = runs(slow)
+    clean = runs(~moving & ~slow)
+    if not len(r) or not len(clean):
+        return slow
+    # the clean stretch that ends where an excursion starts, and the one that starts where it ends
+    i = np.searchsorted(clean[:, 1], r[:, 0])
+    j = np.searchsorted(clean[:, 0], r[:, 1])
+    i, j = np.minimum(i, len(clean) - 1), np.minimum(j, len(clean) - 1)
+    ok = ((r[:, 1] - r[:, 0] <= short) & (r[:, 0] > 0) & (r[:, 1] < n)
+          & (clean[i, 1] == r[:, 0]) & (clean[j, 0] == r[:, 1])
+          & (r[:, 0] - clean[i, 0] >= short) & (clean[j, 1] - r[:, 1] >= short))
+    if not ok.any():
+        return slow
+    r, i, j = r[ok], i[ok], j[ok]
+    before = group_medians(Phi, np.column_stack([np.maximum(clean[i, 0], r[:, 0] - L), r[:, 0]]))
+    after = group_medians(Phi, np.column_stack([r[:, 1], np.minimum(clean[j, 1], r[:, 1] + L)]))
+    back = np.linalg.norm(after - before, axis=1) < SLOW_DEG
+    out = slow.copy()
+    out[_cover(r[back], n)] = False
+    return out
+
+
 def _acc_steps(N: np.ndarray, still: np.ndarray, k: int, level: int) -> np.ndarray:
     """Samples s inside still runs at which the accelerometer steps: the medians of N[s−k:s] and N[s:s+k]
     differ by χ² > CHI2_STEP in units of that difference's own scatter inside the still runs (robust: most
@@ -354,6 +385,7 @@ def gyro_labels(gyro: Recording, acc: Recording | None = None, *, units_per_dps:
         noise = np.linalg.norm(sigma / units_per_dps) / rate
         for L in sorted({max(8, int(round(w * rate))) for w in WINDOWS_S}):
             slow |= _turning_windows(Phi, ~moving, L, max(SLOW_DEG, SLOW_SIGMAS * noise * np.sqrt(L / 4.0)))
+        slow = _wobbles_back(slow, moving, Phi, int(round(SMOOTH_S * rate)), int(round(LEVEL_S * rate)))
     moving |= slow
     moving |= _fill(~moving, FILL_S * rate)
     still = ~moving
