@@ -27,6 +27,7 @@ import numpy as np
 
 from optcal.core.errors import InputError
 from optcal.core.gyro.model import AXES, BIAS, GSENS, MISALIGNMENT, SCALE, GyroModel, get_gyro_model, param_units
+from optcal.core.ranges import range_means
 
 GYRO_UNITS = ("counts", "deg/s", "rad/s", "volts")
 CALIBRATED = "rad/s"
@@ -78,7 +79,7 @@ def gyro_block(problem, x, stderr, *, solver: str, observability: dict, g_test: 
 def _offsets(problem) -> np.ndarray:
     """The rests' mean raw outputs (the debiased data hold them subtracted: add them back)."""
     off = problem.data.extra["bias_from_rests"]
-    return np.array([off[a:b].mean(axis=0) for a, b in problem.data.rests])
+    return range_means(off, problem.data.rests)
 
 
 def imported_block(K, T, b, G, units: str, *, fmt: str, source=None) -> dict:

@@ -20,6 +20,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from optcal.core.errors import InputError
+from optcal.core.ranges import range_means, range_means_sds
 
 # A motion must turn the gravity direction by at least this much (rad): below it, the motion carries no
 # information on the scale factors and is most likely no motion at all (a rest split in two).
@@ -174,13 +175,12 @@ class GyroData:
     def _derive(self) -> None:
         r = self.rests
         nr = np.diff(r, axis=1)[:, 0].astype(float)
-        fbar = np.array([self.F[a:b].mean(axis=0) for a, b in r])
-        self.rest_W = np.array([self.W[a:b].mean(axis=0) for a, b in r])
+        fbar, sd_f = range_means_sds(self.F, r)
+        self.rest_W, self.rest_sd_W = range_means_sds(self.W, r)
         self.rest_F = fbar
         self.rest_n = nr
-        self.rest_sd_W = np.array([self.W[a:b].std(axis=0, ddof=1) for a, b in r])
-        self.rest_sd_F = sd_f = np.array([self.F[a:b].std(axis=0, ddof=1) for a, b in r])
-        self.rest_mid_t = np.array([self.t[a:b].mean() for a, b in r])
+        self.rest_sd_F = sd_f
+        self.rest_mid_t = range_means(self.t, r)
         norm = np.linalg.norm(fbar, axis=1)
         if np.any(norm < 0.1):
             raise InputError("a rest's mean specific force is below 0.1 g: the accelerometer columns or its "
@@ -216,7 +216,7 @@ class GyroData:
         offset = np.column_stack([np.interp(self.t, self.rest_mid_t, self.rest_W[:, i]) for i in range(3)])
         out = GyroData(self.t, self.W - offset, self.F, self.rests, units=self.units, saturated=self.saturated,
                        extra=dict(self.extra, bias_from_rests=offset,
-                                  offset_raw=np.array([offset[a:b].mean(axis=0) for a, b in self.rests]).mean(axis=0)),
+                                  offset_raw=range_means(offset, self.rests).mean(axis=0)),
                        trim_rests=False)  # trimmed already, by the raw rates
         out.detected_rests = self.detected_rests
         return out

@@ -25,6 +25,7 @@ import numpy as np
 
 from optcal.core.errors import InputError
 from optcal.core.model import Model
+from optcal.core.ranges import range_rows  # noqa: F401  (the recording path's modules take it from here)
 from optcal.core.recording.reading import Recording
 
 NO_REST_RATIO = 20.0  # initial-rest variance this many times the quietest windows': not at rest
@@ -101,14 +102,6 @@ def runs(mask: np.ndarray) -> np.ndarray:
     """[start, end) (k, 2) of each run of True in ``mask``: the one run-finder of the recording path."""
     d = np.diff(np.concatenate([[0], mask.astype(np.int8), [0]]))
     return np.column_stack([np.flatnonzero(d == 1), np.flatnonzero(d == -1)])
-
-
-def range_rows(r: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """The rows of every range [start, end) of ``r`` (k, 2), in order, and the range each belongs to: the one
-    way the recording path lists ranges' members without a loop over them."""
-    lens = r[:, 1] - r[:, 0]
-    which = np.repeat(np.arange(len(r)), lens)
-    return np.arange(int(lens.sum())) - np.repeat(np.cumsum(lens) - lens, lens) + np.repeat(r[:, 0], lens), which
 
 
 def chunks(r: np.ndarray, m: int) -> np.ndarray:

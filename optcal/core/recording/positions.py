@@ -23,6 +23,7 @@ import numpy as np
 
 from optcal.core.data import PositionsData
 from optcal.core.errors import InputError
+from optcal.core.ranges import range_means, range_means_sds
 from optcal.core.recording.detection import runs
 from optcal.core.recording.floor import noise_floor
 from optcal.core.recording.sniff import mat_table
@@ -43,11 +44,9 @@ def positions_from_recording(recording: Recording, detection: DetectionResult, *
     iv = detection.intervals
     if not len(iv):
         raise InputError("no static intervals to average into positions")
-    # A loop over intervals (tens), not samples: each slice is reduced by numpy.
-    N = np.array([recording.N[s:e].mean(axis=0) for s, e in iv])
-    sd = np.array([recording.N[s:e].std(axis=0, ddof=1) if e - s > 1 else np.zeros(3) for s, e in iv])
-    t = np.array([recording.t[s:e].mean() for s, e in iv])
-    temp = None if recording.temp is None else np.array([recording.temp[s:e].mean() for s, e in iv])
+    N, sd = range_means_sds(recording.N, iv)
+    t = range_means(recording.t, iv)
+    temp = None if recording.temp is None else range_means(recording.temp, iv)
     floor = noise_floor(recording.N, iv, recording.t[iv[:, 0]], recording.rate, recording.units, like=floor_like)
     return PositionsData(N=N, t=t, temp=temp, n_samples=(iv[:, 1] - iv[:, 0]).astype(float), std=sd, sem=floor.sem,
                          units=recording.units,
