@@ -92,6 +92,30 @@ def test_a_shaking_hold_the_gyroscope_sees_still_is_a_rest(seed, monkeypatch):
     assert len(inside(segment_static(shaking, gyro=W))) == 0
 
 
+@pytest.mark.parametrize("seed", range(4))
+def test_a_hold_that_vibrates_in_bursts_is_a_rest(seed, monkeypatch):
+    """The third hold vibrates in bursts (8 mg and 0.5 °/s, 0.3 s on, 0.3 s off): step 7 cuts it into loud pieces
+    and quiet ones, each shorter than a pose. The gyroscope sees them still throughout: together, lasting two
+    shortest poses, they are one rest (1.3-3.1 s of the 5-s hold measured); without that rule none is kept."""
+    rng = np.random.default_rng(seed)
+    acc, W, theta = _sag_recording(rng, 0.0)
+    third = slice(2 * (HOLD + TURN), 2 * (HOLD + TURN) + HOLD)
+    burst = (np.floor(np.arange(HOLD) / RATE / 0.3) % 2 == 0)[:, None]
+    A = acc.N.copy()
+    A[third] += 0.008 * rng.standard_normal((HOLD, 3)) * burst
+    W[third] += 0.5 * rng.standard_normal((HOLD, 3)) * burst
+    shaking = Recording(acc.t, A, None, "g", RATE, acc.saturated)
+
+    def inside(det):
+        iv = det.intervals
+        return iv[(iv[:, 1] > third.start) & (iv[:, 0] < third.stop)]
+
+    kept = inside(segment_static(shaking, gyro=W))
+    assert len(kept) == 1 and kept[0, 1] - kept[0, 0] >= RATE
+    monkeypatch.setattr(segment, "_vibrating_holds", lambda seg, reason, still: (seg, reason))
+    assert len(inside(segment_static(shaking, gyro=W))) == 0
+
+
 @pytest.mark.parametrize("seed", range(8))
 def test_scale_bound_is_the_gyroscopes_scale_within_a_few_percent(seed):
     """On simulated hand-held recordings (turns of 60-180 °/s about body axes, tremor, settling; each sensor's axes

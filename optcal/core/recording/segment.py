@@ -520,7 +520,33 @@ def _refine(Z, seg, reason, w, excess, step, b, rate, W):
         # turn is its settling as often as not (docs/segmentation.md, step 8)
         long = seg[:, 1] - seg[:, 0] >= SHAKING_HOLD_POSES * BLOCKS_PER_POSE
         reason[(reason == "noisy") & _still(seg, tb) & long] = ""
+        seg, reason = _vibrating_holds(seg, reason, _still(seg, tb))
     return seg, reason, n_split + n, turning
+
+
+def _vibrating_holds(seg: np.ndarray, reason: np.ndarray, still: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """A hold that vibrates, cut by step 7 into loud pieces and quiet ones each shorter than a pose: a run of
+    adjacent such pieces (shaking, or at rest but short) that the gyroscope sees ``still`` throughout, at least
+    one of them shaking, is one rest when it lasts :data:`SHAKING_HOLD_POSES` shortest poses (as one shaking
+    piece that long is, :func:`_refine`)."""
+    short = seg[:, 1] - seg[:, 0] < BLOCKS_PER_POSE
+    piece = still & ((reason == "noisy") | ((reason == "") & short))
+    if not (piece & (reason == "noisy")).any():
+        return seg, reason
+    joined = piece[1:] & piece[:-1] & (seg[1:, 0] == seg[:-1, 1])
+    start = np.flatnonzero(np.concatenate([[True], ~joined]))
+    end = np.concatenate([start[1:], [len(seg)]])  # groups [start, end) of segments
+    span = seg[end - 1, 1] - seg[start, 0]
+    c = np.concatenate([[0], np.cumsum(reason == "noisy")])
+    hold = (end - start > 1) & piece[start] & (c[end] > c[start]) & (span >= SHAKING_HOLD_POSES * BLOCKS_PER_POSE)
+    if not hold.any():
+        return seg, reason
+    group = np.repeat(np.arange(len(start)), end - start)
+    drop = hold[group] & (np.arange(len(seg)) != start[group])  # a hold's members after its first
+    seg, reason = seg.copy(), reason.copy()
+    seg[start[hold], 1] = seg[end[hold] - 1, 1]
+    reason[start[hold]] = ""
+    return seg[~drop], reason[~drop]
 
 
 def _cut(Z, seg, reason, flag, which, flagged_reason, w, excess, step):
