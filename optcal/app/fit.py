@@ -186,7 +186,7 @@ def _fit(problem: CalibrationProblem, slv, solver: str, x0, budget, seed, noise_
                      "the model may miss an effect (try optcal discover)"
                      + ("; or the outlying position(s) named below are the cause" if diag.outlier.any() else ""))
     sd, _ = crlb(problem, x, sigma, weights=weights)
-    notes += _outlier_notes(diag, loss)
+    notes += _outlier_notes(diag, loss) + _unchecked_notes(diag)
     if weights is not None:
         low = np.flatnonzero(diag.weight < 0.5)
         notes.append(f"robust loss {loss} (f_scale = {f_scale * 1e6:.3g} µg): standard errors weight each position "
@@ -252,10 +252,29 @@ def _outlier_notes(diag: PositionDiagnostics, loss: str) -> list[str]:
                 "single positions are off (see the positions table; try optcal discover)"]
     fix = ("it is down-weighted by the robust loss; re-record or remove it to be sure" if loss != "linear" else
            "try the robust loss: --solver scipy-trf --option loss=cauchy, or re-record or remove it")
-    return [f"{diag.name(i)} is {diag.off[i] * 1e6:.4g} µg off the fit of the other positions, "
+    return [f"{diag.name(i)} is {_micro_g(diag.off[i])} off the fit of the other positions, "
             f"{diag.statistic[i]:.3g} σ "
             f"({diag.sigma_source} noise {diag.noise_g[i] * 1e6:.3g} µg, threshold {diag.threshold:.2f} σ): "
             f"displaced or moved during the position? {fix}" for i in idx]
+
+
+def _micro_g(v: float) -> str:
+    """A small force in g as µg, or as mg from 1 mg on (never in powers of ten)."""
+    return f"{v * 1e6:.4g} µg" if abs(v) < 1e-3 else f"{v * 1e3:.4g} mg"
+
+
+def _unchecked_notes(diag: PositionDiagnostics) -> list[str]:
+    """A note naming the positions that alone pin part of the model (:func:`optcal.core.analysis._unchecked`): no
+    outlier test can judge them."""
+    idx = np.flatnonzero(diag.unchecked) if diag.unchecked is not None else np.zeros(0, int)
+    if not idx.size:
+        return []
+    one = idx.size == 1
+    names = ", ".join(diag.name(i) for i in idx[:6]) + (f" … ({idx.size - 6} more)" if idx.size > 6 else "")
+    return [f"{names}: alone {'pins' if one else 'pin'} part of the model (leverage "
+            f"{'/'.join(format(float(diag.leverage[i]), '.4f') for i in idx[:6])}), so the other positions cannot "
+            f"check {'it' if one else 'them'} for a displacement (not tested); record another position near "
+            f"{'it' if one else 'each'}"]
 
 
 def _weak_notes(problem: CalibrationProblem, x: np.ndarray, sd: np.ndarray, obs: Observability,

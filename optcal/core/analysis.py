@@ -340,6 +340,7 @@ class PositionDiagnostics:
     alpha: float  # per-position test level (Šidák)
     sigma_source: str  # "stated", "measured", "robust scale" or "leave-one-out"
     tested: bool  # False when the residuals cannot be tested (too few degrees of freedom)
+    unchecked: np.ndarray | None = None  # (n,) bool: alone pins part of the model, not tested (:func:`_unchecked`)
 
     def rows(self) -> list[dict]:
         """One dict per position, keys naming their units (the calibration's ``positions``)."""
@@ -367,6 +368,17 @@ def _labels(data) -> list:
     if names is not None and len(names) == len(data):
         return [str(v) for v in names]
     return [None] * len(data)
+
+
+def _unchecked(h: np.ndarray, sig: np.ndarray, d: int) -> np.ndarray:
+    """Positions (n,) that alone pin part of the model, so that the others cannot check them: the linear
+    downdate of the outlier test predicts a position from the others with SD σ_p = σ/√(1−h) (h its leverage, σ
+    its residual's noise in g), and the magnitude's curvature adds about ½σ_p² to its residual, which must stay
+    under the residual's own SD σ√(1−h): untested where 1 − h ≤ (σ/2)^(2/3) (a leverage above 0.9997 at 10 µg of
+    noise, 0.9991 at 57 µg: there a residual of a few µg reads as many σ and a prediction error of grams)."""
+    with np.errstate(invalid="ignore"):
+        bad = (1.0 - h) <= (np.abs(np.asarray(sig, float)) / 2.0) ** (2.0 / 3.0)
+    return bad.reshape(-1, d).any(axis=1)
 
 
 def _scan(r, H, sigma, d, dof, alpha1, sequential):
@@ -407,6 +419,7 @@ def _scan(r, H, sigma, d, dof, alpha1, sequential):
             sig = sigma
             q = np.add.reduceat(e2 / sig**2, np.arange(0, m, d))
             pv = chi2_sf(q, d)
+        q[_unchecked(np.diag(HH), sig, d)] = np.nan
         pv = np.where(np.isfinite(q), pv, np.nan)
         if D:  # the set-aside positions: their prediction errors from the others, e_D = (I − H_DD)⁻¹ r_D
             eD = A @ r[rows]
@@ -478,7 +491,7 @@ def position_diagnostics(problem: CalibrationProblem, x_full: np.ndarray, noise_
         sg = np.sqrt(np.mean(sig.reshape(n, 3) ** 2, axis=1))
         lev, wt = h.reshape(n, 3).max(axis=1), w.reshape(n, 3).min(axis=1)
     return PositionDiagnostics(np.arange(n), np.asarray(problem.data.position), _labels(problem.data), res, sg,
-                               lev, stat, pv, wt, out, offp, thr, alpha1, source, tested)
+                               lev, stat, pv, wt, out, offp, thr, alpha1, source, tested, _unchecked(h, sig, d))
 
 
 def noise_scale(problem: CalibrationProblem, x_full: np.ndarray, alpha: float = OUTLIER_ALPHA) -> float:

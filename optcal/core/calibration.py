@@ -73,13 +73,14 @@ class Calibration:
     def residual_table(self) -> str:
         """The per-position residuals as fixed-width text, residuals and noise in µg. ``test σ`` is the statistic
         the outlier flag judges, |r|/(σ√(1−h)): a position of leverage h near 1 pulls the fit onto itself, so a
-        small r/σ can still be far off the fit of the others."""
+        small r/σ can still be far off the fit of the others; "-" where it is not tested (a leverage so near 1 that the
+        position alone pins part of the model and the others cannot check it)."""
         head = (f"{'#':>3} {'position':>8} {'label':<8} {'residual µg':>12} {'σ µg':>9} {'r/σ':>7} {'lever.':>6} "
                 f"{'test σ':>7} {'weight':>6}  flag")
         lines = [head, "-" * len(head)]
         for r in self.positions:
             def f(v, spec):
-                return format(v, spec) if v is not None else "-"
+                return format(v, spec) if v is not None else format("-", ">" + spec.split(".")[0])
             lines.append(f"{r['index']:>3} {r['position']:>8} {str(r['label'] or ''):<8} "
                          f"{f(r['residual_ug'], '12.3f')} {f(r['sigma_ug'], '9.3f')} {f(r['standardised'], '7.2f')} "
                          f"{f(r['leverage'], '6.3f')} {f(r['statistic_sigma'], '7.2f')} {f(r['weight'], '6.3f')}  "
