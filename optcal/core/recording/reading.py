@@ -45,6 +45,8 @@ INT16_RAILS = (-32768.0, 32767.0)
 TIME_UNITS = {"s": 1.0, "ms": 1e-3, "us": 1e-6, "ns": 1e-9}  # to seconds
 RATE_RANGE = (1.0, 1e5)  # Hz: a time column's unit is the first that gives a rate above 1 Hz, up to 100 kHz
 RAIL_RUN = 10  # samples in a row at one extreme value: a rail (saturation_of)
+RAIL_MARGIN = 5e-4  # of an ADC's range: codes this near a rail are at it (a sensor may clip a few codes short of
+# its format's limit: ±32764 in int16, measured on a lab's gyroscope)
 
 # optional: pyarrow.csv, a faster reader for large delimited files. Imported at the first read (pyarrow is
 # heavy), then kept here; None when it is not installed (or, in tests, to force the NumPy reader).
@@ -314,8 +316,8 @@ def saturation_of(N: np.ndarray, units: str, saturation: float | None,
                   fmt: tuple[bool, int] | None, axes=("ax", "ay", "az")) -> tuple[np.ndarray, dict]:
     """Which samples are saturated, and how that was decided (a dict for the report). ``saturation``
     given: |output| at or beyond it. Otherwise a sample at an ADC rail (of ``fmt``, or for counts of the
-    format :func:`infer_adc` reads from the data) or at a value an axis sticks to at its extreme
-    (:func:`stuck_runs`) on any axis."""
+    format :func:`infer_adc` reads from the data; within :data:`RAIL_MARGIN` of the range of it) or at a value
+    an axis sticks to at its extreme (:func:`stuck_runs`) on any axis."""
     if saturation is not None:
         return np.any(np.abs(N) >= saturation, axis=1), {"saturation": float(saturation)}
     how: dict = {}
@@ -326,7 +328,8 @@ def saturation_of(N: np.ndarray, units: str, saturation: float | None,
     if fmt is not None:
         lo, hi = rails_of(*fmt)
         how.update(adc=f"{'' if fmt[0] else 'u'}int{fmt[1]}", rails=[lo, hi])
-        sat |= (N <= lo) | (N >= hi)
+        m = RAIL_MARGIN * (hi - lo)
+        sat |= (N <= lo + m) | (N >= hi - m)
     stuck = [stuck_runs(N[:, j]) for j in range(3)]
     for j, vals in enumerate(stuck):
         if vals:
