@@ -81,9 +81,9 @@ LONE = [0, 1, 2, 3, 4, 5, 6, 7, 8, 10, 12, 14, 16, 18, 20]  # of the 24: one pos
 def test_a_position_that_alone_pins_the_model_is_checked_while_the_others_can_predict_it(seed):
     """diag6 on 15 of the 24 positions (tilted 2°), position 12 the only one with gravity along −x: its leverage is
     0.998-0.999. At 10 µg of noise the others still predict it within 0.3 mg, and a displacement of 1.5 mg is
-    named, its size within 3 SDs of that prediction. At 200 µg of noise the prediction's own SD (6 mg) makes the magnitude's
-    curvature larger than the residual's SD: the position is not tested, no absurd displacement is claimed, and
-    a note says the others cannot check it."""
+    named, its size within 3 SDs of that prediction. At 200 µg of noise the prediction's own SD (6 mg) makes the
+    magnitude's curvature larger than the residual's SD: the position is not tested, no absurd displacement is
+    claimed, and a note says the others cannot check it."""
     diag6 = get_model("diag6")
     truth = {k: v for k, v in PAPER_TRUTH.items() if k in diag6.names}
     i = LONE.index(12)
@@ -101,7 +101,7 @@ def test_a_position_that_alone_pins_the_model_is_checked_while_the_others_can_pr
         else:
             assert d.unchecked.tolist() == [k == i for k in range(len(LONE))]
             assert not d.outlier[i] and not np.isfinite(d.statistic[i])
-            assert any(n.startswith(f"position 12: alone pins part of the model (leverage 0.99") and "not tested" in n
+            assert any(n.startswith("position 12: alone pins part of the model (leverage 0.99") and "not tested" in n
                        for n in cal.notes), cal.notes
             assert "   -  " in cal.residual_table().splitlines()[2 + i]
 

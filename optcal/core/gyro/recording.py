@@ -116,12 +116,31 @@ def read_gyro(data, acc, *, gyro=None, gyro_columns=None, units: str | None, rat
     label = _READER_UNITS.get(units, "volts")
     time = acc.columns.get("t")
     if acc.reading.get("time_unit") == CLOCK_TIME:  # a time-of-day column: the accelerometer's seconds serve both
-        rec = read_recording(data, f"ax={cols[0]},ay={cols[1]},az={cols[2]}", acc.rate, label)
+        rec = _rows_of(read_recording(data, f"ax={cols[0]},ay={cols[1]},az={cols[2]}", acc.rate, label, held=False),
+                       acc)
         return replace(rec, t=acc.t, columns={**rec.columns, "t": time},
                        reading={**rec.reading, "time_unit": CLOCK_TIME, "gyro_units": units})
     spec = (f"t={time}," if time is not None else "") + f"ax={cols[0]},ay={cols[1]},az={cols[2]}"
-    rec = read_recording(data, spec, rate, label, time_unit=time_unit)
+    rec = _rows_of(read_recording(data, spec, rate, label, time_unit=time_unit, held=False), acc)
     return replace(rec, reading={**rec.reading, "gyro_units": units})
+
+
+def _rows_of(rec, acc):
+    """The rows of ``rec`` (every row of the file) that the accelerometer's recording ``acc`` of the same file
+    kept: all of them, or, where the log repeats the accelerometer's samples (``reading["held_rows"]``), the rows
+    at its samples' times."""
+    if not acc.reading.get("held_rows"):
+        return rec
+    at = np.searchsorted(rec.t, acc.t)
+    at = np.clip(at, 0, len(rec) - 1)
+    if not np.array_equal(rec.t[at], acc.t):
+        raise InputError(f"{acc.path}: the gyroscope's rows do not line up with the accelerometer's samples; give "
+                         "the rate with `rate` or each sensor's time column")
+    W = rec.N[at]
+    rate = acc.rate
+    return replace(rec, t=rec.t[at], N=W, rate=rate, saturated=rec.saturated[at],
+                   temp=None if rec.temp is None else rec.temp[at],
+                   labels=None if rec.labels is None else rec.labels[at])
 
 
 def _header_gyro_names(path, acc) -> list[str] | None:

@@ -45,6 +45,10 @@ INT16_RAILS = (-32768.0, 32767.0)
 TIME_UNITS = {"s": 1.0, "ms": 1e-3, "us": 1e-6, "ns": 1e-9}  # to seconds
 RATE_RANGE = (1.0, 1e5)  # Hz: a time column's unit is the first that gives a rate above 1 Hz, up to 100 kHz
 RAIL_RUN = 10  # samples in a row at one extreme value: a rail (saturation_of)
+HELD_FRACTION = 0.2  # rows equal to the one before on every axis: at least this fraction of all rows, and of the
+# fifth of the rows where the outputs move most: the log repeats the sensor's samples (it runs faster than the
+# sensor outputs), where a quantised sensor repeats itself at rest only (the corpus: at most 5 % of all rows, 0.3 %
+# of the moving ones; a 400-Hz loop over a 100-Hz sensor: 74 % and 49 %)
 RAIL_MARGIN = 5e-4  # of an ADC's range: codes this near a rail are at it (a sensor may clip a few codes short of
 # its format's limit: ±32764 in int16, measured on a lab's gyroscope)
 
@@ -97,7 +101,7 @@ class Recording:
 def read_recording(path, columns=None, rate: float | None = None, units: str | None = "g", *,
                    saturation: float | None = None, labels: str | None = None, need_time: bool = True,
                    adc: str | None = None, time_unit: str | None = None,
-                   refuse_positions: bool = False, topic: str | None = None) -> Recording:
+                   refuse_positions: bool = False, topic: str | None = None, held: bool = True) -> Recording:
     """Read a raw recording (docs/design.md, "Raw recordings"). ``columns``: ``"t,ax,ay,az"`` (names or 0-based
     indices; 3 entries mean ax,ay,az, 5 add temp) or ``"ax=acc_x,..."``; ``rate`` (Hz) when there is no time column;
     ``units`` of the outputs (None: as the accelerometer's columns' names give them, ``ax(g)``, ``Acc X [m/s^2]``,
@@ -108,8 +112,11 @@ def read_recording(path, columns=None, rate: float | None = None, units: str | N
     ``COLUMN=L1,L2`` (kept as strings; the labels after ``=`` are for
     :func:`~optcal.core.recording.label_intervals`); ``need_time=False`` accepts a file without time or rate (time
     is then the sample index and the rate NaN); ``refuse_positions``: a file that looks like a positions file is an
-    error that says so (calibration's path). A ROS bag or a PX4 ULog is read from its IMU messages
-    (:func:`read_log`; ``topic`` picks among them) in the units and at the stamps the log gives. Every problem is an
+    error that says so (calibration's path); ``held``: a log that repeats the sensor's samples (rows equal to the
+    one before on every axis, :func:`held_rows`) keeps each sample once, at its first row, and its rate is that of
+    the sensor (``reading["held_rows"]`` says how many rows were left out; False reads every row). A ROS bag or a
+    PX4 ULog is read from its IMU messages (:func:`read_log`; ``topic`` picks among them) in the units and at the
+    stamps the log gives. Every problem is an
     InputError."""
     path = Path(path)
     if units is not None and units not in UNITS:
@@ -192,12 +199,20 @@ def read_recording(path, columns=None, rate: float | None = None, units: str | N
         t = np.arange(n) / (fs or 1.0)
         fs = np.nan if fs is None else fs
     N = np.column_stack([data["ax"], data["ay"], data["az"]])
+    repeat = held_rows(N) if held and log is None else None
+    if repeat is not None:  # the sensor's samples, once each (its noise is then that of its samples)
+        keep = ~repeat
+        t, N = t[keep], N[keep]
+        data = {k: v[keep] for k, v in data.items()}
+        n = len(N)
+        fs = 1.0 / float(np.median(np.diff(t))) if np.isfinite(fs) else fs
     step = max(1, n // 20000)
     check_units(PositionsData(N=N[::step], units=units), units)
     sat, how = saturation_of(N, units, saturation, fmt)
     lab = None
     if labels is not None:
-        lab = _read_labels(path, lay, labels.split("=", 1)[0], n)
+        lab = _read_labels(path, lay, labels.split("=", 1)[0], len(raw))
+        lab = lab if repeat is None else lab[~repeat]
     W = gyro_sat = None
     if "gx" in data:
         W = np.column_stack([data["gx"], data["gy"], data["gz"]])
@@ -206,6 +221,8 @@ def read_recording(path, columns=None, rate: float | None = None, units: str | N
     names = {r: (lay.header[j] if lay.header else j) for r, j in cols.items()}
     if named_units is not None:
         how["units_from_names"] = True
+    if repeat is not None:
+        how["held_rows"] = int(repeat.sum())
     if clock is not None:
         names["t"] = how["clock_column"] = lay.header[clock[0]]
         unit = CLOCK_TIME
@@ -295,6 +312,22 @@ def infer_adc(N: np.ndarray) -> tuple[bool, int]:
         if a <= lo and hi <= b:
             return signed, bits
     return signed, 64
+
+
+def held_rows(N: np.ndarray) -> np.ndarray | None:
+    """The rows (n,) of ``N`` equal to the one before on every axis when the log repeats the sensor's samples
+    (:data:`HELD_FRACTION` of all rows and of the fifth where the outputs move most: a sample held over several
+    rows repeats in a turn too, where a quantised sensor's noise repeats at rest only), else None."""
+    if len(N) < 10:
+        return None
+    together = np.all(N[1:] == N[:-1], axis=1)
+    if together.mean() < HELD_FRACTION:
+        return None
+    move = np.convolve(np.abs(np.diff(N, axis=0)).sum(axis=1), np.ones(9), "same")  # over the 9 rows around
+    top = (move >= np.percentile(move, 80)) & (move > 0)
+    if not top.any() or together[top].mean() < HELD_FRACTION:  # (outputs that never change: not a log of samples)
+        return None
+    return np.concatenate([[False], together])
 
 
 def stuck_runs(x: np.ndarray) -> list[float]:
