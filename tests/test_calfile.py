@@ -15,6 +15,7 @@ from optcal.core.calfile import FORMAT, FORMAT_VERSION, calibration_to_dict, rea
 from optcal.core.errors import InputError
 from optcal.core.model import Context, get_model
 from optcal.core.presets import PAPER_TRUTH
+from optcal.core.recording.reading import RAIL_MARGIN
 from optcal.core.schemes import random_orientations
 from optcal.core.simulate import simulate
 
@@ -219,7 +220,8 @@ def test_cli_apply_without_time_and_with_saturation(counts_cal, tmp_path, capsys
     got = np.loadtxt(out, delimiter=",", skiprows=1)
     header = open(out).readline().strip().split(",")
     assert header[:3] == ["ax", "ay", "az"]
-    sat = np.any(np.abs(N) >= 32767, axis=1)  # 2.1 g exceeds the ±2 g int16 range on some axes
+    m = RAIL_MARGIN * 65535  # within 33 codes of a rail is at it
+    sat = np.any((N <= -32768 + m) | (N >= 32767 - m), axis=1)  # 2.1 g exceeds the ±2 g int16 range on some axes
     assert 0 < sat.sum() < 400
     assert header[-1] == "saturated" and np.array_equal(got[:, -1].astype(bool), sat)
     assert f"{int(sat.sum())} saturated sample(s)" in text
