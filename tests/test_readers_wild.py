@@ -748,3 +748,29 @@ def test_a_log_that_repeats_the_sensors_samples_reads_each_sample_once(tmp_path,
         x[1000:1400] += np.linspace(0, 200, 400)[:, None]  # a turn
         coarse = np.round(x + rng.normal(0, sd, (4000, 3)))
         assert held_rows(coarse) is None and held_rows(np.repeat(coarse, 2, axis=0)) is not None
+
+
+# == a host's time stamps ==============================================================================
+def test_a_hosts_jittering_stamps_of_evenly_spaced_samples_are_taken_evenly_spaced(tmp_path):
+    """A serial link's host stamps 100-Hz samples on a 1.024-ms tick, with catch-ups (a lab's AHRS board: median
+    step 10.24 ms, some of 5 ms, an even 10.000 ms through them): the samples are taken on the even grid (the
+    rate 100 Hz, not the median step's 97.7 Hz), and the report says so. Stamps within 0.1 step of a grid are
+    kept as they are, and so are stamps with a lost sample (a gap of a step)."""
+    from optcal.core.recording.reading import even_times
+
+    n = 3000
+    true = 100.0 + np.arange(n) * 0.01
+    host = np.floor((true + np.random.default_rng(4).uniform(0, 0.004, n)) / 0.001024) * 0.001024
+    t, off = even_times(host)
+    np.testing.assert_allclose(np.diff(t), 0.01, rtol=1e-5)  # even, at the true rate
+    assert np.ptp(t - true) < 3e-4 and 1e-3 < off < 5e-3  # a constant latency aside, the true times (0.03 step)
+    assert even_times(true + 5e-4 * np.sin(np.arange(n)))[1] == 0.0  # 0.05 step: kept
+    gap = np.delete(true, 1500)
+    assert even_times(gap)[1] == 0.0 and even_times(gap)[0] is gap
+    rng = np.random.default_rng(0)
+    rows = np.column_stack([host, rng.normal(0, 0.01, (n, 3)) + [0, 0, 1]])
+    path = _write(tmp_path / "host.csv", "t,ax,ay,az", rows)
+    rec = read_recording(path)
+    assert np.median(np.diff(host)) == pytest.approx(0.01024, rel=1e-3)
+    assert rec.rate == pytest.approx(100.0, rel=1e-4) and 1e-3 < rec.reading["stamps_jitter_s"] < 5e-3
+    np.testing.assert_allclose(np.diff(rec.t), 0.01, rtol=1e-4)

@@ -49,6 +49,14 @@ HELD_FRACTION = 0.2  # rows equal to the one before on every axis: at least this
 # fifth of the rows where the outputs move most: the log repeats the sensor's samples (it runs faster than the
 # sensor outputs), where a quantised sensor repeats itself at rest only (the corpus: at most 5 % of all rows, 0.3 %
 # of the moving ones; a 400-Hz loop over a 100-Hz sensor: 74 % and 49 %)
+# a time column whose stamps wander about an even grid by more than JITTER_STEPS of a step (at most a step), while
+# their level over JITTER_BLOCK samples stays within JITTER_LOST of a step (a lost or doubled sample moves it by
+# one), holds a host's arrival times of evenly spaced samples (a serial link's 10.24-ms ticks with 5-ms catch-ups
+# about an even 100 Hz): the samples are taken on the grid (the corpus: at most 0.05 of a step, or a gap; such a
+# log: 0.30-0.36)
+JITTER_STEPS = 0.1
+JITTER_LOST = 0.5
+JITTER_BLOCK = 50
 RAIL_MARGIN = 5e-4  # of an ADC's range: codes this near a rail are at it (a sensor may clip a few codes short of
 # its format's limit: ±32764 in int16, measured on a lab's gyroscope)
 
@@ -191,6 +199,7 @@ def read_recording(path, columns=None, rate: float | None = None, units: str | N
         given = rate if rate is not None else meta_rate
         unit = time_unit or time_scale(float(np.median(steps)), given, path)
         t = t * TIME_UNITS[unit]
+        t, jitter = even_times(t) if log is None else (t, 0.0)
         fs = 1.0 / float(np.median(np.diff(t)))
     else:
         fs = rate if rate is not None else meta_rate
@@ -223,6 +232,8 @@ def read_recording(path, columns=None, rate: float | None = None, units: str | N
         how["units_from_names"] = True
     if repeat is not None:
         how["held_rows"] = int(repeat.sum())
+    if "t" in data and jitter > 0:
+        how["stamps_jitter_s"] = jitter
     if clock is not None:
         names["t"] = how["clock_column"] = lay.header[clock[0]]
         unit = CLOCK_TIME
@@ -312,6 +323,28 @@ def infer_adc(N: np.ndarray) -> tuple[bool, int]:
         if a <= lo and hi <= b:
             return signed, bits
     return signed, 64
+
+
+def even_times(t: np.ndarray) -> tuple[np.ndarray, float]:
+    """The times ``t`` (s) and 0, or, when they wander about an even grid (the least-squares line through them) by
+    more than :data:`JITTER_STEPS` of a step and at most a step, with their level (medians over
+    :data:`JITTER_BLOCK` samples) within :data:`JITTER_LOST` of a step throughout (no sample lost or doubled): a
+    host's arrival times of evenly spaced samples, the grid and how far they wandered from it (s)."""
+    n = len(t)
+    if n < 2 * JITTER_BLOCK:
+        return t, 0.0
+    i = np.arange(n, dtype=float)
+    step, start = np.polyfit(i, t, 1)
+    grid = start + step * i
+    r = t - grid
+    off = float(np.max(np.abs(r)))
+    if not (step > 0 and JITTER_STEPS * step < off <= step):
+        return t, 0.0
+    m = n // JITTER_BLOCK * JITTER_BLOCK
+    level = np.median(r[:m].reshape(-1, JITTER_BLOCK), axis=1)
+    if np.ptp(level) >= JITTER_LOST * step:
+        return t, 0.0
+    return grid, off
 
 
 def held_rows(N: np.ndarray) -> np.ndarray | None:

@@ -70,6 +70,9 @@ def reading_line(how: dict, n_saturated: int) -> str:
                      "sample")
     elif how.get("time_unit"):
         parts.append(f"time column in {how['time_unit'].replace('us', 'µs')}")
+    if how.get("stamps_jitter_s"):
+        parts.append(f"its stamps wander by up to {how['stamps_jitter_s'] * 1e3:.3g} ms about an even rate, as a "
+                     "host's arrival times do: the samples are taken evenly spaced")
     if "adc" in how:
         lo, hi = how["rails"]
         parts.append(f"counts {how['adc']} ({'inferred from the data' if how.get('adc_inferred') else 'declared'}; "
