@@ -774,3 +774,20 @@ def test_a_hosts_jittering_stamps_of_evenly_spaced_samples_are_taken_evenly_spac
     assert np.median(np.diff(host)) == pytest.approx(0.01024, rel=1e-3)
     assert rec.rate == pytest.approx(100.0, rel=1e-4) and 1e-3 < rec.reading["stamps_jitter_s"] < 5e-3
     np.testing.assert_allclose(np.diff(rec.t), 0.01, rtol=1e-4)
+
+
+def test_unix_times_are_shown_from_the_first_sample(tmp_path, poses, capsys):
+    """A time column of Unix times (a host's clock) is read as it is, and shown from the first sample in the
+    report (intervals, notes), which says so; a file whose times start near 0 is shown as it is."""
+    rec, _ = poses
+    rows = np.column_stack([rec.t + 1535630275.916, rec.N])
+    path = tmp_path / "epoch.csv"
+    np.savetxt(path, rows, delimiter=",", fmt=["%.6f", "%.8g", "%.8g", "%.8g"], header="t,ax,ay,az", comments="")
+    back = read_recording(path)
+    assert back.t[0] == pytest.approx(1535630275.916) and back.origin == back.t[0]
+    np.testing.assert_allclose(back.shown_t, rec.t, atol=1e-6)
+    code, out, err = _cli(["calibrate", path, "--raw", "--model", "diag6"], capsys)
+    assert code == 0, err
+    assert "times shown from the first sample's stamp, 1535630275.916 s" in out
+    assert "    0: samples 0–" in out and "(0.00–" in out and "15356302" not in out.split("\n", 2)[2]
+    assert read_recording(_write(tmp_path / "zero.csv", "t,ax,ay,az", np.column_stack([rec.t, rec.N]))).origin == 0

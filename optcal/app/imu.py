@@ -94,12 +94,12 @@ def calibrate_imu(positions, gyro, *, model=None, solver: str = "lm", options: d
         data = data.with_rests(found)
         notes.append(f"{len(found)} rest(s) the accelerometer's detection left inside motions were found by the "
                      f"gyroscope (still for {MISSED_REST_MIN_S:g} s or more) and used for the gyroscope only, at t = "
-                     + ", ".join(f"{acc.t[a]:.1f}-{acc.t[b - 1]:.1f} s" for a, b in found[:6])
+                     + ", ".join(f"{acc.shown_t[a]:.1f}-{acc.shown_t[b - 1]:.1f} s" for a, b in found[:6])
                      + (" …" if len(found) > 6 else ""))
     if len(data.dropped_motions):
         notes.append(f"{len(data.dropped_motions)} motion(s) during which the gyroscope reached a rail left out of "
                      f"its fit ({data.n_motions} used), at t = "
-                     + ", ".join(f"{a:.1f}-{b:.1f} s" for a, b in data.dropped_motions[:6])
+                     + ", ".join(f"{a - acc.origin:.1f}-{b - acc.origin:.1f} s" for a, b in data.dropped_motions[:6])
                      + (" …" if len(data.dropped_motions) > 6 else "") + "; turn more slowly to keep them")
     scale = gyro_scale if gyro_scale is not None else NOMINAL_SCALE.get(gyro_units)
     try:

@@ -109,13 +109,22 @@ def run(args) -> int:
     block = imu.gyro_block()
     if args.output:
         imu.write(args.output, overwrite=args.force, source=str(args.data))
+    from optcal.core.recording.report import describe_detection, detection_summary
+
+    detection = positions.extra["detection"]
     if args.json:
         print(json.dumps({"accelerometer": {**cal.to_dict(), "units": cal.model.units(positions.units)},
-                          "gyroscope": block, "notes": imu.notes}, indent=2))
+                          "gyroscope": block, "notes": imu.notes, "recording": detection_summary(detection)},
+                         indent=2))
         return 0
+    print(describe_detection(detection))  # the rests both fits use, as optcal calibrate lists them
     angles = np.rad2deg(fit.problem.motion_angles(fit.x))
     before = np.rad2deg(fit.problem.motion_angles(fit.problem.centre))
-    print(f"accelerometer: model {cal.model.name}, {len(positions)} rests, residual RMS {cal.fit.rms_g * 1e6:.1f} µg")
+    gof = cal.fit
+    test = (f"; χ²/dof {gof.chi2 / max(gof.dof, 1):.3g} against the means' noise floor (p = {gof.p_value:.2g})"
+            if gof.chi2 is not None and gof.p_value is not None else "")
+    print(f"accelerometer: model {cal.model.name}, {len(positions)} rests, residual RMS {cal.fit.rms_g * 1e6:.1f} µg"
+          + test)
     print(parameter_table(cal.model.names, cal.x, cal.stderr, units=cal.model.units(positions.units)))
     source = "the rests" if args.gyro_bias == "rests" else "the fit"
     print(f"gyroscope: model {fit.problem.model.name} (bias from {source}), {data.n_motions} motions, χ²/dof "

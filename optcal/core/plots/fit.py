@@ -26,7 +26,7 @@ def _tick_labels(cal, diag) -> list[str]:
             text += f"\n{diag.labels[i]}"
         if det is not None and len(det.intervals) == len(diag.index):
             s, e = det.intervals[i]
-            text += f"\n{det.recording.t[s:e].mean():.1f} s"
+            text += f"\n{det.recording.shown_t[s:e].mean():.1f} s"
         labels.append(text)
     return labels
 

@@ -32,19 +32,19 @@ def recording_figure(recording: Recording, detection: DetectionResult, residuals
     step = max(1, len(rec) // MAX_POINTS)
     for j, c in enumerate("xyz"):
         if step == 1:
-            ax.plot(rec.t, rec.N[:, j], lw=0.6, label=f"a{c}")
+            ax.plot(rec.shown_t, rec.N[:, j], lw=0.6, label=f"a{c}")
         else:
             m = len(rec) // step * step
             blocks = rec.N[:m, j].reshape(-1, step)
             # the block means as a line (a fill of blocks a few samples wide is too thin to see), and
             # their min/max around it, which keeps every spike visible
-            (line,) = ax.plot(rec.t[:m:step], blocks.mean(1), lw=0.6, label=f"a{c}")
-            ax.fill_between(rec.t[:m:step], blocks.min(1), blocks.max(1), lw=0, alpha=0.5, color=line.get_color())
+            (line,) = ax.plot(rec.shown_t[:m:step], blocks.mean(1), lw=0.6, label=f"a{c}")
+            ax.fill_between(rec.shown_t[:m:step], blocks.min(1), blocks.max(1), lw=0, alpha=0.5, color=line.get_color())
     for s, e in det.intervals:
         for a in axes:
-            a.axvspan(rec.t[s], rec.t[e - 1], color="tab:green", alpha=0.15, lw=0)
+            a.axvspan(rec.shown_t[s], rec.shown_t[e - 1], color="tab:green", alpha=0.15, lw=0)
     if rec.saturated.any():
-        ts = rec.t[rec.saturated]
+        ts = rec.shown_t[rec.saturated]
         ax.plot(ts, np.full(len(ts), np.max(rec.N)), "|", color="red", label="saturated")
     ax.set_ylabel(f"output [{rec.units}]")
     ax.set_title(f"{Path(rec.path).name if rec.path else 'recording'}: {det.n_intervals} static intervals")
@@ -52,12 +52,12 @@ def recording_figure(recording: Recording, detection: DetectionResult, residuals
     if det.statistic is not None:
         squared = f"({rec.units})²" if "/" in rec.units else f"{rec.units}²"
         a = axes[1]
-        a.semilogy(rec.t[::step], det.statistic[::step], lw=0.6, color="k")
+        a.semilogy(rec.shown_t[::step], det.statistic[::step], lw=0.6, color="k")
         a.axhline(det.threshold, color="tab:red", lw=0.8, label=f"threshold {det.k:g}·ς_init")
         a.set_ylabel(f"ς (variance norm) [{squared}]")
         a.legend(loc="upper right", fontsize=8)
     a = axes[-1]
-    mid = np.array([rec.t[s:e].mean() for s, e in det.intervals])
+    mid = np.array([rec.shown_t[s:e].mean() for s, e in det.intervals])
     width = np.array([rec.t[e - 1] - rec.t[s] for s, e in det.intervals])
     if len(res) == len(mid):
         a.bar(mid, res * 1e6, width=np.maximum(width, rec.duration / 200), color="tab:blue")
@@ -65,5 +65,5 @@ def recording_figure(recording: Recording, detection: DetectionResult, residuals
     if len(res) and np.max(np.abs(res)) < 1e-9:  # an exact fit (as many positions as parameters): rounding
         a.set_ylim(-1.0, 1.0)
     a.set_ylabel("residual [µg]")
-    a.set_xlabel("time [s]")
+    a.set_xlabel("time [s]" if rec.origin == 0 else "time from the first sample [s]")
     return fig

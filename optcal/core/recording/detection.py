@@ -144,7 +144,7 @@ def drop_saturated(rec: Recording, iv: np.ndarray, notes: list[str], names=None)
     c = np.concatenate([[0], np.cumsum(rec.saturated)])
     nsat = c[iv[:, 1]] - c[iv[:, 0]]
     for (s, e), k in zip(iv[nsat > 0], nsat[nsat > 0]):
-        notes.append(f"interval {rec.t[s]:.2f}–{rec.t[e - 1]:.2f} s dropped: {k} saturated sample(s)")
+        notes.append(f"interval {rec.shown_t[s]:.2f}–{rec.shown_t[e - 1]:.2f} s dropped: {k} saturated sample(s)")
     keep = nsat == 0
     return iv[keep], (None if names is None else [nm for nm, ok in zip(names, keep) if ok])
 

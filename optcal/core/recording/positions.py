@@ -93,7 +93,7 @@ def recheck_poses(data, model, x, suspects, name=None):
         still = dev <= DEPART_SIGMAS
         # the longest run of still samples: the pose without the motions at its ends
         starts, stops = runs(still).T
-        when = f"{rec.t[a]:.1f}-{rec.t[b - 1]:.1f} s"
+        when = f"{rec.shown_t[a]:.1f}-{rec.shown_t[b - 1]:.1f} s"
         if len(starts):
             j = int(np.argmax(stops - starts))
             s0, s1 = int(starts[j]), int(stops[j])

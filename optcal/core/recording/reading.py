@@ -54,6 +54,7 @@ HELD_FRACTION = 0.2  # rows equal to the one before on every axis: at least this
 # one), holds a host's arrival times of evenly spaced samples (a serial link's 10.24-ms ticks with 5-ms catch-ups
 # about an even 100 Hz): the samples are taken on the grid (the corpus: at most 0.05 of a step, or a gap; such a
 # log: 0.30-0.36)
+EPOCH_S = 1e6  # s: a time column starting this late holds dates (Unix times), which are shown from the first sample
 JITTER_STEPS = 0.1
 JITTER_LOST = 0.5
 JITTER_BLOCK = 50
@@ -104,6 +105,17 @@ class Recording:
     @property
     def duration(self) -> float:
         return float(self.t[-1] - self.t[0]) if len(self) else 0.0
+
+    @property
+    def origin(self) -> float:
+        """The time (s) that shown times count from: the first sample's when it is a date's (a Unix time, at
+        least :data:`EPOCH_S`), else 0, the file's own zero."""
+        return float(self.t[0]) if len(self) and self.t[0] >= EPOCH_S else 0.0
+
+    @property
+    def shown_t(self) -> np.ndarray:
+        """The times (s) as reports, notes and figures show them: from :attr:`origin`."""
+        return self.t - self.origin
 
 
 def read_recording(path, columns=None, rate: float | None = None, units: str | None = "g", *,
@@ -234,6 +246,8 @@ def read_recording(path, columns=None, rate: float | None = None, units: str | N
         how["held_rows"] = int(repeat.sum())
     if "t" in data and jitter > 0:
         how["stamps_jitter_s"] = jitter
+    if len(t) and t[0] >= EPOCH_S:
+        how["time_origin_s"] = float(t[0])
     if clock is not None:
         names["t"] = how["clock_column"] = lay.header[clock[0]]
         unit = CLOCK_TIME

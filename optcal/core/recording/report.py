@@ -47,9 +47,10 @@ def describe_detection(obj: DetectionResult | PositionsData) -> str:
         how = "intervals given by hand" if det.method == "given" else "intervals from the label column"
     lines = [head, *([read] if read else [])]
     lines += [f"{det.n_intervals} static interval(s), {det.n_static_samples} samples ({100 * frac:.0f}%); {how}"]
+    t = rec.shown_t
     for i, (s, e) in enumerate(det.intervals):
         name = f" {det.names[i]}" if det.names else ""
-        lines.append(f"  {i:3d}{name}: samples {s}–{e - 1} ({rec.t[s]:.2f}–{rec.t[e - 1]:.2f} s, n = {e - s})")
+        lines.append(f"  {i:3d}{name}: samples {s}–{e - 1} ({t[s]:.2f}–{t[e - 1]:.2f} s, n = {e - s})")
     lines += [f"  note: {n}" for n in det.notes]
     return "\n".join(lines)
 
@@ -70,6 +71,8 @@ def reading_line(how: dict, n_saturated: int) -> str:
                      "sample")
     elif how.get("time_unit"):
         parts.append(f"time column in {how['time_unit'].replace('us', 'µs')}")
+    if how.get("time_origin_s"):
+        parts.append(f"times shown from the first sample's stamp, {how['time_origin_s']:.3f} s (a date's)")
     if how.get("stamps_jitter_s"):
         parts.append(f"its stamps wander by up to {how['stamps_jitter_s'] * 1e3:.3g} ms about an even rate, as a "
                      "host's arrival times do: the samples are taken evenly spaced")
