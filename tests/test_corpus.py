@@ -324,20 +324,24 @@ def test_phone_recording_shape_and_quantisation(phone_csv):
 
 
 def test_phone_detection_against_their_sections(phone_csv):
-    """Our detector (rate assumed 50 Hz) finds 35 intervals: each of the authors' 30 sections overlaps
-    one or two of ours and lies at least 74 % inside them (the threshold search keeps k = 3, the most precise
-    calibration, whose intervals are the shortest of those that find 35); the 4 we find after their last section are
-    more poses they did not use, one more splits their 4th section in two."""
+    """The variance detector (rate assumed 50 Hz) with its threshold search: k = 2, 33 intervals (k = 3-5 find 35,
+    6-10 find 34). Its score is how precisely each candidate's calibration is known; since the floor takes the
+    flicker along the force where the hand turned the phone (docs/noise.md, "A pose that turns"), every
+    candidate's errors are the residuals', and the stricter threshold's cleaner intervals win: 29 of the authors'
+    30 sections overlap ours (their 14th is left out; k = 3 found it), at least 40 %
+    inside them; 3 more poses after their last, which they did not use, and one section split in two. The
+    segmentation, the default, finds 38 and recalls 29 of the 30 (docs/segmentation.md)."""
     rec = read_recording(phone_csv, rate=float(HB_PHONE_RATE), units="m/s2")
     det = choose_threshold(rec, "linear9")
     a = det.intervals
     ov = np.clip(np.minimum(a[:, None, 1], HB_PHONE_IV[None, :, 1])
                  - np.maximum(a[:, None, 0], HB_PHONE_IV[None, :, 0]), 0, None)
-    assert det.n_intervals == 35
-    assert np.all((ov > 0).sum(axis=0) >= 1)
-    assert np.all(ov.sum(axis=0) / (HB_PHONE_IV[:, 1] - HB_PHONE_IV[:, 0]) > 0.72)
+    assert det.k == 2.0 and det.n_intervals == 33
+    assert [s["n_intervals"] for s in det.search] == [33, 35, 35, 35, 34, 34, 34, 34, 34]
+    frac = ov.sum(axis=0) / (HB_PHONE_IV[:, 1] - HB_PHONE_IV[:, 0])
+    assert np.flatnonzero(frac == 0).tolist() == [13] and np.all(np.delete(frac, 13) > 0.4)
     extra = a[(ov > 0).sum(axis=1) == 0]
-    assert len(extra) == 4 and np.all(extra[:, 0] > HB_PHONE_IV[-1, 1])
+    assert len(extra) == 3 and np.all(extra[:, 0] > HB_PHONE_IV[-1, 1])
 
 
 def test_phone_through_the_cli_against_their_sections_and_bias(phone_csv, tmp_path, capsys):
@@ -367,18 +371,19 @@ def test_phone_through_the_cli_against_their_sections_and_bias(phone_csv, tmp_pa
 
 
 def test_phone_residual_against_the_noise_floor(phone_csv):
-    """The within-interval scatter of the position means is 0.58 mg (σ/√n: 3.9 mg steps, a sample SD of
+    """The within-interval scatter of the position means is 0.59 mg (σ/√n: 3.9 mg steps, a sample SD of
     about 6.5 mg per axis, 56 to 314 samples a position); the floor with the phone's correlated noise
-    (optcal.core.noise.floor) is 1.62 mg. linear9 leaves 2.6 mg, 1.6 times that floor (4.5 times σ/√n), and
+    (optcal.core.recording.floor; on z, where the hand turned the phone, the flicker read along the force) is
+    1.00 mg (1.62 with z's per-axis flicker). linear9 leaves 2.6 mg, 2.6 times that floor (4.4 times σ/√n), and
     nonlinear12 2.55 mg: the phone was held in the hand, and no polynomial term explains the excess."""
     rec = read_recording(phone_csv, rate=float(HB_PHONE_RATE), units="m/s2")
     det = choose_threshold(rec, "linear9")
     data = positions_from_recording(rec, det)
     cal = calibrate(data, "linear9")
     floor, white = _noise_floor_g(data, cal.x[:3]), _noise_floor_g(data, cal.x[:3], white=True)
-    assert 0.4e-3 < white < 0.8e-3  # measured 0.58 mg
-    assert 1.3e-3 < floor < 2.0e-3  # measured 1.62 mg
-    assert 1.2 < cal.fit.rms_g / floor < 2.0  # measured 1.60
+    assert 0.4e-3 < white < 0.8e-3  # measured 0.59 mg
+    assert 0.8e-3 < floor < 1.3e-3  # measured 1.00 mg
+    assert 2.0 < cal.fit.rms_g / floor < 3.2  # measured 2.58
     theirs = calibrate(positions_from_recording(rec, given_intervals(rec, HB_PHONE_IV)), "linear9")
     assert theirs.fit.rms_g == pytest.approx(cal.fit.rms_g, rel=0.1)  # 2.67 mg against 2.60 mg
 

@@ -791,3 +791,20 @@ def test_unix_times_are_shown_from_the_first_sample(tmp_path, poses, capsys):
     assert "times shown from the first sample's stamp, 1535630275.916 s" in out
     assert "    0: samples 0–" in out and "(0.00–" in out and "15356302" not in out.split("\n", 2)[2]
     assert read_recording(_write(tmp_path / "zero.csv", "t,ax,ay,az", np.column_stack([rec.t, rec.N]))).origin == 0
+
+
+def test_a_loggers_prompts_between_the_data_rows_are_named_by_their_line(tmp_path, capsys):
+    """A serial monitor's capture: a banner, then blocks of samples with the firmware's prompts between them. The
+    refusal names the first prompt's line in the file (not its data row), quotes it, counts the others and says
+    what to do, in one line."""
+    rng = np.random.default_rng(2)
+    lines = ["--- Terminal on /dev/ttyUSB0 | 115200 8-N-1", "--- Quit: Ctrl+C"]
+    for _ in range(3):
+        lines.append(">>> Gathering data for 10 seconds...")
+        lines += [", ".join(f"{v:.6f}" for v in row) for row in rng.normal(0, 0.01, (300, 3)) + [0, 0, 9.8]]
+        lines.append(">>> Type key when ready...")
+    path = tmp_path / "monitor.csv"
+    path.write_text("\n".join(lines) + "\n")
+    line = _refused(["calibrate", path, "--raw", "--units", "m/s2", "--rate", 100], capsys,
+                    "line 304 holds text between the data rows ('>>> Type key when ready...'), and 4 more such line(s)")
+    assert "remove them" in line

@@ -254,7 +254,7 @@ def _outlier_notes(diag: PositionDiagnostics, loss: str) -> list[str]:
            "try the robust loss: --solver scipy-trf --option loss=cauchy, or re-record or remove it")
     return [f"{diag.name(i)} is {_micro_g(diag.off[i])} off the fit of the other positions, "
             f"{diag.statistic[i]:.3g} σ "
-            f"({diag.sigma_source} noise {diag.noise_g[i] * 1e6:.3g} µg, threshold {diag.threshold:.2f} σ): "
+            f"({diag.sigma_source} noise {_micro_g(diag.noise_g[i])}, threshold {diag.threshold:.2f} σ): "
             f"displaced or moved during the position? {fix}" for i in idx]
 
 

@@ -42,13 +42,14 @@ that one point an unbounded weight, and the passes swung between b < 0 and a b >
 error, a confident flicker level that the points did not hold (docs/noise.md, "The floor on hand-held logs").
 
 A pose that turns: the residual sees each mean along its specific force only, and a pose turning while it is
-held moves the output across the force (to first order), which the per-axis Allan variance counts as noise. A
-check, which does not change the floor: each axis's Allan variance is read again from the components along the
-force alone (:func:`along_avar`: the projections on each interval's force direction, :func:`force_directions`,
-solved for the three axes by least squares at each τ; consistent whether the pose turns or not, less
-precise), and the white + flicker model fitted to it over the same τ. A per-axis flicker level more than
-:data:`TURN_Z` standard errors (the along-force fit's) above the along-force one is said in a note
-(``turned``, ``turn_z``, ``along_bias_instability``): the floor may then exceed the noise of the means.
+held moves the output across the force (to first order), which the per-axis Allan variance counts as noise.
+Each axis's Allan variance is read again from the components along the force alone (:func:`along_avar`: the
+projections on each interval's force direction, :func:`force_directions`, solved for the three axes by least
+squares at each τ; consistent whether the pose turns or not, less precise), and the white + flicker model
+fitted to it over the same τ. Where the per-axis flicker level lies more than :data:`TURN_Z` standard errors
+(the along-force fit's) above the along-force one, the poses turned: a note says so (``turned``, ``turn_z``,
+``along_bias_instability``, ``axis_bias_instability``) and that axis's floor takes the along-force level and
+its standard error, the noise the residual sees (docs/noise.md, "A pose that turns").
 
 The floor is an estimate: B² from a few seconds of data has a standard error (the fit's), which the span
 multiplies. Its effective degrees of freedom (``edf``, Satterthwaite: 2·(Σ sem²)²/Var(Σ sem²)) let the χ²
@@ -105,6 +106,9 @@ class NoiseFloor:
     along_bias_instability: np.ndarray | None = None  # (3,) B read along the force alone, units (NaN: untested)
     coef: np.ndarray | None = None  # (3, 2) the Allan model's white and flicker coefficients as fitted (B² unclipped)
     coef_sd: np.ndarray | None = None  # (3,) the flicker coefficient's standard error
+    # (3,) B as each axis's own Allan variance gives it, units: the floor's but where the poses turned (``turned``:
+    # there the floor takes the along-force level)
+    axis_bias_instability: np.ndarray | None = None
 
     def covariance(self, k: int) -> np.ndarray:
         """Covariance (p, p) of the means of axis ``k`` about their average, as the floor models it: the
@@ -425,15 +429,19 @@ def noise_floor(N: np.ndarray, intervals: np.ndarray, start_s: np.ndarray, rate_
         b_along[seen] = np.sqrt(np.maximum(coef_f[seen, 1], 0.0)) / FLICKER_FACTOR
         turn_z[seen] = (coef[seen, 1] - coef_f[seen, 1]) / sd_f[seen]
     turned = (coef[:, 1] > 0) & (np.nan_to_num(turn_z, nan=-np.inf) > TURN_Z)
+    b_axis = np.sqrt(np.maximum(coef[:, 1], 0.0)) / FLICKER_FACTOR
     if turned.any():
         def fmt(v):
             return "/".join(format(float(x), ".3g") for x in v)
 
         notes.append(f"the poses turned while held ({'/'.join(np.array(list('xyz'))[turned])}: flicker B = "
-                     f"{fmt(np.sqrt(coef[turned, 1]) / FLICKER_FACTOR)} {units} per axis, "
-                     f"{fmt(b_along[turned])} {units} along the force, {fmt(turn_z[turned])} standard errors "
-                     "apart): a turn moves the output across the force, where the residual does not look, so the "
-                     "floor may exceed the noise of the means")
+                     f"{fmt(b_axis[turned])} {units} per axis, {fmt(b_along[turned])} {units} along the force, "
+                     f"{fmt(turn_z[turned])} standard errors apart): a turn moves the output across the force, "
+                     "where the residual does not look, so the floor takes the flicker along the force there")
+        # the flicker the residual sees: along the force, where a turn does not enter (its fit's level and SE)
+        coef, sd_b = coef.copy(), sd_b.copy()
+        coef[turned, 1] = np.maximum(coef_f[turned, 1], 0.0)
+        sd_b[turned] = sd_f[turned]
     B2 = coef[:, 1] / FLICKER_FACTOR**2  # B², possibly negative: the unbiased estimate
     model = coef[None, :, 0] / T[:, None] + B2[None, :] * g[:, None]
     sem = np.sqrt(np.maximum(model, white**2))
@@ -444,7 +452,8 @@ def noise_floor(N: np.ndarray, intervals: np.ndarray, start_s: np.ndarray, rate_
     if not math.isfinite(fs):
         notes.append("the recording has no rate: τ and the coefficients' seconds are samples")
     return NoiseFloor(sem, white, "allan", units, fs, np.sqrt(coef[:, 0]), np.sqrt(np.maximum(B2, 0.0)), tau,
-                      np.sqrt(avar), at_T, notes, edf, G, np.maximum(B2, 0.0), turned, turn_z, b_along, coef, sd_b)
+                      np.sqrt(avar), at_T, notes, edf, G, np.maximum(B2, 0.0), turned, turn_z, b_along, coef, sd_b,
+                      b_axis)
 
 
 def _same_model(like: NoiseFloor, white: np.ndarray, T: np.ndarray, start_s: np.ndarray) -> NoiseFloor:
@@ -461,4 +470,4 @@ def _same_model(like: NoiseFloor, white: np.ndarray, T: np.ndarray, start_s: np.
     at_T = np.sqrt(np.maximum(coef[None, :, 0] / T[:, None] + coef[None, :, 1], 0.0))
     return NoiseFloor(sem, white, like.estimator, like.units, like.rate_hz, like.density, like.bias_instability,
                       like.tau_s, like.adev, at_T, list(like.notes), edf, G, like.b2, like.turned, like.turn_z,
-                      like.along_bias_instability, coef, sd_b)
+                      like.along_bias_instability, coef, sd_b, like.axis_bias_instability)

@@ -461,8 +461,34 @@ def _load_numeric(path: Path, lay: Layout, usecols: list[int], max_rows: int | N
             return np.loadtxt(fh, delimiter=lay.delimiter, skiprows=lay.skiprows, usecols=usecols, ndmin=2,
                               comments=_comment_marks(path), dtype=float, converters=comma, max_rows=max_rows)
     except ValueError as exc:
+        text = _text_rows(path, lay)
+        if text:
+            line, first = text[0]
+            more = f", and {len(text) - 1} more such line(s)" if len(text) > 1 else ""
+            raise InputError(f"{path}: line {line} holds text between the data rows ({first[:40]!r}){more}; remove "
+                             "them (a logger's prompts or messages) and read the file again") from None
         msg = str(exc).splitlines()[0].rstrip(".")
         raise InputError(f"{path}: {msg} (data start on line {lay.skiprows + 1}); fix or remove that row") from None
+
+
+def _text_rows(path: Path, lay: Layout) -> list[tuple[int, str]]:
+    """The lines (1-based number, text) after the header whose first field is no number: a logger's prompts or
+    messages between the data rows (comment lines and blank lines aside)."""
+    m = _comment_marks(path)
+    marks = () if m is None else (m,) if isinstance(m, str) else tuple(m)
+    out = []
+    with _text(path) as fh:
+        for k, line in enumerate(fh, 1):
+            if k <= lay.skiprows:
+                continue
+            field = line.strip().split(lay.delimiter)[0].strip() if line.strip() else ""
+            if not field or (marks and line.lstrip().startswith(marks)):
+                continue
+            try:
+                float(field.replace(",", ".") if lay.decimal == "," else field)
+            except ValueError:
+                out.append((k, line.strip()))
+    return out
 
 
 def _comment_marks(path: Path, chunk: int = 1 << 20):

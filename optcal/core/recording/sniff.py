@@ -54,7 +54,8 @@ ACC_STEMS = ("a", "acc", "accel", "acceleration", "accelerometer", "accl",
 GYRO_STEMS = ("g", "gyr", "gyro", "gyroscope", "w", "omega", "angvel", "ang_vel", "angular_velocity", "rate",
               "as", "角速度")  # as: WitMotion's exports (AsX(°/s): angular speed)
 ALIASES = {
-    "t": ("t", "time", "timestamp", "time_s", "t_s", "seconds", "tx", "time_ms", "t_ms", "timestamp_ms", "时间"),
+    "t": ("t", "time", "timestamp", "time_s", "t_s", "seconds", "tx", "time_ms", "t_ms", "timestamp_ms", "mstime",
+          "time_us", "t_us", "timestamp_us", "ustime", "time_ns", "timestamp_ns", "nstime", "时间"),
     **{a: tuple(f"{stem}_{a[1]}" for stem in ACC_STEMS) + tuple(f"{stem}_{a[1]}_raw" for stem in ACC_STEMS[1:3])
        for a in ("ax", "ay", "az")},
     **{g: tuple(f"{stem}_{g[1]}" for stem in GYRO_STEMS) + (f"gyr_{g[1]}_raw", f"gyro_{g[1]}_raw") for g in GYRO},
