@@ -808,3 +808,21 @@ def test_a_loggers_prompts_between_the_data_rows_are_named_by_their_line(tmp_pat
     line = _refused(["calibrate", path, "--raw", "--units", "m/s2", "--rate", 100], capsys,
                     "line 304 holds text between the data rows ('>>> Type key when ready...'), and 4 more such line(s)")
     assert "remove them" in line
+
+
+def test_a_refused_pose_is_named_by_its_time(poses):
+    """A pose the detection refuses (without a gyroscope, one that shakes at 10 times the noise) is named in the
+    note with its times and the reason, so that a user finds it without a figure."""
+    from dataclasses import replace
+
+    from optcal.core.recording import segment_static
+
+    rec, rests = poses
+    s, e = rests[5]
+    N = rec.N.copy()
+    N[s:e] += 0.01 * np.random.default_rng(0).standard_normal((e - s, 3))
+    det = segment_static(replace(rec, N=N))
+    note = next(n for n in det.notes if "not at rest" in n)
+    assert "as long as a pose: " in note and "(noisy)" in note
+    t0, t1 = (float(v) for v in note.split("as long as a pose: ")[1].split(" s (noisy)")[0].split("-"))
+    assert abs(t0 - rec.t[s]) < 0.2 and abs(t1 - rec.t[e - 1]) < 0.2, (note, rec.t[s], rec.t[e - 1])

@@ -767,9 +767,15 @@ def segment_static(recording: Recording, *, min_static_s: float | None = None,
     if moving.any():
         blocks = int(np.sum(seg[moving, 1] - seg[moving, 0]))
         turn = int(np.sum(sg.reason == "turn"))
+        # the ones as long as a pose are where a user looks for a pose the detection refused
+        long = np.flatnonzero(moving & ((seg[:, 1] - seg[:, 0]) * b >= m) & (sg.reason != "turn"))
+        t = recording.shown_t
+        where = "; as long as a pose: " + ", ".join(
+            f"{t[seg[i, 0] * b]:.1f}-{t[min(seg[i, 1] * b, len(t)) - 1]:.1f} s ({sg.reason[i]})" for i in long[:4]
+        ) + (f" … ({len(long) - 4} more)" if len(long) > 4 else "") if len(long) else ""
         notes.append(f"{int(moving.sum())} segment(s) ({blocks * b} samples) not at rest: "
                      f"{int(np.sum(sg.reason == 'trend'))} trend, {int(np.sum(sg.reason == 'noisy'))} too noisy"
-                     + (f", {turn} turning (gyroscope)" if turn else ""))
+                     + (f", {turn} turning (gyroscope)" if turn else "") + where)
     if sg.n_split:
         notes.append(f"{sg.n_split} segment(s) holding a rest and part of a motion cut to their still parts")
     if sg.n_bad_blocks:
