@@ -66,6 +66,24 @@ def test_a_wobble_within_a_tenth_of_a_degree_stays_a_rest():
     assert _spans(det.intervals, theta)[2] == pytest.approx(0.1, abs=0.005)
 
 
+def _shaking_third_hold(seed, acc_g, on):
+    """The sag recording without a sag, its third hold shaken (white vibration of ``acc_g`` on the accelerometer
+    and 0.5 °/s on the gyroscope, where ``on`` (HOLD, 1) is 1): the recording, the rates, and a function giving a
+    detection's intervals that reach into that hold."""
+    rng = np.random.default_rng(seed)
+    acc, W, _ = _sag_recording(rng, 0.0)
+    third = slice(2 * (HOLD + TURN), 2 * (HOLD + TURN) + HOLD)
+    A = acc.N.copy()
+    A[third] += acc_g * rng.standard_normal((HOLD, 3)) * on
+    W[third] += 0.5 * rng.standard_normal((HOLD, 3)) * on
+
+    def inside(det):
+        iv = det.intervals
+        return iv[(iv[:, 1] > third.start) & (iv[:, 0] < third.stop)]
+
+    return Recording(acc.t, A, None, "g", RATE, acc.saturated), W, inside
+
+
 @pytest.mark.parametrize("seed", range(4))
 def test_a_shaking_hold_the_gyroscope_sees_still_is_a_rest(seed, monkeypatch):
     """The third hold shakes (6 mg of white vibration on the accelerometer, six times its noise; 0.5 °/s on the
@@ -73,18 +91,7 @@ def test_a_shaking_hold_the_gyroscope_sees_still_is_a_rest(seed, monkeypatch):
     accelerometer alone keeps nothing of it. With the gyroscope, a shaking segment it sees still throughout and
     lasting two shortest poses is a rest: one interval of at least 1 s inside the hold (1.3-3.8 s measured),
     none without that rule."""
-    rng = np.random.default_rng(seed)
-    acc, W, theta = _sag_recording(rng, 0.0)
-    third = slice(2 * (HOLD + TURN), 2 * (HOLD + TURN) + HOLD)
-    A = acc.N.copy()
-    A[third] += 0.006 * rng.standard_normal((HOLD, 3))
-    W[third] += 0.5 * rng.standard_normal((HOLD, 3))
-    shaking = Recording(acc.t, A, None, "g", RATE, acc.saturated)
-
-    def inside(det):
-        iv = det.intervals
-        return iv[(iv[:, 1] > third.start) & (iv[:, 0] < third.stop)]
-
+    shaking, W, inside = _shaking_third_hold(seed, 0.006, np.ones((HOLD, 1)))
     kept = inside(segment_static(shaking, gyro=W))
     assert len(kept) == 1 and kept[0, 1] - kept[0, 0] >= RATE
     assert len(inside(segment_static(shaking, gyro=False))) == 0
@@ -97,19 +104,8 @@ def test_a_hold_that_vibrates_in_bursts_is_a_rest(seed, monkeypatch):
     """The third hold vibrates in bursts (8 mg and 0.5 °/s, 0.3 s on, 0.3 s off): step 7 cuts it into loud pieces
     and quiet ones, each shorter than a pose. The gyroscope sees them still throughout: together, lasting two
     shortest poses, they are one rest (1.3-3.1 s of the 5-s hold measured); without that rule none is kept."""
-    rng = np.random.default_rng(seed)
-    acc, W, theta = _sag_recording(rng, 0.0)
-    third = slice(2 * (HOLD + TURN), 2 * (HOLD + TURN) + HOLD)
     burst = (np.floor(np.arange(HOLD) / RATE / 0.3) % 2 == 0)[:, None]
-    A = acc.N.copy()
-    A[third] += 0.008 * rng.standard_normal((HOLD, 3)) * burst
-    W[third] += 0.5 * rng.standard_normal((HOLD, 3)) * burst
-    shaking = Recording(acc.t, A, None, "g", RATE, acc.saturated)
-
-    def inside(det):
-        iv = det.intervals
-        return iv[(iv[:, 1] > third.start) & (iv[:, 0] < third.stop)]
-
+    shaking, W, inside = _shaking_third_hold(seed, 0.008, burst)
     kept = inside(segment_static(shaking, gyro=W))
     assert len(kept) == 1 and kept[0, 1] - kept[0, 0] >= RATE
     monkeypatch.setattr(segment, "_vibrating_holds", lambda seg, reason, still: (seg, reason))
