@@ -415,10 +415,10 @@ def noise_floor(N: np.ndarray, intervals: np.ndarray, start_s: np.ndarray, rate_
     G = centred_covariance(flicker_covariance(start_s, T))
     g = np.diag(G)
     coef, sd_b, firsts = _fit_axes(tau, avar, np.repeat(nu[:, None], 3, axis=1))
-    # A check, not a change of the floor: the residual sees each mean along its force only, and a pose that turns
-    # while held moves the output across the force, which the per-axis Allan variance counts as flicker. The
-    # components along the force alone (no turn enters them) give a consistent, less precise flicker level;
-    # TURN_Z of its standard errors below the per-axis level says the poses turned (module docstring).
+    # The residual sees each mean along its force only, and a pose that turns while held moves the output across
+    # the force, which the per-axis Allan variance counts as flicker. The components along the force alone (no
+    # turn enters them) give a consistent, less precise flicker level; TURN_Z of its standard errors below the
+    # per-axis level says the poses turned, and that axis's floor then takes it (module docstring).
     notes = []
     turn_z = np.full(3, np.nan)
     b_along = np.full(3, np.nan)
