@@ -826,3 +826,26 @@ def test_a_refused_pose_is_named_by_its_time(poses):
     assert "as long as a pose: " in note and "(noisy)" in note
     t0, t1 = (float(v) for v in note.split("as long as a pose: ")[1].split(" s (noisy)")[0].split("-"))
     assert abs(t0 - rec.t[s]) < 0.2 and abs(t1 - rec.t[e - 1]) < 0.2, (note, rec.t[s], rec.t[e - 1])
+
+
+def test_apply_writes_every_row_at_its_own_time(tmp_path, capsys):
+    """apply turns each row as written into a calibrated row: a log that repeats its samples keeps all its rows, and
+    a host's jittering stamps are written as they were (the fits read the sensor's samples on an even grid)."""
+    from optcal.core.synthetic_imu import handheld_imu
+
+    s = handheld_imu(np.random.default_rng(1), n_poses=24, p_reseat_still=0.0)
+    n = 4 * len(s.acc.N)
+    t = np.floor((np.arange(n) * 0.0025 + np.random.default_rng(3).uniform(0, 0.001, n)) / 0.000256) * 0.000256
+    rows = np.column_stack([t, np.repeat(s.acc.N, 4, axis=0)])
+    path = tmp_path / "log.csv"
+    np.savetxt(path, rows, delimiter=",", fmt=["%.6f", "%.8g", "%.8g", "%.8g"], header="t,ax,ay,az", comments="")
+    rec = read_recording(path, units="g")
+    assert rec.reading["held_rows"] > 0 and rec.reading["stamps_jitter_s"] > 0
+    code, _, err = _cli(["calibrate", path, "--raw", "--units", "g", "--model", "diag6", "-o", tmp_path / "c.json"],
+                        capsys)
+    assert code == 0, err
+    code, _, err = _cli(["apply", tmp_path / "c.json", path, "-o", tmp_path / "out.csv"], capsys)
+    assert code == 0, err
+    out = np.loadtxt(tmp_path / "out.csv", delimiter=",", skiprows=1)
+    assert len(out) == n
+    np.testing.assert_allclose(out[:, 0], rows[:, 0], atol=1e-9)

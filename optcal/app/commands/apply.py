@@ -202,9 +202,10 @@ def run(args) -> int:
             check_gyro_units(args.data, str(block.get("units", {}).get("raw")))
     try:
         with flag_names():
+            # every row as written, at its own time: apply writes one calibrated row per row read
             rec = read_recording(args.data, args.columns, args.rate, cal.units_out, saturation=args.saturation,
                                  need_time="t" in cal.model.needs, adc=args.adc, time_unit=args.time_unit,
-                                 topic=args.topic)
+                                 topic=args.topic, held=False, even=False)
     except InputError as exc:
         if "looks like" not in str(exc) or args.units is not None:
             raise

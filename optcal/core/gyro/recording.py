@@ -98,10 +98,11 @@ def read_gyro(data, acc, *, gyro=None, gyro_columns=None, units: str | None, rat
     if gyro is None and acc.reading.get("topic") is not None:
         rec = log_gyro(acc, units or "rad/s", gyro_columns)
         return replace(rec, reading={**rec.reading, "gyro_units": units or "rad/s"})
+    even = bool(acc.reading.get("stamps_jitter_s"))  # the gyroscope's times as the accelerometer's were taken
     if gyro is not None:
         cols = _columns(gyro_columns, 4)
         spec = None if cols is None else f"t={cols[0]},ax={cols[1]},ay={cols[2]},az={cols[3]}"
-        rec = read_recording(gyro, spec, rate, _READER_UNITS.get(units, "volts"), time_unit=time_unit)
+        rec = read_recording(gyro, spec, rate, _READER_UNITS.get(units, "volts"), time_unit=time_unit, even=even)
         units = _units(units, [rec.columns[a] for a in ("ax", "ay", "az")], gyro, calibration)
         return replace(rec, reading={**rec.reading, "gyro_units": units})
     cols = _columns(gyro_columns, 3)
@@ -121,7 +122,7 @@ def read_gyro(data, acc, *, gyro=None, gyro_columns=None, units: str | None, rat
         return replace(rec, t=acc.t, columns={**rec.columns, "t": time},
                        reading={**rec.reading, "time_unit": CLOCK_TIME, "gyro_units": units})
     spec = (f"t={time}," if time is not None else "") + f"ax={cols[0]},ay={cols[1]},az={cols[2]}"
-    rec = _rows_of(read_recording(data, spec, rate, label, time_unit=time_unit, held=False), acc)
+    rec = _rows_of(read_recording(data, spec, rate, label, time_unit=time_unit, held=False, even=even), acc)
     return replace(rec, reading={**rec.reading, "gyro_units": units})
 
 

@@ -121,7 +121,8 @@ class Recording:
 def read_recording(path, columns=None, rate: float | None = None, units: str | None = "g", *,
                    saturation: float | None = None, labels: str | None = None, need_time: bool = True,
                    adc: str | None = None, time_unit: str | None = None,
-                   refuse_positions: bool = False, topic: str | None = None, held: bool = True) -> Recording:
+                   refuse_positions: bool = False, topic: str | None = None, held: bool = True,
+                   even: bool = True) -> Recording:
     """Read a raw recording (docs/design.md, "Raw recordings"). ``columns``: ``"t,ax,ay,az"`` (names or 0-based
     indices; 3 entries mean ax,ay,az, 5 add temp) or ``"ax=acc_x,..."``; ``rate`` (Hz) when there is no time column;
     ``units`` of the outputs (None: as the accelerometer's columns' names give them, ``ax(g)``, ``Acc X [m/s^2]``,
@@ -134,7 +135,9 @@ def read_recording(path, columns=None, rate: float | None = None, units: str | N
     is then the sample index and the rate NaN); ``refuse_positions``: a file that looks like a positions file is an
     error that says so (calibration's path); ``held``: a log that repeats the sensor's samples (rows equal to the
     one before on every axis, :func:`held_rows`) keeps each sample once, at its first row, and its rate is that of
-    the sensor (``reading["held_rows"]`` says how many rows were left out; False reads every row). A ROS bag or a
+    the sensor (``reading["held_rows"]`` says how many rows were left out; False reads every row); ``even``: a
+    time column whose stamps wander about an even rate as a host's arrival times do is taken on that even grid
+    (:func:`even_times`; ``reading["stamps_jitter_s"]``; False keeps the stamps as written). A ROS bag or a
     PX4 ULog is read from its IMU messages (:func:`read_log`; ``topic`` picks among them) in the units and at the
     stamps the log gives. Every problem is an
     InputError."""
@@ -211,7 +214,7 @@ def read_recording(path, columns=None, rate: float | None = None, units: str | N
         given = rate if rate is not None else meta_rate
         unit = time_unit or time_scale(float(np.median(steps)), given, path)
         t = t * TIME_UNITS[unit]
-        t, jitter = even_times(t) if log is None else (t, 0.0)
+        t, jitter = even_times(t) if log is None and even else (t, 0.0)
         fs = 1.0 / float(np.median(np.diff(t)))
     else:
         fs = rate if rate is not None else meta_rate
