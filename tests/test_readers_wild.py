@@ -849,3 +849,19 @@ def test_apply_writes_every_row_at_its_own_time(tmp_path, capsys):
     out = np.loadtxt(tmp_path / "out.csv", delimiter=",", skiprows=1)
     assert len(out) == n
     np.testing.assert_allclose(out[:, 0], rows[:, 0], atol=1e-9)
+
+
+def test_at_a_low_rate_a_pose_has_at_least_eight_samples():
+    """At 5 Hz the default shortest pose, 0.5 s, would be 3 samples, too few to tell a rest from a piece of a slow
+    turn (a turntable log at 5 Hz gave 27 "rests" of 1-5 samples inside its turns): a pose is never shorter than
+    8 samples. 12 poses held 10 s, turned at 5 °/s: every pose found, and no interval from a turn."""
+    from optcal.core.recording import segment_static
+
+    syn = poses_recording(np.random.default_rng(8), n_poses=12, hold_s=10.0, rate=5.0, turn_rate_dps=5.0,
+                          noise_g=2e-3)
+    det = segment_static(syn.recording)
+    assert det.min_samples == 8
+    iv = det.intervals
+    inside = (iv[:, None, 0] >= syn.rests[None, :, 0] - 2) & (iv[:, None, 1] <= syn.rests[None, :, 1] + 2)
+    assert inside.any(axis=1).all(), iv  # no interval outside a pose
+    assert len(np.unique(np.argmax(inside, axis=1))) == 12  # every pose

@@ -57,6 +57,8 @@ MERGE_SIGMA = 1.0  # neighbouring rests closer than this many sample-noise SDs (
 Q10_HALF_NORMAL = 0.12566  # the 10th percentile of |x| for x ~ N(0, 1)
 TRUNCATED_VARIANCE_3SD = 0.97334  # the variance of N(0, 1) cut to ±3, relative to 1
 DEFAULT_MIN_STATIC_S = 0.5  # s: the shortest pose found by default
+MIN_POSE_SAMPLES = BLOCKS_PER_POSE  # samples: never a shorter pose (at 5 Hz, 0.5 s is 3 samples, too few to tell a
+# rest from a slow turn's piece: a turntable log at 5 Hz gave 27 "rests" of 1-5 samples inside its turns)
 DEFAULT_WINDOW_S = 10.0  # s: the rest test's longest window (a slow turn's pieces are tested whole)
 LOCAL_MIN_DOF = 30  # degrees of freedom (3 per block) before a window's own noise may raise the recording's
 NO_RATE_SAMPLES = 50  # samples: the shortest pose of a recording without a rate (its window: twice that)
@@ -402,7 +404,7 @@ def segment_recording(rec: Recording, min_static_s: float | None = None,
     n = len(N)
     rate = float(rec.rate)
     if np.isfinite(rate) and rate > 0:
-        m = _seconds(min_static_s, DEFAULT_MIN_STATIC_S, rate, "min_static_s")
+        m = max(MIN_POSE_SAMPLES, _seconds(min_static_s, DEFAULT_MIN_STATIC_S, rate, "min_static_s"))
         win = _seconds(window_s, DEFAULT_WINDOW_S, rate, "window_s")
         b = max(1, min(m // BLOCKS_PER_POSE, int(round(MAX_BLOCK_S * rate)) or 1))
     else:  # no rate: sample counts (seconds cannot be converted)
@@ -740,7 +742,7 @@ def segment_static(recording: Recording, *, min_static_s: float | None = None,
     sg = segment_recording(recording, min_static_s, window_s, W=gyro if refine else None, refine=refine)
     b = sg.block
     rate = float(recording.rate)
-    m = (_seconds(min_static_s, DEFAULT_MIN_STATIC_S, rate, "min_static_s") if np.isfinite(rate)
+    m = (max(MIN_POSE_SAMPLES, _seconds(min_static_s, DEFAULT_MIN_STATIC_S, rate, "min_static_s")) if np.isfinite(rate)
          else NO_RATE_SAMPLES)
     seg, rest = sg.segments, sg.rest
     keep = sg.kept
