@@ -50,7 +50,7 @@ def check_observable(problem, x_full: np.ndarray) -> analysis.Observability:
         names = [n for n in obs.names if n in lead]
         raise InputError(f"the motions do not determine gyroscope parameter(s) {', '.join(names)} "
                          f"(rank {obs.rank} of {obs.n_parameters}): rotate the sensor about all three axes "
-                         "between rests")
+                         "between rests (--force-weak cannot: no one fit exists)")
     return obs
 
 
