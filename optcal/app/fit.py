@@ -27,7 +27,7 @@ from optcal.core.analysis import (
 )
 from optcal.core.calibration import Calibration
 from optcal.core.data import PositionsData
-from optcal.core.errors import InputError
+from optcal.core.errors import InputError, listing
 from optcal.core.model import Model, get_model
 from optcal.core.presets import Presets
 from optcal.core.problem import CalibrationProblem
@@ -270,11 +270,10 @@ def _unchecked_notes(diag: PositionDiagnostics) -> list[str]:
     if not idx.size:
         return []
     one = idx.size == 1
-    names = ", ".join(diag.name(i) for i in idx[:6]) + (f" … ({idx.size - 6} more)" if idx.size > 6 else "")
-    return [f"{names}: alone {'pins' if one else 'pin'} part of the model (leverage "
-            f"{'/'.join(format(float(diag.leverage[i]), '.4f') for i in idx[:6])}), so the other positions cannot "
-            f"check {'it' if one else 'them'} for a displacement (not tested); record another position near "
-            f"{'it' if one else 'each'}"]
+    return [f"{listing((diag.name(i) for i in idx), limit=6)}: alone {'pins' if one else 'pin'} part of the model "
+            f"(leverage {listing((format(float(diag.leverage[i]), '.4f') for i in idx), limit=6, sep='/')}), so the "
+            f"other positions cannot check {'it' if one else 'them'} for a displacement (not tested); record another "
+            f"position near {'it' if one else 'each'}"]
 
 
 def _weak_notes(problem: CalibrationProblem, x: np.ndarray, sd: np.ndarray, obs: Observability,

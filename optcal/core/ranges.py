@@ -16,29 +16,35 @@ def range_rows(r: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return np.arange(int(lens.sum())) - np.repeat(np.cumsum(lens) - lens, lens) + np.repeat(r[:, 0], lens), which
 
 
-def range_means(x: np.ndarray, r: np.ndarray) -> np.ndarray:
-    """The mean of ``x`` (n,) or (n, k) over each non-empty range of ``r`` (m, 2): (m,) or (m, k)."""
+def pooled(x: np.ndarray, r: np.ndarray):
+    """The rows of the non-empty ranges ``r`` (m, 2) of ``x`` (n, k) one after another, each about its range's
+    mean; the ranges' lengths, where each starts among the pooled rows, and their means (m, k)."""
     r = np.asarray(r, np.int64).reshape(-1, 2)
     rows, _ = range_rows(r)
-    lens = r[:, 1] - r[:, 0]
-    first = np.cumsum(lens) - lens
+    lengths = r[:, 1] - r[:, 0]
+    first = np.cumsum(lengths) - lengths
+    y = np.asarray(x, float)[rows]
+    means = np.add.reduceat(y, first, axis=0) / lengths[:, None]
+    return y - np.repeat(means, lengths, axis=0), lengths, first, means
+
+
+def range_means(x: np.ndarray, r: np.ndarray) -> np.ndarray:
+    """The mean of ``x`` (n,) or (n, k) over each non-empty range of ``r`` (m, 2): (m,) or (m, k)."""
     x = np.asarray(x, float)
-    sums = np.add.reduceat(x[rows], first, axis=0)
-    return sums / (lens if x.ndim == 1 else lens[:, None])
+    means = pooled(x.reshape(len(x), -1), r)[3]
+    return means[:, 0] if x.ndim == 1 else means
+
+
+def pooled_sds(y: np.ndarray, lengths: np.ndarray, first: np.ndarray, ddof: int = 1) -> np.ndarray:
+    """The standard deviations (m, k) of the ranges of :func:`pooled`'s rows ``y`` (each about its mean), with
+    ``ddof``; 0 for a range of at most ``ddof`` rows."""
+    dof = lengths - ddof
+    ss = np.add.reduceat(y * y, first, axis=0)
+    return np.sqrt(ss / np.where(dof > 0, dof, 1)[:, None]) * (dof > 0)[:, None]
 
 
 def range_means_sds(x: np.ndarray, r: np.ndarray, ddof: int = 1) -> tuple[np.ndarray, np.ndarray]:
     """The means of ``x`` (n, k) over the non-empty ranges of ``r`` (m, 2), and the standard deviations about
-    them with ``ddof`` (two passes, as ``numpy.std``: the deviations are taken from each range's own mean; 0
-    for a range of at most ``ddof`` rows)."""
-    r = np.asarray(r, np.int64).reshape(-1, 2)
-    rows, which = range_rows(r)
-    lens = r[:, 1] - r[:, 0]
-    first = np.cumsum(lens) - lens
-    y = np.asarray(x, float)[rows]
-    means = np.add.reduceat(y, first, axis=0) / lens[:, None]
-    y -= means[which]
-    ss = np.add.reduceat(y * y, first, axis=0)
-    dof = lens - ddof
-    sds = np.sqrt(ss / np.where(dof > 0, dof, 1)[:, None]) * (dof > 0)[:, None]
-    return means, sds
+    them with ``ddof`` (two passes, as ``numpy.std``: the deviations are taken from each range's own mean)."""
+    y, lengths, first, means = pooled(x, r)
+    return means, pooled_sds(y, lengths, first, ddof)

@@ -132,14 +132,11 @@ def _rows_of(rec, acc):
     at its samples' times."""
     if not acc.reading.get("held_rows"):
         return rec
-    at = np.searchsorted(rec.t, acc.t)
-    at = np.clip(at, 0, len(rec) - 1)
+    at = np.clip(np.searchsorted(rec.t, acc.t), 0, len(rec) - 1)
     if not np.array_equal(rec.t[at], acc.t):
         raise InputError(f"{acc.path}: the gyroscope's rows do not line up with the accelerometer's samples; give "
                          "the rate with `rate` or each sensor's time column")
-    W = rec.N[at]
-    rate = acc.rate
-    return replace(rec, t=rec.t[at], N=W, rate=rate, saturated=rec.saturated[at],
+    return replace(rec, t=acc.t, N=rec.N[at], rate=acc.rate, saturated=rec.saturated[at],
                    temp=None if rec.temp is None else rec.temp[at],
                    labels=None if rec.labels is None else rec.labels[at])
 

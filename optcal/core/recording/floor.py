@@ -64,6 +64,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from optcal.core.errors import InputError
+from optcal.core.ranges import pooled, pooled_sds
 
 # The constants of optcal.core.noise.fit, spelled here because optcal.noise reads recordings (optcal.core.recording),
 # so this module may not import it (no import cycles); tests/test_noise_floor.py checks that they agree.
@@ -161,22 +162,10 @@ class NoiseFloor:
 
 # -- the pooled Allan variance -------------------------------------------------------------------------------
 
-def _pooled(x: np.ndarray, intervals: np.ndarray):
-    """The samples of the ``intervals`` one after another, each about its own mean; their lengths, where each
-    starts among the pooled samples, and their means."""
-    iv = np.asarray(intervals, int).reshape(-1, 2)
-    lengths = iv[:, 1] - iv[:, 0]
-    first = np.cumsum(np.r_[0, lengths[:-1]])
-    idx = np.repeat(iv[:, 0] - first, lengths) + np.arange(int(lengths.sum()))
-    y = np.asarray(x, float)[idx]
-    means = np.add.reduceat(y, first, axis=0) / lengths[:, None]
-    return y - np.repeat(means, lengths, axis=0), lengths, first, means
-
-
 def _second_differences(y: np.ndarray, lengths: np.ndarray, m: np.ndarray):
     """For each averaging factor of ``m``: its index, m, the pooled samples ``i`` where a second difference of
     m-averages starts and lies inside one interval, and those differences (len(i), k), of ``y``, the pooled
-    samples of intervals of ``lengths`` (:func:`_pooled`)."""
+    samples of intervals of ``lengths`` (:func:`optcal.core.ranges.pooled`)."""
     C = np.vstack([np.zeros((1, y.shape[1])), np.cumsum(y, axis=0)])  # centred: the sums stay small
     seg_end = np.repeat(np.cumsum(lengths), lengths)  # where each sample's interval ends, in the pooled samples
     total = len(y)
@@ -191,7 +180,7 @@ def pooled_avar(x: np.ndarray, intervals: np.ndarray, m: np.ndarray) -> tuple[np
     over the ``intervals`` [start, end): every second difference of the τ-averages that lies inside one
     interval, from all of them, with equal weight (on one interval it is ``allantools.oadev``'s). Returns the
     variance (len(m), k) and the number of differences at each m."""
-    y, lengths, _, _ = _pooled(x, intervals)
+    y, lengths, _, _ = pooled(x, intervals)
     avar, count, _, _ = _allan(y, lengths, m)
     return avar, count
 
@@ -201,8 +190,9 @@ _PW = np.array([1.0, 1.0, 1.0, 2.0, 2.0, 2.0])  # their weights in (u·d)²
 
 
 def _allan(y: np.ndarray, lengths: np.ndarray, m: np.ndarray, u: np.ndarray | None = None):
-    """:func:`pooled_avar` of the pooled samples ``y`` of intervals of ``lengths`` (:func:`_pooled`), and with
-    ``u`` (p, 3) in the same pass :func:`along_avar`'s variances and ν (else None, None)."""
+    """:func:`pooled_avar` of the pooled samples ``y`` of intervals of ``lengths``
+    (:func:`optcal.core.ranges.pooled`), and with ``u`` (p, 3) in the same pass :func:`along_avar`'s variances and
+    ν (else None, None)."""
     avar = np.full((len(m), y.shape[1]), np.nan)
     count = np.zeros(len(m), int)
     along = nu = None
@@ -276,7 +266,7 @@ def along_avar(x: np.ndarray, intervals: np.ndarray, m: np.ndarray,
     the equivalent number of independent pairs ν, 2σ_k⁴/Var(σ̂_k²) per axis and τ: each interval's mean over
     ν_i = (its differences)/m pairs has variance 2E_i²/ν_i, E_i = Σ_k u_ik² σ_k², with σ_k² the per-axis
     pooled variance (:func:`pooled_avar`'s: positive, and the same where the pose does not turn)."""
-    y, lengths, _, _ = _pooled(x, intervals)
+    y, lengths, _, _ = pooled(x, intervals)
     _, _, along, nu = _allan(y, lengths, m, u)
     return along, nu
 
@@ -388,8 +378,8 @@ def noise_floor(N: np.ndarray, intervals: np.ndarray, start_s: np.ndarray, rate_
     n = (iv[:, 1] - iv[:, 0]).astype(float)
     fs = float(rate_hz) if rate_hz is not None and math.isfinite(rate_hz) and rate_hz > 0 else math.nan
     per_s = fs if math.isfinite(fs) else 1.0
-    y, lengths, first, means = _pooled(N, iv)
-    sd = np.sqrt(np.add.reduceat(y * y, first, axis=0) / np.maximum(n - 1, 1)[:, None]) * (n > 1)[:, None]
+    y, lengths, first, means = pooled(N, iv)
+    sd = pooled_sds(y, lengths, first)
     white = sd / np.sqrt(n)[:, None]
 
     def plain(note):

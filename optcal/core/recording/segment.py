@@ -33,7 +33,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from optcal.core.errors import InputError
+from optcal.core.errors import InputError, listing
 from optcal.core.recording.attitude import gyro_scale, slow_motions
 from optcal.core.recording.detection import DetectionResult, group_medians, range_rows, runs
 from optcal.core.recording.pelt import pelt_ends
@@ -404,7 +404,7 @@ def segment_recording(rec: Recording, min_static_s: float | None = None,
     n = len(N)
     rate = float(rec.rate)
     if np.isfinite(rate) and rate > 0:
-        m = max(MIN_POSE_SAMPLES, _seconds(min_static_s, DEFAULT_MIN_STATIC_S, rate, "min_static_s"))
+        m = _min_pose(min_static_s, rate)
         win = _seconds(window_s, DEFAULT_WINDOW_S, rate, "window_s")
         b = max(1, min(m // BLOCKS_PER_POSE, int(round(MAX_BLOCK_S * rate)) or 1))
     else:  # no rate: sample counts (seconds cannot be converted)
@@ -719,6 +719,12 @@ def _seconds(value: float | None, default: float, rate: float, param: str) -> in
     return max(3, int(round(value * rate)))
 
 
+def _min_pose(min_static_s: float | None, rate: float) -> int:
+    """The shortest pose in samples: ``min_static_s`` (default :data:`DEFAULT_MIN_STATIC_S`), never under
+    :data:`MIN_POSE_SAMPLES`."""
+    return max(MIN_POSE_SAMPLES, _seconds(min_static_s, DEFAULT_MIN_STATIC_S, rate, "min_static_s"))
+
+
 def segment_static(recording: Recording, *, min_static_s: float | None = None,
                    window_s: float | None = None, gyro=None, refine: bool = True) -> DetectionResult:
     """Static intervals of ``recording`` by change-point segmentation and a rest test (module docstring):
@@ -742,8 +748,7 @@ def segment_static(recording: Recording, *, min_static_s: float | None = None,
     sg = segment_recording(recording, min_static_s, window_s, W=gyro if refine else None, refine=refine)
     b = sg.block
     rate = float(recording.rate)
-    m = (max(MIN_POSE_SAMPLES, _seconds(min_static_s, DEFAULT_MIN_STATIC_S, rate, "min_static_s")) if np.isfinite(rate)
-         else NO_RATE_SAMPLES)
+    m = _min_pose(min_static_s, rate) if np.isfinite(rate) else NO_RATE_SAMPLES
     seg, rest = sg.segments, sg.rest
     keep = sg.kept
     iv = seg[keep] * b
@@ -772,9 +777,9 @@ def segment_static(recording: Recording, *, min_static_s: float | None = None,
         # the ones as long as a pose are where a user looks for a pose the detection refused
         long = np.flatnonzero(moving & ((seg[:, 1] - seg[:, 0]) * b >= m) & (sg.reason != "turn"))
         t = recording.shown_t
-        where = "; as long as a pose: " + ", ".join(
-            f"{t[seg[i, 0] * b]:.1f}-{t[min(seg[i, 1] * b, len(t)) - 1]:.1f} s ({sg.reason[i]})" for i in long[:4]
-        ) + (f" … ({len(long) - 4} more)" if len(long) > 4 else "") if len(long) else ""
+        where = ("; as long as a pose: " + listing(
+            (f"{t[seg[i, 0] * b]:.1f}-{t[min(seg[i, 1] * b, len(t)) - 1]:.1f} s ({sg.reason[i]})" for i in long),
+            limit=4)) if len(long) else ""
         notes.append(f"{int(moving.sum())} segment(s) ({blocks * b} samples) not at rest: "
                      f"{int(np.sum(sg.reason == 'trend'))} trend, {int(np.sum(sg.reason == 'noisy'))} too noisy"
                      + (f", {turn} turning (gyroscope)" if turn else "") + where)
