@@ -467,9 +467,6 @@ SHORT_OF_TARGET = {
     ("mpu6050", "gyroscope"): "recall 0.769, precision 0.987: hand-held poses of 0.5-0.7 s that sway at 1-2 °/s",
     ("mpu6050", "source: static_intervals.csv (10)"): "recall 0.857, precision 0.987 (by the gyroscope's labels): "
                                                        "the same sway",
-    ("ck_explorer", "source: the logger's 160 blocks"): "recall 0.756: no gyroscope; 1-s poses that vibrate at "
-                                                        "3-8 times the recording's quietest noise are refused as "
-                                                        "shaking",
 }
 
 

@@ -36,6 +36,7 @@ import numpy as np
 from optcal.core.errors import InputError, listing
 from optcal.core.recording.attitude import gyro_scale, slow_motions
 from optcal.core.recording.detection import DetectionResult, group_medians, range_rows, runs
+from optcal.core.recording.jumps import jump_bounded, jump_samples, tremor_within
 from optcal.core.recording.pelt import pelt_ends
 from optcal.core.recording.reading import Recording
 
@@ -452,9 +453,10 @@ def segment_recording(rec: Recording, min_static_s: float | None = None,
                        g / float(np.exp(np.mean(np.log(sd)))) if g > 0 else None)
     reason = _rest_test(Z, seg, w, excess, step)
     n_split, turning = 0, None
+    jumps = jump_samples(Nf[: nb * b], bad[: nb * b], g)
     if refine:
         seg, reason, n_split, turning = _refine(Z, seg, reason, w, excess, step, b, rate,
-                                                None if W is None else np.asarray(W, float))
+                                                None if W is None else np.asarray(W, float), (jumps, g))
     # neighbours are joined only across a cut of PELT's, never across a set-aside block
     gap_ok = seg[1:, 0] == seg[:-1, 1]
     seg2, rest2 = _merge(Z, seg, reason == "", w, gap_ok, step, excess)
@@ -479,7 +481,9 @@ def segment_recording(rec: Recording, min_static_s: float | None = None,
     H = max(4, int(round(HINGE_S * (rate if np.isfinite(rate) else 50.0) / b)))
     keep = (reason == "") & (length >= m)
     short = (reason == "") & ~keep
-    seg[keep] = _hinge_trim(Z, seg[keep] + [1, -1], H) + [-1, 1]
+    # a pose logged apart has no motion at its ends to trim (module docstring of optcal.core.recording.jumps)
+    trim = keep & ~jump_bounded(seg, jumps, b, len(Z))
+    seg[trim] = _hinge_trim(Z, seg[trim] + [1, -1], H) + [-1, 1]
     rest = reason == ""
     return Segmentation(b, w, seg, rest, reason, sigma, sigma_b, int((~good).sum()), keep, short, n_split, turning)
 
@@ -496,7 +500,7 @@ def _turn_margins(seg: np.ndarray, reason: np.ndarray, rate: float) -> np.ndarra
     return (touch_l * int(round(SETTLE_S * per_s)) + touch_r * int(round(GYRO_MARGIN_S * per_s))).astype(np.int64)
 
 
-def _refine(Z, seg, reason, w, excess, step, b, rate, W):
+def _refine(Z, seg, reason, w, excess, step, b, rate, W, jumps):
     """Rests that share a segment with part of a motion, cut out of it (docs/segmentation.md, "Every rest"):
     with a gyroscope ``W`` (n, 3), every segment is cut where the gyroscope sees a turn (:func:`gyro_turning`)
     and the pieces between turns of a segment that was not at rest are tested for rest again (a rest's pieces
@@ -504,9 +508,16 @@ def _refine(Z, seg, reason, w, excess, step, b, rate, W):
     each segment still rejected as shaking is cut at the steps of its block means beyond :data:`LOUD_SIGMAS`
     (:func:`_loud_blocks`), and its quiet pieces are tested. Returns the segments, their reasons ("turn" for a
     piece the gyroscope sees turning, "noisy" for a loud piece), how many segments were cut, and the turning
-    samples (None without a gyroscope)."""
+    samples (None without a gyroscope). ``jumps``: the jump samples and gravity's magnitude (outputs' units): a
+    shaking segment with a jump at each end is a pose logged apart (:mod:`optcal.core.recording.jumps`) and
+    at rest when it lasts a shortest pose and shakes within its tremor's bound."""
     n_split, turning = 0, None
     nb = len(Z)
+    logged = (reason == "noisy") & (seg[:, 1] - seg[:, 0] >= BLOCKS_PER_POSE)
+    if logged.any():
+        at, g = seg[logged], jumps[1]
+        logged[logged] = jump_bounded(at, jumps[0], b, nb) & tremor_within(Z, at, step.scale, g)
+        reason = np.where(logged, "", reason).astype(object)
     if W is not None:
         tb, turning = gyro_turning(W, b, seg, reason == "", rate, (Z - step.centre) * step.scale)
         seg, reason, n = _cut(Z, seg, reason, tb, ~_still(seg, tb), "turn", w, excess, step)
