@@ -4,8 +4,12 @@ bounded by jumps, and a pose that shakes with a hand's tremor is a rest there; t
 were recorded is not (the accelerometer alone cannot tell it from a motion), and a pose moved beyond the tremor's
 bound is not."""
 
-import numpy as np
+import json
 
+import numpy as np
+from corpus import corpus_root
+
+from optcal.app.cli import main
 from optcal.core.recording import Recording, interval_scores, segment_static
 from optcal.core.recording.jumps import TREMOR_G, jump_bounded, jump_samples
 from optcal.core.synthetic_recording import SCALE, poses_recording
@@ -95,3 +99,17 @@ def test_jumps_are_single_sample_steps_not_recorded_turns_or_tremor():
     assert jump_bounded(seg, j, 6, nb).tolist() == [False, True, False, False, False]
     seg2 = np.array([[100 // 6, 330 // 6]])
     assert jump_bounded(seg2, np.array([100, 330]), 6, nb).tolist() == [True]
+
+
+def test_ck_explorer_every_logged_pose_and_the_count_the_fit_used(capsys):
+    """CK-Explorer's logger (no gyroscope, 160 poses of 100 samples back to back, 4-9 mg of tremor in a quarter of
+    them): every pose found, and the report's count is the fit's: the poses' recheck drops one that moved while
+    held (its force drifts by 1.1 mg), and the text says 159 of the 160, as the calibration file does."""
+    path = corpus_root() / "ck_explorer" / "acc_log.csv"
+    assert main(["calibrate", str(path), "--raw", "--units", "g", "--rate", "100"]) == 0
+    out = capsys.readouterr().out
+    assert "160 static interval(s)" in out
+    assert "model nonlinear12, 159 positions (1 of the 160 dropped: see the notes)" in out
+    assert "position 19 (19.1-19.9 s) re-examined sample by sample: it moved while held" in out
+    assert main(["calibrate", str(path), "--raw", "--units", "g", "--rate", "100", "--json"]) == 0
+    assert json.loads(capsys.readouterr().out)["n_positions"] == 159

@@ -135,7 +135,9 @@ def run(args) -> int:
         from optcal.core.recording.report import describe_detection
 
         print(describe_detection(detection))
-    print(f"model {cal.model.name}, {len(data)} positions, outputs in {data.units}, "
+    used = len(cal.problem.data)  # the poses' recheck may have dropped some (a note names each)
+    dropped = f" ({len(data) - used} of the {len(data)} dropped: see the notes)" if used != len(data) else ""
+    print(f"model {cal.model.name}, {used} positions{dropped}, outputs in {data.units}, "
           f"g_local = {cal.problem.g_local:.9f} g, solver {cal.solver}")
     print(f"residual RMS {cal.fit.rms_g * 1e6:.3f} µg, cost {cal.fit.cost:.6e}, "
           f"{cal.result.nfev} evaluations, {cal.result.runtime_s * 1e3:.1f} ms ({cal.result.message})")

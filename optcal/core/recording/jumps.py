@@ -1,5 +1,5 @@
 """Poses logged apart: a file that holds the poses and not the motions between them (docs/segmentation.md,
-"Poses logged apart").
+"Every rest, from every channel", step 11).
 
 Loggers that record a burst of samples per pose at a key press (CK-Explorer's 100 rows per pose, the averaged
 poses of many calibration tools) join the poses back to back: between two of them the outputs step in one
