@@ -30,14 +30,16 @@ def jump_samples(N: np.ndarray, bad: np.ndarray, g: float) -> np.ndarray:
     n = len(N)
     if n < 2 or not g > 0:
         return np.zeros(0, np.int64)
-    d = np.linalg.norm(np.diff(N, axis=0), axis=1)
-    d = np.where(bad[1:] | bad[:-1], np.nan, d)
-    k = JUMP_SIDE
-    pad = np.concatenate([np.zeros(k), np.nan_to_num(d, nan=np.inf), np.zeros(k)])
-    win = np.lib.stride_tricks.sliding_window_view(pad, k)  # win[i] = pad[i:i + k]
-    before, after = win[: n - 1].max(axis=1), win[k + 1: k + n].max(axis=1)
-    jump = (d > JUMP_G * g) & (d > JUMP_RATIO * np.maximum(before, after))
-    return np.flatnonzero(jump) + 1
+    D = np.diff(N, axis=0)
+    d = np.sqrt(np.einsum("ij,ij->i", D, D))
+    d[bad[1:] | bad[:-1]] = np.inf  # a change to or from a sample set aside is no jump, nor beside one
+    cand = np.flatnonzero((d > JUMP_G * g) & np.isfinite(d))  # few: the neighbours are looked at for these only
+    if not len(cand):
+        return cand
+    side = np.concatenate([np.arange(-JUMP_SIDE, 0), np.arange(1, JUMP_SIDE + 1)])
+    at = cand[:, None] + side[None, :]
+    near = np.where((at >= 0) & (at < n - 1), d[np.clip(at, 0, n - 2)], 0.0).max(axis=1)
+    return cand[d[cand] > JUMP_RATIO * near] + 1
 
 
 def jump_bounded(seg: np.ndarray, jumps: np.ndarray, b: int, n_blocks: int) -> np.ndarray:
