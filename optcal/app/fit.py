@@ -264,16 +264,48 @@ def _micro_g(v: float) -> str:
 
 
 def _unchecked_notes(diag: PositionDiagnostics) -> list[str]:
-    """A note naming the positions that alone pin part of the model (:func:`optcal.core.analysis._unchecked`): no
-    outlier test can judge them."""
-    idx = np.flatnonzero(diag.unchecked) if diag.unchecked is not None else np.zeros(0, int)
+    """A note per pose whose positions alone pin part of the model (:func:`optcal.core.analysis._unchecked`): no
+    outlier test can judge them. A pose that alone sees an axis from one side is named with that axis: its scale
+    factor and offset rest on that pose (a rest split in two by a drift is still one pose)."""
+    flag = np.zeros(len(diag.index), bool)
+    for f in (diag.unchecked, diag.unchecked_pose):
+        if f is not None:
+            flag |= f
+    idx = np.flatnonzero(flag)
     if not idx.size:
         return []
-    one = idx.size == 1
-    return [f"{listing((diag.name(i) for i in idx), limit=6)}: alone {'pins' if one else 'pin'} part of the model "
-            f"(leverage {listing((format(float(diag.leverage[i]), '.4f') for i in idx), limit=6, sep='/')}), so the "
-            f"other positions cannot check {'it' if one else 'them'} for a displacement (not tested); record another "
-            f"position near {'it' if one else 'each'}"]
+    pose = diag.pose if diag.pose is not None else np.arange(len(diag.index))
+    poses = np.unique(pose)
+    if len(poses) > 1 and np.isin(poses, pose[idx]).all():  # as many poses as the model has parameters, or fewer
+        return [f"each of the {len(poses)} poses ({len(pose)} positions) alone pins part of the model, so no pose "
+                "can check another for a displacement; record more poses, in other orientations"]
+    notes = []
+    for g in dict.fromkeys(pose[idx].tolist()):  # each pose once, in order
+        at = idx[pose[idx] == g]
+        one = at.size == 1
+        what = diag.name(int(at[0])) if one else f"{listing((diag.name(int(i)) for i in at), limit=6)} (one pose)"
+        side = _one_sided(diag.force_g, at) if diag.force_g is not None else ""
+        check = ("so the other positions cannot check it for a displacement (not tested)" if one else
+                 "so no other pose can check them for a displacement of the pose as a whole")
+        notes.append(f"{what}: alone {'pins' if one else 'pin'} part of the model (leverage "
+                     f"{listing((format(float(diag.leverage[i]), '.4f') for i in at), limit=6, sep='/')}), {check}"
+                     f"{side}; record another pose near it" + (", or one with that axis the other way up"
+                                                                   if side else ""))
+    return notes
+
+
+def _one_sided(force: np.ndarray, at: np.ndarray) -> str:
+    """The clause naming the axis that the pose ``at`` (its positions; ``force`` every position's specific force,
+    g) alone sees near ±1 g when no position sees it the other way up, or "" (then it pins something else)."""
+    f = force[at].mean(axis=0)
+    k = int(np.argmax(np.abs(f)))
+    sign = np.sign(f[k])
+    others = np.delete(force[:, k], at)
+    if abs(f[k]) < 0.5 or not len(others) or np.any(sign * others > 0.5) or np.any(sign * others < -0.5):
+        return ""
+    way, least = ("down", float(np.min(force[:, k]))) if sign > 0 else ("up", float(np.max(force[:, k])))
+    return (f"; the {'xyz'[k]} axis never points {way} (its {'least' if sign > 0 else 'greatest'} reading "
+            f"{least:+.2f} g), so its scale factor and offset rest on this pose")
 
 
 def _weak_notes(problem: CalibrationProblem, x: np.ndarray, sd: np.ndarray, obs: Observability,

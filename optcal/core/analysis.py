@@ -341,6 +341,10 @@ class PositionDiagnostics:
     sigma_source: str  # "stated", "measured", "robust scale" or "leave-one-out"
     tested: bool  # False when the residuals cannot be tested (too few degrees of freedom)
     unchecked: np.ndarray | None = None  # (n,) bool: alone pins part of the model, not tested (:func:`_unchecked`)
+    pose: np.ndarray | None = None  # (n,) the pose each position belongs to (:func:`pose_groups`)
+    force_g: np.ndarray | None = None  # (n, 3) each position's calibrated specific force, g
+    unchecked_pose: np.ndarray | None = None  # (n,) bool: its pose, of several positions, alone pins part of the
+    # model (:func:`_unchecked_poses`): the positions are tested against each other, the pose by no other
 
     def rows(self) -> list[dict]:
         """One dict per position, keys naming their units (the calibration's ``positions``)."""
@@ -370,15 +374,47 @@ def _labels(data) -> list:
     return [None] * len(data)
 
 
-def _unchecked(h: np.ndarray, sig: np.ndarray, d: int) -> np.ndarray:
+POSE_GROUP_DEG = 1.0  # positions whose specific forces lie within this angle of each other are one pose (a rest
+# split by a drift or a knock): together they can pin part of the model as a lone position does
+
+
+def pose_groups(A: np.ndarray, deg: float = POSE_GROUP_DEG) -> np.ndarray:
+    """A group number per position (n,) of the specific forces ``A`` (n, 3): positions joined when their
+    directions lie within ``deg`` of each other, and through chains of such positions (single linkage)."""
+    u = A / np.maximum(np.linalg.norm(A, axis=1, keepdims=True), 1e-300)
+    near = (u @ u.T) >= np.cos(np.radians(deg))
+    group = np.arange(len(u))
+    while True:  # each position takes the least group number among its neighbours until nothing changes
+        new = np.min(np.where(near, group[None, :], len(u)), axis=1)
+        if np.array_equal(new, group):
+            return group
+        group = new
+
+
+def _unchecked(H: np.ndarray, sig: np.ndarray, d: int) -> np.ndarray:
     """Positions (n,) that alone pin part of the model, so that the others cannot check them: the linear
     downdate of the outlier test predicts a position from the others with SD σ_p = σ/√(1−h) (h its leverage, σ
     its residual's noise in g), and the magnitude's curvature adds about ½σ_p² to its residual, which must stay
     under the residual's own SD σ√(1−h): untested where 1 − h ≤ (σ/2)^(2/3) (a leverage above 0.9997 at 10 µg of
     noise, 0.9991 at 57 µg: there a residual of a few µg reads as many σ and a prediction error of grams)."""
     with np.errstate(invalid="ignore"):
-        bad = (1.0 - h) <= (np.abs(np.asarray(sig, float)) / 2.0) ** (2.0 / 3.0)
+        bad = (1.0 - np.diag(H)) <= (np.abs(np.asarray(sig, float)) / 2.0) ** (2.0 / 3.0)
     return bad.reshape(-1, d).any(axis=1)
+
+
+def _unchecked_poses(H: np.ndarray, sig: np.ndarray, d: int, groups: np.ndarray) -> np.ndarray:
+    """Positions (n,) of poses of several positions (``groups``, :func:`pose_groups`) that together alone pin part
+    of the model, by the criterion of :func:`_unchecked` on the least eigenvalue of I − H over their rows (1 − h
+    for a lone position): two halves of one rest that alone sees an axis upside down pin its scale factor and
+    offset as one position would (leverages 0.499 and 0.501). Each position is still tested against the others
+    (its sibling predicts it); what no other pose can check is an error of the pose as a whole."""
+    sig = np.abs(np.asarray(sig, float))
+    out = np.zeros(len(groups), bool)
+    for g in np.unique(groups[np.bincount(groups)[groups] > 1]):  # the poses of several positions (few)
+        rows = (np.flatnonzero(groups == g)[:, None] * d + np.arange(d)).ravel()
+        least = float(np.linalg.eigvalsh(np.eye(rows.size) - H[np.ix_(rows, rows)])[0])
+        out[groups == g] = least <= (float(np.min(sig[rows])) / 2.0) ** (2.0 / 3.0)
+    return out
 
 
 def _scan(r, H, sigma, d, dof, alpha1, sequential):
@@ -419,7 +455,7 @@ def _scan(r, H, sigma, d, dof, alpha1, sequential):
             sig = sigma
             q = np.add.reduceat(e2 / sig**2, np.arange(0, m, d))
             pv = chi2_sf(q, d)
-        q[_unchecked(np.diag(HH), sig, d)] = np.nan
+        q[_unchecked(HH, sig, d)] = np.nan
         pv = np.where(np.isfinite(q), pv, np.nan)
         if D:  # the set-aside positions: their prediction errors from the others, e_D = (I − H_DD)⁻¹ r_D
             eD = A @ r[rows]
@@ -490,8 +526,11 @@ def position_diagnostics(problem: CalibrationProblem, x_full: np.ndarray, noise_
         offp = np.linalg.norm(off.reshape(n, 3), axis=1)
         sg = np.sqrt(np.mean(sig.reshape(n, 3) ** 2, axis=1))
         lev, wt = h.reshape(n, 3).max(axis=1), w.reshape(n, 3).min(axis=1)
+    groups = pose_groups(problem.specific_force(x))
     return PositionDiagnostics(np.arange(n), np.asarray(problem.data.position), _labels(problem.data), res, sg,
-                               lev, stat, pv, wt, out, offp, thr, alpha1, source, tested, _unchecked(h, sig, d))
+                               lev, stat, pv, wt, out, offp, thr, alpha1, source, tested,
+                               _unchecked(H, sig, d), groups, problem.specific_force(x) / problem.g_local,
+                               _unchecked_poses(H, sig, d, groups))
 
 
 def noise_scale(problem: CalibrationProblem, x_full: np.ndarray, alpha: float = OUTLIER_ALPHA) -> float:
