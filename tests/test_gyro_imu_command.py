@@ -145,8 +145,87 @@ def _shifted_gyro_times(tmp_path):
     acc = tmp_path / "acc.csv"
     np.savetxt(acc, np.column_stack([d.t, d.F]), delimiter=",", header="t,ax,ay,az", comments="", fmt="%.9g")
     gyr = tmp_path / "gyr.csv"
-    np.savetxt(gyr, np.column_stack([d.t + 0.005, np.round(d.W)]), delimiter=",", fmt="%.9g")
+    np.savetxt(gyr, np.column_stack([d.t + d.t[-1] + 1.0, np.round(d.W)]), delimiter=",", fmt="%.9g")
     return acc, ["--gyro", str(gyr)]
+
+
+def _two_clocks(tmp_path, cut=None):
+    """The accelerometer and the gyroscope in two files, each with its own sample times (the gyroscope's 0.4 of a
+    step later, its last 50 samples missing; ``cut``: its samples in that time range removed, a gap)."""
+    path, x, sim = _recording(tmp_path)
+    d = sim.data
+    acc = tmp_path / "acc.csv"
+    np.savetxt(acc, np.column_stack([d.t, d.F]), delimiter=",", header="t,ax,ay,az", comments="", fmt="%.9g")
+    step = float(np.median(np.diff(d.t)))
+    tg, W = d.t[:-50] + 0.4 * step, np.array([np.interp(d.t[:-50] + 0.4 * step, d.t, d.W[:, k]) for k in range(3)]).T
+    if cut is not None:
+        keep = (tg < cut[0]) | (tg > cut[1])
+        tg, W = tg[keep], W[keep]
+    gyr = tmp_path / "gyr.csv"
+    np.savetxt(gyr, np.column_stack([tg, np.round(W)]), delimiter=",", fmt="%.9g")
+    return acc, gyr, x, sim
+
+
+def test_a_gyroscope_file_with_its_own_times_is_interpolated_to_the_accelerometer_s(tmp_path, capsys):
+    """Two files whose times differ (a phone's accelerometer and gyroscope logs, issue #29: refused before as
+    "the two files must share their sample times"): the gyroscope is interpolated linearly to the accelerometer's
+    times, as a ROS bag's second topic is, and said in a note; the accelerometer's samples after the gyroscope's
+    last have no rate and are not used. The gyroscope's parameters are the truth within 4 standard errors."""
+    acc, gyr, x, sim = _two_clocks(tmp_path)
+    out = tmp_path / "imu.json"
+    code, text, err = run_cli(["imu", str(acc), "--gyro", str(gyr), "--gyro-units", "counts", "--gyro-scale", "1000",
+                               "--model", "linear9", "-o", str(out), "--json"], capsys)
+    assert code == 0, err
+    notes = json.loads(text)["notes"]
+    # 51: the last 50 and the first (the gyroscope starts 0.4 of a step after it)
+    assert ("the gyroscope's file has its own times: interpolated linearly to the accelerometer's times (51 "
+            "accelerometer sample(s) without a gyroscope sample: outside its span or in a gap of its samples)") in notes
+    g = json.loads(out.read_text())["gyroscope"]
+    names = get_gyro_model(False, bias=False).names
+    est = np.array([g["parameters"][n] for n in names])
+    se = np.array([g["stderr"][n] for n in names])
+    assert np.all(np.abs(est - x[:9]) < 4 * se), (est - x[:9]) / se
+    assert g["data"]["n_motions"] == len(sim.data.start)
+
+
+def test_a_gap_in_the_gyroscope_s_samples_leaves_its_motion_out(tmp_path, capsys):
+    """The gyroscope's file misses 0.6 s in the middle of the fifth motion (a phone log of another lab missed 11.9 s,
+    and the motion across it was integrated as if the rate had been constant: K_x 5 % off, exit 0). The motion
+    is left out with a note, the others fitted; no rest holds a sample without the gyroscope."""
+    path, x, sim = _recording(tmp_path)
+    d = sim.data
+    mid = 0.5 * (d.t[d.start[4]] + d.t[d.stop[4]])
+    acc, gyr, x, sim = _two_clocks(tmp_path, cut=(mid - 0.3, mid + 0.3))
+    code, text, err = run_cli(["imu", str(acc), "--gyro", str(gyr), "--gyro-units", "counts", "--gyro-scale", "1000",
+                               "--model", "linear9", "--json"], capsys)
+    assert code == 0, err
+    out = json.loads(text)
+    gap = [n for n in out["notes"] if "across a gap in the samples" in n]
+    assert len(gap) == 1 and gap[0].startswith(f"1 motion(s) across a gap in the samples left out of the gyroscope's "
+                                               f"fit ({len(d.start) - 1} used)"), out["notes"]
+    names = get_gyro_model(False, bias=False).names
+    g = out["gyroscope"]
+    est = np.array([g["parameters"][n] for n in names])
+    se = np.array([g["stderr"][n] for n in names])
+    assert np.all(np.abs(est - x[:9]) < 4 * se), (est - x[:9]) / se
+
+
+def test_a_time_gap_in_one_file_leaves_its_motion_out():
+    """A logger that paused inside a motion (samples 0.5 s apart at 100 Hz): that motion is not integrated across
+    the gap (GyroData.gapped_motions); the others are."""
+    from optcal.core.gyro.data import GyroData
+
+    rng = np.random.default_rng(3)
+    model = get_gyro_model(False)
+    x = draw_truth(model, rng, 1000.0)
+    sim = simulate_imu(model, x, poses=24, rest_s=2.0, rng=rng)
+    d = sim.data
+    t = d.t.copy()
+    k = (d.start[2] + d.stop[2]) // 2
+    t[k:] += 0.5  # a pause of half a second inside the third motion
+    g = GyroData(t, d.W, d.F, d.detected_rests)
+    assert len(g.gapped_motions) == 1 and g.n_motions == len(d.start) - 1
+    assert g.gapped_motions[0, 0] <= t[k] <= g.gapped_motions[0, 1]
 
 
 def _saturated(tmp_path):
@@ -199,7 +278,7 @@ def test_too_many_saturated_motions_refused(tmp_path, capsys):
 @pytest.mark.parametrize("case, extra, message", [
     ("one_axis", [], "leave model linear9 unobservable"),  # gravity in one plane: the accelerometer refuses first
     ("two_axes", [], "gyroscope parameter(s) K_z, T_xz, T_yz"),
-    ("times", ["--gyro-columns", "0,1,2,3"], "times disagree"),
+    ("times", ["--gyro-columns", "0,1,2,3"], "do not overlap: give both files' times in one clock"),
     ("no_rotation", [], "stays within its rest noise through every motion"),
 ])
 def test_bad_input_exit_2_one_line_nothing_written(tmp_path, capsys, case, extra, message):

@@ -137,11 +137,12 @@ def calibrate_imu(data, gyro=None, *, gyro_units: str | None = None, gyro_column
 
     ``data``: the path of the raw recording with the accelerometer's columns, read with ``units`` and the
     recording options of :func:`calibrate` (``columns``, ``rate``, ``method``, ``threshold_k``, ...).
-    ``gyro``: the path of a second file with the gyroscope's samples at the same times (t, gx, gy, gz, or
-    as ``gyro_columns`` names them, as imu_tk's data come); without it, ``gyro_columns`` names the three
-    columns in ``data``. ``gyro_units``: counts, deg/s, rad/s or volts (None: as the gyroscope's columns' names
-    give them, ``wx(deg/s)``; refused when they give none); ``gyro_scale``: nominal output units
-    per rad/s (exact for deg/s and rad/s; otherwise searched for from the motions when None);
+    ``gyro``: the path of a second file with the gyroscope's samples (t, gx, gy, gz, or as ``gyro_columns``
+    names them, as imu_tk's data come; at other times than the accelerometer's, interpolated to them);
+    without it, ``gyro_columns`` names the three columns in ``data``. ``gyro_units``: counts, deg/s, rad/s or
+    volts (None: as the gyroscope's columns' names give them, ``wx(deg/s)``; refused when they give none);
+    ``gyro_scale``: nominal output units per rad/s (exact for deg/s and rad/s; otherwise searched for from the
+    motions when None);
     ``gyro_bias``: ``rests`` (interpolated between them) or ``fit``; ``g_sensitivity`` (with ``gyro_bias``
     fit): fit G and keep it when the likelihood-ratio test finds it. ``model``, ``solver``, ``options``,
     ``g_local``, ``seed``, ``budget`` and ``force_weak`` as :func:`calibrate`'s, for both fits."""
@@ -166,7 +167,7 @@ def calibrate_imu(data, gyro=None, *, gyro_units: str | None = None, gyro_column
     opts = RawOptions(units=units, **reading)
     acc = opts.read(os.fspath(data))
     rates = read_gyro(os.fspath(data), acc, gyro=None if gyro is None else os.fspath(gyro), gyro_columns=gyro_columns,
-                      units=gyro_units, rate=opts.rate, time_unit=opts.time_unit)
+                      units=gyro_units, rate=opts.rate, time_unit=opts.time_unit, interpolate=True)
     positions = first_found(lambda name: positions_from_raw_recording(acc, opts, gyro=rates, model=name,
                                                                         g_local=g_local), model)
     return fit_imu(positions, rates, model=model, solver=solver, options=options, g_local=g_local, seed=seed,

@@ -87,7 +87,9 @@ def calibrate_imu(positions, gyro, *, model=None, solver: str = "lm", options: d
                     force_weak=force_weak)
     join_times(acc.t, gyro.t)
     F = cal.model.inverse(np.asarray(cal.x, float)[None], acc.N)[0]
-    data = GyroData(acc.t, gyro.N, F, det.intervals, units=gyro_units, saturated=gyro.saturated)
+    missing = ~np.isfinite(gyro.N).all(axis=1)  # a second file's gaps (optcal.core.gyro.recording.on_times_of)
+    data = GyroData(acc.t, gyro.N, F, det.intervals, units=gyro_units, saturated=gyro.saturated,
+                    missing=missing if missing.any() else None)
     found = missed_rests(data)
     notes = list(cal.notes)
     if len(found):  # poses the accelerometer's detection took for motion: the gyroscope is still there
@@ -101,14 +103,27 @@ def calibrate_imu(positions, gyro, *, model=None, solver: str = "lm", options: d
                      f"its fit ({data.n_motions} used), at t = "
                      + ", ".join(f"{a - acc.origin:.1f}-{b - acc.origin:.1f} s" for a, b in data.dropped_motions[:6])
                      + (" …" if len(data.dropped_motions) > 6 else "") + "; turn more slowly to keep them")
+    if gyro.reading.get("gyro_joined"):
+        notes.append(f"the gyroscope's file has its own times: {gyro.reading['gyro_joined']}")
+    if len(data.gapped_motions):
+        notes.append(f"{len(data.gapped_motions)} motion(s) across a gap in the samples left out of the gyroscope's "
+                     f"fit ({data.n_motions} used), at t = "
+                     + ", ".join(f"{a - acc.origin:.1f}-{b - acc.origin:.1f} s" for a, b in data.gapped_motions[:6])
+                     + (" …" if len(data.gapped_motions) > 6 else "") + ": a rotation cannot be integrated over "
+                     "samples that are not there")
     scale = gyro_scale if gyro_scale is not None else NOMINAL_SCALE.get(gyro_units)
     try:
         fit = calibrate_gyro(data, bias=gyro_bias, g_sensitivity=g_sensitivity, scale=scale, solver=solver,
                              options=options, seed=seed, budget=budget, force_weak=force_weak)
     except InputError as exc:
-        if not len(data.dropped_motions):
+        if not (len(data.dropped_motions) or len(data.gapped_motions)):
             raise
-        raise InputError(f"{len(data.dropped_motions)} of {len(data.dropped_motions) + data.n_motions} motions "
-                         f"reach the gyroscope's rail and are left out, and the rest do not suffice: {exc}; turn "
-                         "more slowly, or record with a wider gyroscope range") from None
+        n_out = len(data.dropped_motions) + len(data.gapped_motions)
+        why = " and ".join(w for n, w in ((len(data.dropped_motions), "reach the gyroscope's rail"),
+                                          (len(data.gapped_motions), "cross a gap in the samples")) if n)
+        way = "; ".join(w for n, w in ((len(data.dropped_motions), "turn more slowly, or record with a wider "
+                                        "gyroscope range"),
+                                       (len(data.gapped_motions), "record without gaps")) if n)
+        raise InputError(f"{n_out} of {n_out + data.n_motions} motions {why} and are left out, and the rest do not "
+                         f"suffice: {exc}; {way}") from None
     return ImuCalibration(cal, fit, data, positions.units, solver, notes + fit.notes)

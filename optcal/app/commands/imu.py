@@ -63,7 +63,8 @@ def gyro_recording(args, acc_rec):
     from optcal.core.gyro.recording import read_gyro
 
     return read_gyro(args.data, acc_rec, gyro=args.gyro, gyro_columns=args.gyro_columns, units=args.gyro_units,
-                     rate=args.rate, time_unit=args.time_unit, calibration=getattr(args, "units_of_calibration", False))
+                     rate=args.rate, time_unit=args.time_unit, calibration=getattr(args, "units_of_calibration", False),
+                     interpolate=getattr(args, "interpolate_gyro", False))
 
 
 def run(args) -> int:
@@ -85,6 +86,7 @@ def run(args) -> int:
     refuse_overwrite(args.output, args.force)
     check_output_folder(args.output)
     args.raw = True
+    args.interpolate_gyro = True  # a gyroscope file with its own times is taken at the accelerometer's
     g_local = gravity_from_args(args)
     named = args.model is not None
     # the rests are found as optcal calibrate finds them (for the default model, as many as its smallest fallback

@@ -76,6 +76,7 @@ def still_rests(W: np.ndarray, t: np.ndarray, rests: np.ndarray) -> np.ndarray:
 
 # A stretch inside a motion where the gyroscope stays still for at least this long (s), with the accelerometer
 # as quiet as in the rests (its sample SD within this factor of theirs), is a pose of its own.
+GAP_STEPS = 5.0  # a time step this many median steps long is a gap: no motion is integrated across it
 MISSED_REST_MIN_S = 1.0
 MISSED_REST_ACC_FACTOR = 3.0
 
@@ -137,7 +138,10 @@ class GyroData:
     calibrated specific force in g, ``rests`` (r, 2) sample ranges [start, stop) of the static intervals in
     time order, trimmed to where the gyroscope is still (:func:`still_rests`; ``detected_rests`` keeps them
     as given; ``trim_rests`` False takes them as they are). ``saturated`` (n,) marks gyroscope samples at a
-    rail: a motion holding one is left out of the motions (``dropped_motions``: its start and end times, s)."""
+    rail: a motion holding one is left out of the motions (``dropped_motions``: its start and end times, s).
+    ``missing`` (n,) marks samples without a gyroscope sample (a gap in a second file's samples: their ``W`` is
+    not used); a motion holding one, or a gap in the times of more than :data:`GAP_STEPS` steps, cannot be
+    integrated either and is left out (``gapped_motions``)."""
 
     t: np.ndarray
     W: np.ndarray
@@ -147,10 +151,14 @@ class GyroData:
     saturated: np.ndarray | None = None
     extra: dict = field(default_factory=dict)
     trim_rests: bool = True
+    missing: np.ndarray | None = None
 
     def __post_init__(self):
         self.t = np.ascontiguousarray(self.t, float)
         self.W = np.ascontiguousarray(self.W, float)
+        if self.missing is not None and np.any(self.missing):
+            self.missing = np.asarray(self.missing, bool)
+            self.W = np.where(self.missing[:, None], 0.0, self.W)  # never integrated: their motions are left out
         self.F = np.ascontiguousarray(self.F, float)
         self.rests = np.asarray(self.rests, np.int64).reshape(-1, 2)
         n = len(self.t)
@@ -196,6 +204,16 @@ class GyroData:
             seen = np.concatenate([[0], np.cumsum(np.asarray(self.saturated, bool))])
             keep = seen[stop + 1] <= seen[start]
         self.dropped_motions = np.column_stack([self.t[start[~keep]], self.t[stop[~keep]]])
+        # nor one across a gap: in the times (a logger that paused), or in a second file's gyroscope samples
+        dt = np.diff(self.t)
+        hole = np.concatenate([[0], np.cumsum(dt > GAP_STEPS * float(np.median(dt)))])  # holes before sample i
+        gap = hole[stop] > hole[start]
+        if self.missing is not None:
+            seen = np.concatenate([[0], np.cumsum(self.missing)])
+            gap |= seen[stop + 1] > seen[start]
+        gap &= keep
+        self.gapped_motions = np.column_stack([self.t[start[gap]], self.t[stop[gap]]])
+        keep = keep & ~gap
         self._keep = keep
         self.start = np.ascontiguousarray(start[keep])
         self.stop = np.ascontiguousarray(stop[keep])
@@ -215,7 +233,7 @@ class GyroData:
         scale factors and misalignments to the motions."""
         offset = np.column_stack([np.interp(self.t, self.rest_mid_t, self.rest_W[:, i]) for i in range(3)])
         out = GyroData(self.t, self.W - offset, self.F, self.rests, units=self.units, saturated=self.saturated,
-                       extra=dict(self.extra, bias_from_rests=offset,
+                       missing=self.missing, extra=dict(self.extra, bias_from_rests=offset,
                                   offset_raw=range_means(offset, self.rests).mean(axis=0)),
                        trim_rests=False)  # trimmed already, by the raw rates
         out.detected_rests = self.detected_rests
@@ -229,7 +247,7 @@ class GyroData:
         would name them undetermined."""
         offset = np.mean(self.rest_W, axis=0)
         out = GyroData(self.t, self.W - offset, self.F, self.rests, units=self.units, saturated=self.saturated,
-                       extra=dict(self.extra, offset_raw=offset), trim_rests=False)
+                       missing=self.missing, extra=dict(self.extra, offset_raw=offset), trim_rests=False)
         out.detected_rests = self.detected_rests
         return out
 
@@ -238,7 +256,7 @@ class GyroData:
         e.g. :func:`missed_rests`)."""
         rests = np.concatenate([self.rests, np.asarray(extra, np.int64).reshape(-1, 2)])
         out = GyroData(self.t, self.W, self.F, rests[np.argsort(rests[:, 0])], units=self.units,
-                       saturated=self.saturated, extra=dict(self.extra), trim_rests=False)
+                       saturated=self.saturated, missing=self.missing, extra=dict(self.extra), trim_rests=False)
         out.detected_rests = self.detected_rests
         return out
 

@@ -39,6 +39,37 @@ def join_times(t_acc: np.ndarray, t_gyro: np.ndarray) -> None:
                          f"(more than {TIME_TOLERANCE:g} of the {step:.3g} s step); resample them to common times")
 
 
+def on_times_of(rec, acc):
+    """The gyroscope's recording ``rec`` (a second file) at the accelerometer's times ``acc.t``: as it is when the
+    two share their times (within :data:`TIME_TOLERANCE` of a step), else interpolated linearly to them, as a
+    ROS bag's gyroscope topic is (:func:`optcal.core.recording.robotlogs.join`). An accelerometer sample outside
+    the gyroscope's span, or inside a gap of its samples (:data:`~optcal.core.gyro.data.GAP_STEPS` steps or
+    more), has no gyroscope sample: NaN, which the rests' detection takes for motion and the gyroscope's fit
+    leaves out with the motions holding it. ``reading["gyro_joined"]`` says how they were joined."""
+    from optcal.core.gyro.data import GAP_STEPS
+
+    t, tg = np.asarray(acc.t, float), np.asarray(rec.t, float)
+    if len(t) == len(tg) and len(t) > 1 and np.max(np.abs(t - tg)) <= TIME_TOLERANCE * float(np.median(np.diff(t))):
+        return rec
+    if len(tg) < 2 or tg[-1] <= t[0] or tg[0] >= t[-1]:
+        raise InputError(f"the gyroscope's times ({tg[0]:.6g}-{tg[-1]:.6g} s) and the accelerometer's "
+                         f"({t[0]:.6g}-{t[-1]:.6g} s) do not overlap: give both files' times in one clock")
+    j = np.searchsorted(tg, t)
+    lo, hi = np.clip(j - 1, 0, len(tg) - 1), np.clip(j, 0, len(tg) - 1)
+    ok = (t >= tg[0]) & (t <= tg[-1]) & (tg[hi] - tg[lo] <= GAP_STEPS * float(np.median(np.diff(tg))))
+    if ok.mean() < 0.5:
+        raise InputError(f"the gyroscope's samples cover {100 * ok.mean():.0f} % of the accelerometer's times: give "
+                         "both files' times in one clock, or record both sensors throughout")
+    N = np.column_stack([np.interp(t, tg, rec.N[:, k]) for k in range(3)])
+    N[~ok] = np.nan
+    uncovered = int((~ok).sum())
+    how = ("interpolated linearly to the accelerometer's times"
+           + (f" ({uncovered} accelerometer sample(s) without a gyroscope sample: outside its span or in a gap of "
+              "its samples)" if uncovered else ""))
+    return replace(rec, t=t, N=N, rate=acc.rate, saturated=rec.saturated[lo] | rec.saturated[hi],
+                   temp=None, labels=None, reading={**rec.reading, "gyro_joined": how, "gyro_uncovered": uncovered})
+
+
 def _columns(spec, n: int) -> list[str] | None:
     if spec is None:
         return None
@@ -82,7 +113,7 @@ def _units(units: str | None, names, where, calibration: bool = False) -> str:
 
 
 def read_gyro(data, acc, *, gyro=None, gyro_columns=None, units: str | None, rate: float | None = None,
-              time_unit: str | None = None, calibration: bool = False):
+              time_unit: str | None = None, calibration: bool = False, interpolate: bool = False):
     """The gyroscope's samples as a :class:`~optcal.core.recording.Recording` (its ``N`` holds them), read from the
     file ``gyro`` (times and three rates; ``gyro_columns`` names the four, "t,gx,gy,gz", or its first four
     columns are taken) or from the accelerometer's file ``data``, whose recording ``acc`` is, in the columns
@@ -92,7 +123,10 @@ def read_gyro(data, acc, *, gyro=None, gyro_columns=None, units: str | None, rat
     gyroscope's (counts, deg/s, rad/s, volts); None takes them from its columns' names (``wx(deg/s)``), and
     given units that the names contradict are refused (``calibration``: the units are a calibration file's,
     which the refusal says). The units used are the recording's ``reading["gyro_units"]``. A ROS bag's or a
-    ULog's gyroscope was read with its accelerometer: it is ``acc``'s (:func:`log_gyro`)."""
+    ULog's gyroscope was read with its accelerometer: it is ``acc``'s (:func:`log_gyro`). ``interpolate``: a
+    second file with its own times is taken at the accelerometer's (:func:`on_times_of`; a calibration's fit),
+    else kept as it is (``apply`` writes the samples as they were; ``noise`` would see the interpolation's
+    smoothing), and then refused by :func:`join_times` unless the times are the same."""
     from optcal.core.recording.reading import read_recording
 
     if gyro is None and acc.reading.get("topic") is not None:
@@ -104,6 +138,7 @@ def read_gyro(data, acc, *, gyro=None, gyro_columns=None, units: str | None, rat
         spec = None if cols is None else f"t={cols[0]},ax={cols[1]},ay={cols[2]},az={cols[3]}"
         rec = read_recording(gyro, spec, rate, _READER_UNITS.get(units, "volts"), time_unit=time_unit, even=even)
         units = _units(units, [rec.columns[a] for a in ("ax", "ay", "az")], gyro, calibration)
+        rec = on_times_of(rec, acc) if interpolate else rec
         return replace(rec, reading={**rec.reading, "gyro_units": units})
     cols = _columns(gyro_columns, 3)
     if cols is None and all(k in acc.columns for k in ("gx", "gy", "gz")):
