@@ -56,6 +56,10 @@ DRIFT_SIGMAS = 3.0  # a significant slope is a motion when it moves the outputs 
 # cut into pieces moves each piece by far more, and (c) still finds it on a line with its neighbours
 MERGE_SIGMA = 1.0  # neighbouring rests closer than this many sample-noise SDs (norm over axes) are one pose
 Q10_HALF_NORMAL = 0.12566  # the 10th percentile of |x| for x ~ N(0, 1)
+ROUNDING = 1e-9  # a difference below this fraction of the largest is a float's rounding residue, 0: outputs on a
+# decimal grid (0.01 m/s²) leave 1e-17 where they repeat, which read as a noise SD of 1e-18 (a log of another lab:
+# z's noise taken for 0.0029 m/s², its quantisation floor, against 0.014, and its six faces cut into slivers)
+GYRO_ROUNDING = 0.0  # the gyroscope's rates: every non-zero difference counts (see gyro_turning)
 TRUNCATED_VARIANCE_3SD = 0.97334  # the variance of N(0, 1) cut to ±3, relative to 1
 DEFAULT_MIN_STATIC_S = 0.5  # s: the shortest pose found by default
 MIN_POSE_SAMPLES = BLOCKS_PER_POSE  # samples: never a shorter pose (at 5 Hz, 0.5 s is 3 samples, too few to tell a
@@ -92,13 +96,15 @@ class Segmentation:
     turning: np.ndarray | None = None  # (n,) bool: samples the gyroscope sees turning (None without one)
 
 
-def _noise_sd(d2: np.ndarray) -> np.ndarray:
+def _noise_sd(d2: np.ndarray, rounding: float = ROUNDING) -> np.ndarray:
     """Per column, the SD of white noise x from its second differences d2 = x_i − 2x_{i+1} + x_{i+2} (SD
     σ√6), over the quiet part of a recording that also moves. A first guess from the 10th percentile of
     |d2| (robust while a tenth of the recording is at rest) sets a cut at 3 SDs; the SD is then the RMS of
     the differences inside the cut, corrected for the cut (a normal cut at ±3σ keeps 97.33 % of its
     variance). Second differences cancel a constant rate of change: a slow turn does not pass for noise."""
     a = np.abs(np.ascontiguousarray(np.asarray(d2, float).T))  # (3, n): each axis one contiguous row (faster)
+    # outputs on a decimal grid (0.01 m/s²) leave differences of 1e-17 where they are 0: those are 0
+    a[a <= rounding * np.max(a, axis=1, initial=0.0)[:, None]] = 0.0
     s0 = np.percentile(a, 10.0, axis=1) / (Q10_HALF_NORMAL * np.sqrt(6.0))
     if not np.all(s0 > 0):
         # coarse outputs (a gyroscope at 0.06 °/s per count, sampled faster than it changes) can hold a tenth of
@@ -109,11 +115,11 @@ def _noise_sd(d2: np.ndarray) -> np.ndarray:
     return np.sqrt(ms / (6.0 * TRUNCATED_VARIANCE_3SD))
 
 
-def _quantum(N: np.ndarray) -> np.ndarray:
+def _quantum(N: np.ndarray, rounding: float = ROUNDING) -> np.ndarray:
     """Per axis, the smallest non-zero step between consecutive outputs (the quantisation step of a coarse
     ADC; for fine outputs just a small number)."""
     d = np.abs(np.diff(N, axis=0))
-    d = np.where(d > 0, d, np.inf)
+    d = np.where(d > rounding * np.max(d, axis=0, initial=0.0), d, np.inf)  # a rounding residue is no step
     q = d.min(axis=0)
     return np.where(np.isfinite(q), q, 0.0)
 
@@ -659,9 +665,11 @@ def gyro_turning(W: np.ndarray, b: int, seg: np.ndarray, rest: np.ndarray, rate:
     nb = n // b
     finite = np.isfinite(W).all(axis=1)
     Wf = np.where(finite[:, None], W, 0.0)
-    q = _quantum(Wf[finite])
+    # the gyroscope's thresholds were set with a rounding residue taken for a step and for noise (GYRO_ROUNDING;
+    # on a coarse gyroscope in rad/s the level is then its quantisation's, q/√12): kept as they were chosen
+    q = _quantum(Wf[finite], GYRO_ROUNDING)
     ok = finite[2:] & finite[1:-1] & finite[:-2]
-    s = np.maximum(_noise_sd(np.diff(Wf, 2, axis=0)[ok]), q / np.sqrt(12.0))
+    s = np.maximum(_noise_sd(np.diff(Wf, 2, axis=0)[ok], GYRO_ROUNDING), q / np.sqrt(12.0))
     s = np.where(s > 0, s, 1.0)
     G = Wf[: nb * b].reshape(nb, b, 3).mean(axis=1)
     t = (np.arange(n, dtype=float) - (b - 1) / 2.0) / b
