@@ -212,3 +212,26 @@ def test_outputs_on_a_decimal_grid_are_not_taken_for_noiseless():
     assert np.all(np.abs(det.segmentation.sigma / true_sd - 1) < 0.2), (det.segmentation.sigma, true_sd)
     sc = interval_scores(det.intervals, syn.rests, len(rec), TOL)
     assert sc["recall"] == 1.0 and sc["precision"] == 1.0 and det.n_intervals == 6, sc
+
+
+def test_a_coarse_gyroscope_s_flicker_is_no_turn():
+    """Six faces logged apart with a gyroscope at 0.01 per count that reads 0 on 98 % of its samples and flickers
+    by a count or two on the others, in bursts (a six-face log of another lab): no turn was recorded, and no face
+    is cut at a flicker (without the rule, 13 intervals for the 6 faces); a rate of 30 counts for 1 s inside a face
+    is still a turn."""
+    dirs = np.array([[1, 0, 0], [-1, 0, 0], [0, 1, 0], [0, -1, 0], [0, 0, 1], [0, 0, -1]], float)
+    syn = poses_recording(np.random.default_rng(5), dirs, hold_s=12.0, rate=RATE, motion="step", noise_g=2e-3)
+    rng = np.random.default_rng(6)
+    n = len(syn.recording)
+    W = np.zeros((n, 3))
+    for k in rng.choice(n - 40, 40, replace=False):  # bursts of flicker, 0.2-0.4 s long
+        m = rng.integers(20, 40)
+        W[k:k + m, rng.integers(3)] = rng.choice([-0.02, -0.01, 0.01, 0.02], m) * (rng.random(m) < 0.5)
+    det = segment_static(syn.recording, gyro=W)
+    sc = interval_scores(det.intervals, syn.rests, n, TOL)
+    assert det.n_intervals == 6 and sc["recall"] == 1.0 and sc["precision"] == 1.0, (det.n_intervals, sc)
+    turn = W.copy()
+    a, b = syn.rests[2][0] + 300, syn.rests[2][0] + 400
+    turn[a:b, 0] = 0.3  # 30 counts for a second inside the third face: a turn
+    det = segment_static(syn.recording, gyro=turn)
+    assert not any(s < b and e > a for s, e in det.intervals)

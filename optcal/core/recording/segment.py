@@ -676,7 +676,7 @@ def gyro_turning(W: np.ndarray, b: int, seg: np.ndarray, rest: np.ndarray, rate:
     w = max(1, int(round(GYRO_WINDOW_S * rate))) if np.isfinite(rate) else 5
     X = Wf - _rest_level(G, t, seg, rest)
     M = _moving_mean(X, w)
-    samples = _turning_samples(M, s, w) | ~finite
+    samples = _turning_samples(M, s, w, q) | ~finite
     # the accelerometer's rests may hold part of a turn, which moves their level (by more than the threshold
     # on a quiet gyroscope): the level again from the gyroscope's own still runs, whole blocks of them
     still = runs(~samples)
@@ -685,7 +685,7 @@ def gyro_turning(W: np.ndarray, b: int, seg: np.ndarray, rest: np.ndarray, rate:
     if len(still):
         X = Wf - _rest_level(G, t, still, np.ones(len(still), bool))
         M = _moving_mean(X, w)
-        samples = _turning_samples(M, s, w) | ~finite
+        samples = _turning_samples(M, s, w, q) | ~finite
     per_s = rate if np.isfinite(rate) else 50.0
     turns = _dilate(samples, int(round(SETTLE_S * per_s)), int(round(GYRO_MARGIN_S * per_s)))
     if acc is not None and np.isfinite(rate):  # slow motions, in units the accelerometer's turns give
@@ -711,11 +711,17 @@ def _moving_mean(X: np.ndarray, w: int) -> np.ndarray:
     return np.concatenate([np.repeat(m[:1], h, axis=0), m, np.repeat(m[-1:], n - h - len(m), axis=0)])
 
 
-def _turning_samples(M: np.ndarray, s: np.ndarray, w: int) -> np.ndarray:
+def _turning_samples(M: np.ndarray, s: np.ndarray, w: int, q: np.ndarray | None = None) -> np.ndarray:
     """Samples (n,) of a turn, from the rates less their level at rest averaged over ``w`` samples, ``M`` (n, 3)
     (:func:`_moving_mean`), and a sample's white noise SD ``s`` (3,): the average, in units of its noise (the
-    largest axis), is above the threshold (:func:`gyro_turning`)."""
-    z = np.max(np.abs(M) / (s / np.sqrt(w)), axis=1)
+    largest axis), is above the threshold (:func:`gyro_turning`), on an axis where it also exceeds the
+    quantisation step ``q`` (3,): a coarse gyroscope whose output sits at its level and flickers by a count now
+    and then averages anywhere within one count of it without turning (a six-face log of another lab, its
+    gyroscope at 0.01 per count and 0 on 98 % of its samples, had its faces cut at such flickers)."""
+    r = np.abs(M) / (s / np.sqrt(w))
+    if q is not None:
+        r = np.where(np.abs(M) > q, r, 0.0)
+    z = np.max(r, axis=1)
     # a turn: above the noise and above a small fraction of the recording's turns (its 99th percentile); its slow
     # start and its settling, below that, are the attitude rule's (optcal.core.recording.attitude)
     return z > max(GYRO_Z, TURN_FRACTION * float(np.percentile(z, 99)))
