@@ -408,3 +408,21 @@ def test_calibrate_plots_a_positions_file_and_prints_the_outlier_table(tmp_path,
     table = out[out.index("residual µg"):]
     flagged = [line for line in table.splitlines() if line.rstrip().endswith("OUTLIER")]
     assert len(flagged) == 1 and flagged[0].split()[0] == "7"
+
+
+def test_an_exact_fit_has_no_chi2_and_the_means_noise_for_its_errors():
+    """diag6 forced on six positions (the six-face method): as many residuals as parameters, so the residuals are 0
+    whatever the noise. No χ² is computed (it was 1e-23 "judged against E = 1e-29", p = 1e-40, and the standard
+    errors scaled by a Birge ratio of 597: K ± 7.7 % where the means give 0.013 %), the data are not called exact
+    copies, and the standard errors are the Cramér-Rao bound at the stated noise of the means."""
+    diag6 = get_model("diag6")
+    truth = {k: v for k, v in PAPER_TRUTH.items() if k in diag6.names}
+    sim = simulate(diag6, truth, np.random.default_rng(2), scheme="6", noise_g=100e-6)
+    cal = calibrate(sim.data, diag6, noise_g=100e-6, force_weak=True)
+    assert cal.fit.dof == 0 and cal.fit.chi2 is None and cal.fit.p_value is None
+    assert cal.fit.describe() == ("exact fit: no residual degree of freedom, so no χ² test; standard errors from the "
+                                  "noise of the position means, 100 µg RMS")
+    sd, _ = crlb(cal.problem, cal.x, 100e-6)
+    assert np.allclose(cal.stderr, sd, rtol=1e-6)
+    assert not any("Birge" in n or "exact (simulated" in n or "only 0" in n for n in cal.notes), cal.notes
+    assert any(n.startswith("no residual degree of freedom (6 positions, 6 determined parameters)") for n in cal.notes)

@@ -314,8 +314,12 @@ def _weak_notes(problem: CalibrationProblem, x: np.ndarray, sd: np.ndarray, obs:
     loss, what the data determine and weak fits")."""
     model, n_pos = problem.model, len(problem.data)
     notes = []
-    dof = max(len(problem.position_residuals(x)) - obs.rank, 1)  # every position, a robust fit's rejected too
-    if dof < MIN_DOF or dof < obs.rank:
+    dof = max(len(problem.position_residuals(x)) - obs.rank, 0)  # every position, a robust fit's rejected too
+    if dof == 0:
+        notes.append(f"no residual degree of freedom ({n_pos} positions, {obs.rank} determined parameters): the "
+                     "residuals cannot show a bad position or a missing effect; record more positions (at least "
+                     f"{2 * obs.rank} for {model.name})")
+    elif dof < MIN_DOF or dof < obs.rank:
         notes.append(f"only {dof} residual degree(s) of freedom ({n_pos} positions, {obs.rank} determined "
                      "parameters): the residuals can hardly show a bad position or a missing effect and the noise "
                      f"estimate rests on {dof} degree(s) of freedom; record more positions (at least "

@@ -147,6 +147,10 @@ class GoodnessOfFit:
 
     def describe(self) -> str:
         """One line: the noise floor (where from, its value in µg, σ/√n beside a recording's) and the χ² verdict."""
+        if self.dof == 0:
+            noise = ("" if not np.isfinite(self.noise_g) else
+                     f"; standard errors from the noise of the position means, {self.noise_g * 1e6:.4g} µg RMS")
+            return f"exact fit: no residual degree of freedom, so no χ² test{noise}"
         if self.chi2 is None:
             return (f"noise floor unknown (no n and sx, sy, sz or se_x, se_y, se_z in the data): residual SD "
                     f"{self.noise_g * 1e6:.4g} µg on {self.dof} dof, no χ² test")
@@ -191,6 +195,8 @@ def goodness_of_fit(problem: CalibrationProblem, x_full: np.ndarray, noise_g: fl
     x = np.asarray(x_full, float)
     r = problem.position_residuals(x)
     obs = observability(problem, x)
+    if len(r) <= obs.rank:  # an exact fit: no residual left to test, the means' noise alone gives the errors
+        return _exact_fit(problem, x, float(np.sqrt(np.mean(r**2))), float(r @ r), noise_g)
     dof = max(len(r) - obs.rank, 1)
     cost = float(r @ r)
     rms = float(np.sqrt(np.mean(r**2)))
@@ -213,6 +219,18 @@ def goodness_of_fit(problem: CalibrationProblem, x_full: np.ndarray, noise_g: fl
         return GoodnessOfFit(rms, cost, dof, float(np.sqrt(cost / dof)), None, None)
     chi2 = cost / sigma**2
     return GoodnessOfFit(rms, cost, dof, float(sigma), chi2, float(chi2_sf(chi2, dof)), "stated")
+
+
+def _exact_fit(problem: CalibrationProblem, x: np.ndarray, rms: float, cost: float, noise_g) -> GoodnessOfFit:
+    """The goodness of fit of an exact fit (as many residuals as determined parameters, dof 0): no χ², the noise of
+    the position means as the data give it (or as stated) for the standard errors, NaN when nothing gives it."""
+    if noise_g is None and problem.noise_g is not None and problem.noise_from_data:
+        sig = position_sigma(problem, x)
+        return GoodnessOfFit(rms, cost, 0, float(np.sqrt(np.mean(sig**2))), None, None, "measured",
+                             floor_estimator(problem.data))
+    sigma = noise_g if noise_g is not None else problem.noise_g
+    return GoodnessOfFit(rms, cost, 0, float("nan") if sigma is None else float(sigma), None, None,
+                         "residuals" if sigma is None else "stated")
 
 
 def chi2_moments(problem: CalibrationProblem, x_full: np.ndarray, sigma: np.ndarray, floor) -> tuple[float, float]:

@@ -124,7 +124,10 @@ def describe_directions(directions: list[list[dict]], most: int = 3) -> str:
 
 
 def exact(gof: GoodnessOfFit, n_pos: int) -> list[Refusal]:
-    """An exact fit after the fact: residuals at rounding level, or far below the stated noise."""
+    """An exact fit after the fact: residuals at rounding level, or far below the stated noise (not a fit that
+    is exact by construction, dof 0: its residuals are 0 whatever the data's noise)."""
+    if gof.dof == 0:
+        return []
     if gof.rms_g <= ROUNDING_G:
         return [Refusal("exact_data", f"the residual RMS over {n_pos} positions is {gof.rms_g:.2g} g, at the rounding "
                                  "of the numbers: the data are exact (simulated without noise or copied), not "

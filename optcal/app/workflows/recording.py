@@ -57,7 +57,7 @@ def fit_score(data: PositionsData, model, g_local: float = 1.0, solver: str = "l
     rel = np.array([se / scale[n[-1]] if units[n].startswith(data.units) and n[-1] in scale else se
                     for n, se in zip(cal.model.names, np.asarray(cal.stderr, float))])
     sigma = np.sqrt(cal.fit.cost / max(cal.fit.dof, 1))
-    sigma_up = np.sqrt(cal.fit.cost / chi2_isf(1.0 - alpha, cal.fit.dof))
+    sigma_up = np.sqrt(cal.fit.cost / chi2_isf(1.0 - alpha, max(cal.fit.dof, 1)))
     inflate = sigma_up / sigma if sigma > 0 else 1.0
     if cal.forced or not np.all(np.isfinite(rel)):  # a calibration the data do not determine, or implausible:
         return float("inf")  # kept only when no candidate does better
