@@ -297,3 +297,22 @@ def test_bad_input_exit_2_one_line_nothing_written(tmp_path, capsys, case, extra
     assert code == 2
     assert message in err and len(err.strip().splitlines()) == 1
     assert not out.exists()
+
+
+def test_a_rail_in_converted_units_is_found_where_the_rate_piles_up():
+    """A ±250 °/s gyroscope whose counts were converted to °/s (32768/131.07 = 250.004) and logged at 22 Hz: its
+    fast turns sit at ±250.004 for 1-7 samples at a time, too briefly for a run of 10 (a rocket board of another
+    lab: its fit was refused as "likely a wrong rate ... or saturation", naming no cause). The extremes that pile
+    up are rails; a rate that peaks without clipping has none."""
+    from optcal.core.recording.reading import piled_extremes, piled_saturation
+
+    rng = np.random.default_rng(0)
+    t = np.arange(4000) / 22.0
+    x = 300.0 * np.sin(2 * np.pi * 0.3 * t) + rng.normal(0, 0.5, 4000)
+    q = np.round(x * 131.07) / 131.07  # counts, converted
+    clipped = np.clip(q, -32768 / 131.07, 32767 / 131.07)
+    assert piled_extremes(clipped) == [-32768 / 131.07, 32767 / 131.07]
+    assert piled_extremes(np.round(0.7 * x * 131.07) / 131.07) == []  # peaks at ±210 °/s, unclipped
+    W = np.column_stack([clipped, np.round(0.7 * x * 131.07) / 131.07, np.zeros(4000)])
+    sat, where = piled_saturation(W)
+    assert list(where) == ["gx"] and np.array_equal(sat, np.abs(clipped) > 249.99)

@@ -4,6 +4,7 @@ docs/gyroscope.md, "The command")."""
 
 from __future__ import annotations
 
+import re
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -124,6 +125,9 @@ def calibrate_imu(positions, gyro, *, model=None, solver: str = "lm", options: d
         way = "; ".join(w for n, w in ((len(data.dropped_motions), "turn more slowly, or record with a wider "
                                         "gyroscope range"),
                                        (len(data.gapped_motions), "record without gaps")) if n)
-        raise InputError(f"{n_out} of {n_out + data.n_motions} motions {why} and are left out, and the rest do not "
-                         f"suffice: {exc}; {way}") from None
+        # the reason without its details and its way out
+        first = re.sub(r" \([^()]*\)", "", str(exc).split("; ")[0].removeprefix("gyroscope fit refused: "))
+        first = first.split(": ")[0]
+        raise InputError(f"{n_out} of {n_out + data.n_motions} motions {why} and are left out, and the "
+                         f"{data.n_motions} left do not determine the gyroscope ({first}); {way}") from None
     return ImuCalibration(cal, fit, data, positions.units, solver, notes + fit.notes)

@@ -129,6 +129,26 @@ def read_gyro(data, acc, *, gyro=None, gyro_columns=None, units: str | None, rat
     smoothing), and then refused by :func:`join_times` unless the times are the same."""
     from optcal.core.recording.reading import read_recording
 
+    rec = _read_gyro(data, acc, gyro=gyro, gyro_columns=gyro_columns, units=units, rate=rate, time_unit=time_unit,
+                     calibration=calibration, interpolate=interpolate, read_recording=read_recording)
+    return _with_piled_rails(rec)
+
+
+def _with_piled_rails(rec):
+    """``rec`` (the gyroscope's) with the samples at a rail its rates pile up at marked saturated too
+    (:func:`optcal.core.recording.reading.piled_saturation`: a rail in converted units, held too briefly for a
+    run), said in ``reading["gyro_piled"]``."""
+    from optcal.core.recording.reading import piled_saturation
+
+    N = np.asarray(rec.N, float)
+    piled, where = piled_saturation(N)
+    if not where:
+        return rec
+    return replace(rec, saturated=np.asarray(rec.saturated, bool) | piled, reading={**rec.reading, "gyro_piled": where})
+
+
+def _read_gyro(data, acc, *, gyro, gyro_columns, units, rate, time_unit, calibration, interpolate, read_recording):
+    """:func:`read_gyro` without its rails' pile-up check."""
     if gyro is None and acc.reading.get("topic") is not None:
         rec = log_gyro(acc, units or "rad/s", gyro_columns)
         return replace(rec, reading={**rec.reading, "gyro_units": units or "rad/s"})

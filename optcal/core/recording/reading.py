@@ -45,6 +45,8 @@ INT16_RAILS = (-32768.0, 32767.0)
 TIME_UNITS = {"s": 1.0, "ms": 1e-3, "us": 1e-6, "ns": 1e-9}  # to seconds
 RATE_RANGE = (1.0, 1e5)  # Hz: a time column's unit is the first that gives a rate above 1 Hz, up to 100 kHz
 RAIL_RUN = 10  # samples in a row at one extreme value: a rail (saturation_of)
+RAIL_PILE = 3  # a rate's extreme value held by this many samples, and this many times as many as ...
+RAIL_PILE_NEAR = 5  # ... any of this many values nearest inside it: a rail the rate returns to (piled_extremes)
 HELD_FRACTION = 0.2  # rows equal to the one before on every axis: at least this fraction of all rows, and of the
 # fifth of the rows where the outputs move most: the log repeats the sensor's samples (it runs faster than the
 # sensor outputs), where a quantised sensor repeats itself at rest only (the corpus: at most 5 % of all rows, 0.3 %
@@ -430,7 +432,38 @@ def gyro_saturation_of(W: np.ndarray, units: str, fmt: tuple[bool, int] | None) 
     rates), and in any units an axis's extreme held for :data:`RAIL_RUN` samples (:func:`stuck_runs`)."""
     integer = units == "counts" and bool(np.all(W == np.round(W)))
     sat, how = saturation_of(W, "counts" if integer else "g", None, fmt if integer else None, ("gx", "gy", "gz"))
+    piled, where = piled_saturation(W)
+    if where:
+        sat, how["piled"] = sat | piled, where
     return sat, {f"gyro_{k}": v for k, v in how.items()}
+
+
+def piled_saturation(W: np.ndarray) -> tuple[np.ndarray, dict]:
+    """Samples (n,) of the rates ``W`` (n, 3) at an extreme value that piles up (:func:`piled_extremes`), and
+    those values per axis (gx, gy, gz)."""
+    piled = [piled_extremes(W[:, j]) for j in range(3)]
+    sat = np.zeros(len(W), bool)
+    for j, vals in enumerate(piled):
+        if vals:
+            sat |= np.isin(W[:, j], vals)
+    return sat, {a: v for a, v in zip(("gx", "gy", "gz"), piled) if v}
+
+
+def piled_extremes(x: np.ndarray) -> list[float]:
+    """The extreme values (min, max) of a rate ``x`` that pile up: held by at least :data:`RAIL_PILE` samples and
+    by :data:`RAIL_PILE` times as many as any of the :data:`RAIL_PILE_NEAR` values nearest inside them. A rate
+    clipped at a rail returns to it on every fast turn, where an unclipped peak is a tail that the values
+    beside it share (a ±250 °/s gyroscope of another lab, its counts converted to °/s and logged at 22 Hz, sat
+    at ±250.004 on 3-14 samples per axis, 1 on each value beside them, in runs shorter than
+    :data:`RAIL_RUN`)."""
+    vals, cnt = np.unique(x[np.isfinite(x)], return_counts=True)
+    if len(vals) <= RAIL_PILE_NEAR:
+        return []
+    out = []
+    for end, near in ((0, cnt[1:1 + RAIL_PILE_NEAR]), (len(vals) - 1, cnt[-1 - RAIL_PILE_NEAR:-1])):
+        if cnt[end] >= RAIL_PILE and cnt[end] >= RAIL_PILE * near.max():
+            out.append(float(vals[end]))
+    return out
 
 
 def _text(path: Path):
