@@ -456,14 +456,19 @@ def piled_extremes(x: np.ndarray) -> list[float]:
     beside it share (a ±250 °/s gyroscope of another lab, its counts converted to °/s and logged at 22 Hz, sat
     at ±250.004 on 3-14 samples per axis, 1 on each value beside them, in runs shorter than
     :data:`RAIL_RUN`)."""
-    vals, cnt = np.unique(x[np.isfinite(x)], return_counts=True)
-    if len(vals) <= RAIL_PILE_NEAR:
-        return []
+    x = x[np.isfinite(x)]
     out = []
-    for end, near in ((0, cnt[1:1 + RAIL_PILE_NEAR]), (len(vals) - 1, cnt[-1 - RAIL_PILE_NEAR:-1])):
-        if cnt[end] >= RAIL_PILE and cnt[end] >= RAIL_PILE * near.max():
-            out.append(float(vals[end]))
-    return out
+    for sign in (-1.0, 1.0):  # each end from its few largest values (a partial sort: the whole rate is not sorted)
+        y = sign * x
+        k = min(len(y), 256)
+        vals, cnt = np.unique(np.partition(y, len(y) - k)[len(y) - k:], return_counts=True)
+        if len(vals) <= RAIL_PILE_NEAR + 1:  # the least of them may be cut: the six at the end must be whole
+            vals, cnt = np.unique(y, return_counts=True)
+            if len(vals) <= RAIL_PILE_NEAR:
+                continue
+        if cnt[-1] >= RAIL_PILE and cnt[-1] >= RAIL_PILE * cnt[-1 - RAIL_PILE_NEAR:-1].max():
+            out.append(float(sign * vals[-1]))
+    return sorted(out)
 
 
 def _text(path: Path):
