@@ -865,3 +865,18 @@ def test_at_a_low_rate_a_pose_has_at_least_eight_samples():
     inside = (iv[:, None, 0] >= syn.rests[None, :, 0] - 2) & (iv[:, None, 1] <= syn.rests[None, :, 1] + 2)
     assert inside.any(axis=1).all(), iv  # no interval outside a pose
     assert len(np.unique(np.argmax(inside, axis=1))) == 12  # every pose
+
+
+@pytest.mark.parametrize("first", [1, 0])
+def test_a_header_of_column_numbers_is_no_sample(tmp_path, first):
+    """A logger's header that numbers the columns (``1,2,…,9``, a six-face log of another lab; or from 0): it was
+    read as the first sample, (1, 2, 3) m/s². Now skipped; the columns go by index as without a header."""
+    rng = np.random.default_rng(0)
+    data = np.column_stack([rng.normal(0, 0.01, (200, 2)), 9.81 + rng.normal(0, 0.01, 200), rng.normal(0, 1, (200, 3))])
+    path = tmp_path / "numbered.csv"
+    np.savetxt(path, data, delimiter=",", header=",".join(str(first + k) for k in range(6)), comments="", fmt="%.5f")
+    rec = read_recording(path, columns="ax=0,ay=1,az=2", rate=100.0, units="m/s2")
+    assert len(rec) == 200 and np.allclose(rec.N[0], data[0, :3], atol=1e-5)
+    # a data row that merely starts with small integers stays a sample
+    np.savetxt(path, np.vstack([[1.0, 2.0, 9.0, 0.0, 0.0, 0.0], data]), delimiter=",", fmt="%.5f")
+    assert len(read_recording(path, columns="ax=0,ay=1,az=2", rate=100.0, units="m/s2")) == 201

@@ -195,6 +195,16 @@ def refuse_duplicates(header: list[str], path: Path) -> None:
                              f"{j}); rename one of them")
 
 
+def _column_numbers(fields) -> bool:
+    """Whether a row of numbers is a header numbering the columns, 1, 2, …, k or 0, 1, …, k − 1 (a logger's: read
+    as a sample, it put the first at (1, 2, 3) m/s²)."""
+    try:
+        v = [float(x) for x in fields]
+    except ValueError:
+        return False
+    return v == list(range(1, len(v) + 1)) or v == list(range(len(v)))
+
+
 def sniff_layout(path: Path, known: Collection[str] = (), what: str = "a raw recording needs one row per "
                  "sample (t, ax, ay, az)") -> Layout:
     """Delimiter, header, leading key/value lines and the first data line, from the file's first lines. The
@@ -220,8 +230,11 @@ def sniff_layout(path: Path, known: Collection[str] = (), what: str = "a raw rec
     start = max(k for k, p in enumerate(pattern) if p == ref)
     while start > 0 and pattern[start - 1] == ref:
         start -= 1
+    # a header of column numbers (1,2,…,9 or 0,1,…,8) is no sample, and no names: the columns go by index
+    numbered = start + 1 < len(rows) and ref[0] >= 3 and _column_numbers(rows[start][1])
     header, commented = None, False
     before = rows[:start]
+    start += numbered
     # A header has text wherever the data have numbers; a line with the data's width and numbers in it is
     # a data row that does not parse (an empty or text cell), and must not be skipped silently.
     if before and len(before[-1][1]) == ref[0] and not any(
