@@ -426,3 +426,18 @@ def test_an_exact_fit_has_no_chi2_and_the_means_noise_for_its_errors():
     assert np.allclose(cal.stderr, sd, rtol=1e-6)
     assert not any("Birge" in n or "exact (simulated" in n or "only 0" in n for n in cal.notes), cal.notes
     assert any(n.startswith("no residual degree of freedom (6 positions, 6 determined parameters)") for n in cal.notes)
+
+
+def test_forced_on_too_few_positions_the_default_falls_back_to_a_model_they_reach():
+    """Six positions with --force-weak and no model named: diag6's exact fit is forced (every parameter reached),
+    not nonlinear12 at rank 6 of 12 with every parameter unobservable (a six-face log of another lab)."""
+    diag6 = get_model("diag6")
+    truth = {k: v for k, v in PAPER_TRUTH.items() if k in diag6.names}
+    sim = simulate(diag6, truth, np.random.default_rng(3), scheme="6", noise_g=100e-6)
+    cal = calibrate(sim.data, None, noise_g=100e-6, force_weak=True)
+    assert cal.model.name == "diag6" and cal.forced and np.all(np.isfinite(cal.stderr))
+    assert cal.notes[0].startswith("nonlinear12 (the default model) is not determined by these positions: 6 "
+                                   "positions give 6 residuals, fewer than the 12 parameters of nonlinear12; fitted "
+                                   "diag6 instead"), cal.notes[0]
+    assert cal.notes[0].endswith("that they reach in every parameter (forced: see below)")
+    assert cal.notes[1].startswith("forced although the data do not determine it")

@@ -77,7 +77,7 @@ def calibrate(data: PositionsData, model: str | Model | None = None, *, solver: 
     if backend is None:
         backend = "numpy" if getattr(slv, "few_evaluations", False) else "kernel"
     named = model is not None
-    candidates, first = [], None
+    candidates, first, tried = [], None, []
     for name in determination.chain(model):
         m = get_model(name)
         problem = CalibrationProblem(m, data, g_local=g_local, reference=reference, presets=presets,
@@ -87,17 +87,23 @@ def calibrate(data: PositionsData, model: str | Model | None = None, *, solver: 
         if not refused:
             candidates.append(problem)
         first = first or (problem, refused, obs)
+        tried.append((problem, obs, refused))
     if not candidates:
         problem, refused, obs = first
         if not force_weak:
             smaller = _richest_determined(data, problem.model, g_local, reference, presets, noise_g)
             raise InputError(determination.line(refused, problem.model, smaller, chain_tried=not named))
-        candidates = [problem]
+        # forced: the richest model of the chain whose parameters these positions all reach (six positions force
+        # diag6's exact fit, not nonlinear12 at rank 6 of 12), else the first
+        forced = next((t for t in tried if t[1].rank == t[0].model.n_params), tried[0])
+        why = [] if forced[0] is problem else [f"{refused[0].reason}"]
+        candidates, first = [forced[0]], (forced[0], forced[2], forced[1])
+    else:
+        why = [] if first[1] == [] or candidates[0] is first[0] else [f"{first[1][0].reason}"]
     # The default model falls back past a fit that its positions leave undetermined (a parameter known no better
     # than its datasheet says, design.md, "Per-position residuals, outliers, the robust loss, what the data determine
     # and weak fits") or implausible: the data determine the smaller model, not that one. A named
     # model is fitted as named, and refused or forced.
-    why = [] if first[1] == [] or candidates[0] is first[0] else [f"{first[1][0].reason}"]
     for k, problem in enumerate(candidates):
         fit = _fit(problem, slv, solver, x0, budget, seed, noise_g, refused=first[1] if problem is first[0] else [])
         last = k == len(candidates) - 1
@@ -118,7 +124,8 @@ def calibrate(data: PositionsData, model: str | Model | None = None, *, solver: 
     if cal.model.name != requested.name:
         cal.notes.insert(0, f"{requested.name} (the default model) is not determined by these positions: "
                             + "; ".join(why) + f"; fitted {cal.model.name} instead, the richest of "
-                            f"{' → '.join(determination.FALLBACK)} that they determine")
+                            f"{' → '.join(determination.FALLBACK)} that they "
+                            + ("reach in every parameter (forced: see below)" if refused else "determine"))
         cal.requested_model = requested.name
     cal.forced = [r.reason for r in refused]
     if recheck and cal.diagnostics is not None and not cal.model.needs:

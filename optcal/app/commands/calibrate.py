@@ -48,8 +48,9 @@ def add_arguments(p):
     p.add_argument("-o", "--output", metavar="CALIBRATION.json", help="write the calibration file")
     p.add_argument("--force", action="store_true", help="overwrite an existing calibration file or figure")
     p.add_argument("--force-weak", action="store_true", help="write a fit the data do not determine (too few "
-                   "positions, fewer than 3 residual degrees of freedom, an exact fit, implausible parameters) "
-                   "instead of refusing it; the file records that it was forced and why")
+                   "positions to check it, fewer than 3 residual degrees of freedom, an exact fit, implausible "
+                   "parameters) instead of refusing it; the file records that it was forced and why (fewer positions "
+                   "than the model's parameters have no one fit to force: still refused)")
     p.add_argument("--plot", metavar="FILE.png", help="the residual per position with its noise band and the "
                    "outliers (with --raw: the recording with its intervals and residuals); the suffix names the "
                    "format: .png, .pdf, .svg, ...")

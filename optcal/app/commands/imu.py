@@ -50,10 +50,11 @@ def add_arguments(p):
     p.add_argument("--json", action="store_true", help="print the result as one JSON object")
     p.add_argument("-o", "--output", metavar="IMU.json", help="write the calibration file with both sensors")
     p.add_argument("--force", action="store_true", help="overwrite an existing calibration file")
-    p.add_argument("--force-weak", action="store_true", help="write fits the data do not determine (too few rests, an "
-                   "accelerometer parameter left unobservable, a gyroscope fit the gates refuse) instead of refusing "
-                   "them; the file records that they were forced and why (motions that leave a gyroscope parameter "
-                   "undetermined have no one fit to force: still refused)")
+    p.add_argument("--force-weak", action="store_true", help="write fits the data do not determine (too few rests to "
+                   "check the fit, an accelerometer parameter left unobservable, a gyroscope fit the gates refuse) "
+                   "instead of refusing them; the file records that they were forced and why (fewer rests than the "
+                   "smallest model's parameters, or motions that leave a gyroscope parameter undetermined, have no "
+                   "one fit to force: still refused)")
     add_data_options(p)
 
 
