@@ -316,3 +316,22 @@ def test_a_rail_in_converted_units_is_found_where_the_rate_piles_up():
     W = np.column_stack([clipped, np.round(0.7 * x * 131.07) / 131.07, np.zeros(4000)])
     sat, where = piled_saturation(W)
     assert list(where) == ["gx"] and np.array_equal(sat, np.abs(clipped) > 249.99)
+
+
+def test_calibrate_with_the_gyroscope_file_takes_the_rests_imu_takes(tmp_path, capsys):
+    """Two files: ``calibrate --raw --gyro`` judges the rests on the gyroscope too, so it takes the rests, the model
+    and the accelerometer's parameters that ``imu`` takes (two hand-held logs of another lab: calibrate alone 28
+    rests and nonlinear12, imu 29 and linear9); without --raw, --gyro is refused in one line."""
+    acc, gyr, x, sim = _two_clocks(tmp_path)
+    code, text, err = run_cli(["calibrate", str(acc), "--raw", "--gyro", str(gyr), "--json"], capsys)
+    assert code == 0, err
+    cal = json.loads(text)
+    code, text, err = run_cli(["imu", str(acc), "--gyro", str(gyr), "--gyro-units", "counts", "--gyro-scale", "1000",
+                               "--json"], capsys)
+    assert code == 0, err
+    imu = json.loads(text)
+    assert cal["recording"]["intervals"] == imu["recording"]["intervals"]
+    assert cal["model"] == imu["accelerometer"]["model"]
+    assert cal["parameters"] == pytest.approx(imu["accelerometer"]["parameters"], rel=1e-9, abs=1e-12)
+    code, text, err = run_cli(["calibrate", str(acc), "--gyro", str(gyr)], capsys)
+    assert code == 2 and "--gyro judges the rests of a raw recording on its gyroscope too: give --raw" in err

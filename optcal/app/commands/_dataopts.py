@@ -152,13 +152,13 @@ def load_raw_positions(args, path, gyro_of=None) -> PositionsData:
                                             g_local=g_local)
 
 
-def load_positions(args, path) -> PositionsData:
+def load_positions(args, path, gyro_of=None) -> PositionsData:
     """Positions from a positions CSV or MAT file, or (``--raw``) from a raw recording via static-interval
     detection. A raw recording given as positions is named as such (and a positions file given with
     ``--raw`` by the reader): both by the one decision of :func:`optcal.core.recording.sniff.table_kind`, from the
-    data, so that following one advice never meets the other."""
+    data, so that following one advice never meets the other. ``gyro_of``: as :func:`load_raw_positions`'s."""
     if getattr(args, "raw", False):
-        return load_raw_positions(args, path)
+        return load_raw_positions(args, path, gyro_of)
     from optcal.core.recording.positions import read_positions_file
 
     with flag_names():

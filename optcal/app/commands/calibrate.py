@@ -54,10 +54,24 @@ def add_arguments(p):
     p.add_argument("--plot", metavar="FILE.png", help="the residual per position with its noise band and the "
                    "outliers (with --raw: the recording with its intervals and residuals); the suffix names the "
                    "format: .png, .pdf, .svg, ...")
+    p.add_argument("--gyro", metavar="GYRO_FILE", help="with --raw: a second file with the gyroscope's samples "
+                   "(t, gx, gy, gz; at its own times, interpolated to DATA's), whose stillness the rests are judged on "
+                   "too, as optcal imu judges them (the fit is the accelerometer's)")
     add_noise_from_options(p, "dwell per position for --noise-from, s (default: each position's n over the "
                            "sample rate: a raw DATA's, else --rate, else the noise recording's)",
                            "read with --units, --columns and --rate, as a raw DATA")
     add_data_options(p)
+
+
+def _gyro_of(args):
+    """With ``--gyro``: the gyroscope's samples at the recording's times, for the rests' stillness (its units do
+    not matter there: the detection is units-free), else None."""
+    if getattr(args, "gyro", None) is None:
+        return None
+    from optcal.core.gyro.recording import read_gyro
+
+    return lambda rec: read_gyro(args.data, rec, gyro=args.gyro, units="volts", rate=args.rate,
+                                 time_unit=args.time_unit, interpolate=True)
 
 
 def _default_positions(args):
@@ -67,7 +81,7 @@ def _default_positions(args):
 
     def find(name):
         args.model = name
-        return load_positions(args, args.data)
+        return load_positions(args, args.data, _gyro_of(args))
 
     return first_found(find, None, getattr(args, "raw", False))
 
@@ -81,7 +95,9 @@ def run(args) -> int:
         raise InputError("--dwell-s sets the dwell for --noise-from; give --noise-from too, or leave it out")
     if args.budget is not None and args.budget < 1:
         raise InputError(f"--budget {args.budget} must be a number of evaluations of 1 or more")
-    inputs = (args.data, args.presets, args.noise_from)
+    if args.gyro is not None and not args.raw:
+        raise InputError("--gyro judges the rests of a raw recording on its gyroscope too: give --raw")
+    inputs = (args.data, args.presets, args.noise_from, args.gyro)
     refuse_same_file(args.output, *inputs)
     refuse_overwrite(args.output, args.force)
     check_output_folder(args.output)
@@ -93,7 +109,7 @@ def run(args) -> int:
         check_figure_path(args.plot)
     g_local = gravity_from_args(args)
     named = args.model_named
-    data = load_positions(args, args.data) if named else _default_positions(args)
+    data = load_positions(args, args.data, _gyro_of(args)) if named else _default_positions(args)
     presets = load_presets(args.presets) if args.presets else None
     detection = data.extra.get("detection") if isinstance(data.extra, dict) else None
     noise_g, noise = None, None
