@@ -457,15 +457,19 @@ def piled_extremes(x: np.ndarray) -> list[float]:
     at ±250.004 on 3-14 samples per axis, 1 on each value beside them, in runs shorter than
     :data:`RAIL_RUN`)."""
     x = x[np.isfinite(x)]
+    n, k = len(x), 256
+    if n <= 2 * k:
+        ends = (np.sort(-x), np.sort(x))
+    else:  # each end from its k most extreme values, both from one partial sort (the whole rate is not sorted)
+        p = np.partition(x, [k, n - k - 1])
+        ends = (np.sort(-p[:k]), np.sort(p[n - k:]))
     out = []
-    for sign in (-1.0, 1.0):  # each end from its few largest values (a partial sort: the whole rate is not sorted)
-        y = sign * x
-        k = min(len(y), 256)
-        vals, cnt = np.unique(np.partition(y, len(y) - k)[len(y) - k:], return_counts=True)
-        if len(vals) <= RAIL_PILE_NEAR + 1:  # the least of them may be cut: the six at the end must be whole
-            vals, cnt = np.unique(y, return_counts=True)
-            if len(vals) <= RAIL_PILE_NEAR:
-                continue
+    for sign, y in zip((-1.0, 1.0), ends):
+        vals, cnt = np.unique(y, return_counts=True)
+        if len(vals) <= RAIL_PILE_NEAR + 1 and n > 2 * k:  # the least may be cut: the six at the end must be whole
+            vals, cnt = np.unique(sign * x, return_counts=True)
+        if len(vals) <= RAIL_PILE_NEAR:
+            continue
         if cnt[-1] >= RAIL_PILE and cnt[-1] >= RAIL_PILE * cnt[-1 - RAIL_PILE_NEAR:-1].max():
             out.append(float(sign * vals[-1]))
     return sorted(out)
