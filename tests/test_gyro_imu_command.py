@@ -335,3 +335,17 @@ def test_calibrate_with_the_gyroscope_file_takes_the_rests_imu_takes(tmp_path, c
     assert cal["parameters"] == pytest.approx(imu["accelerometer"]["parameters"], rel=1e-9, abs=1e-12)
     code, text, err = run_cli(["calibrate", str(acc), "--gyro", str(gyr)], capsys)
     assert code == 2 and "--gyro judges the rests of a raw recording on its gyroscope too: give --raw" in err
+
+
+def test_a_rest_shorter_than_the_stillness_window_stays_within_itself():
+    """still_rests on a rest of 8 samples at 200 Hz (the window is 10): the loop over rests it replaced averaged with
+    np.convolve's "same", which returns the window's length when the rest is shorter, and moved the rest's end 2
+    samples past its own; the vectorised one stays inside it."""
+    from optcal.core.gyro.data import still_rests
+
+    rng = np.random.default_rng(40)
+    W = rng.normal(0, 1, (400, 3))
+    t = np.arange(400) * 0.005
+    rests = np.array([[102, 110], [200, 380]])
+    out = still_rests(W, t, rests)
+    assert np.all(out[:, 0] >= rests[:, 0]) and np.all(out[:, 1] <= rests[:, 1])

@@ -20,7 +20,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from optcal.core.errors import InputError
-from optcal.core.ranges import range_means, range_means_sds
+from optcal.core.ranges import range_means, range_means_sds, range_rows
 
 # A motion must turn the gravity direction by at least this much (rad): below it, the motion carries no
 # information on the scale factors and is most likely no motion at all (a rest split in two).
@@ -47,30 +47,59 @@ def still_rests(W: np.ndarray, t: np.ndarray, rests: np.ndarray) -> np.ndarray:
     inside a rest is left in it (keeping the longest still run instead cut imu_tk's 50 s initial rest at
     a disturbance and made its first motion worse), so a detector that joins two poses into one rest
     still costs accuracy."""
+    from optcal.core.recording.detection import group_medians
+
     dt = float(np.median(np.diff(t))) if len(t) > 1 else 1.0
     w = max(1, int(round(STILL_WINDOW_S / dt)))
     out = rests.copy()
-    for k, (a, b) in enumerate(rests):
-        seg = W[a:b]
-        n = b - a
-        # a slow bias drift over a long rest is not a movement: the level is the line through the two
-        # halves' medians
-        m1, m2 = np.median(seg[: n // 2 + 1], axis=0), np.median(seg[n // 2:], axis=0)
-        s_ = (np.arange(n) - (n // 2) / 2.0)[:, None] / max(n / 2.0, 1.0)
-        med = m1 + (m2 - m1) * s_
-        d = np.diff(seg, axis=0)
-        mad = 1.4826 * np.median(np.abs(d - np.median(d, axis=0)), axis=0) / np.sqrt(2.0)
-        sd = np.maximum.reduce([mad, 0.5 * d.std(axis=0) / np.sqrt(2.0), 1e-12 * (1.0 + np.abs(m1))])
-        z = (seg - med) / sd
-        if w > 1:
-            kernel = np.ones(w) / w
-            z = np.column_stack([np.convolve(z[:, i], kernel, mode="same") for i in range(3)])
-        still = np.concatenate([[False], np.all(np.abs(z) < STILL_Z / np.sqrt(w), axis=1), [False]])
-        edges = np.flatnonzero(np.diff(still.astype(np.int8)))
-        starts, stops = edges[0::2], edges[1::2]
-        if starts.size == 0 or np.max(stops - starts) < 2:
-            continue  # no still run to keep: the rest as detected
-        out[k] = (a + starts[0], a + stops[-1])
+    r = np.asarray(rests, np.int64).reshape(-1, 2)
+    if not len(r):
+        return out
+    a, n = r[:, 0], r[:, 1] - r[:, 0]
+    rows, which = range_rows(r)
+    j = rows - a[which]  # each sample's place in its rest
+    # a slow bias drift over a long rest is not a movement: the level is the line through the two halves' medians
+    m1 = group_medians(W, np.column_stack([a, a + n // 2 + 1]))
+    m2 = group_medians(W, np.column_stack([a + n // 2, r[:, 1]]))
+    s_ = ((j - (n // 2)[which] / 2.0) / np.maximum(n / 2.0, 1.0)[which])[:, None]
+    med = m1[which] + (m2 - m1)[which] * s_
+    # the noise from each rest's first differences (n − 1 per rest, one after another)
+    first = j > 0
+    d = W[rows[first]] - W[rows[first] - 1]
+    dr = np.column_stack([np.cumsum(n - 1) - (n - 1), np.cumsum(n - 1)])
+    md = group_medians(d, dr)
+    mad = 1.4826 * group_medians(np.abs(d - np.repeat(md, n - 1, axis=0)), dr) / np.sqrt(2.0)
+    c1 = np.concatenate([np.zeros((1, 3)), np.cumsum(d, axis=0)])
+    c2 = np.concatenate([np.zeros((1, 3)), np.cumsum(d * d, axis=0)])
+    nd = np.maximum(n - 1, 1)[:, None]
+    mean_d = (c1[dr[:, 1]] - c1[dr[:, 0]]) / nd
+    std_d = np.sqrt(np.maximum((c2[dr[:, 1]] - c2[dr[:, 0]]) / nd - mean_d**2, 0.0))
+    sd = np.maximum.reduce([mad, 0.5 * std_d / np.sqrt(2.0), 1e-12 * (1.0 + np.abs(m1))])
+    z = (W[rows] - med) / sd[which]
+    if w > 1:  # a centred moving average over w samples, zero beyond the rest (np.convolve's "same")
+        cz = np.concatenate([np.zeros((1, 3)), np.cumsum(z, axis=0)])
+        start = np.repeat(np.cumsum(n) - n, n)  # each rest's first row among the pooled rows
+        lo = np.clip(j + (w - 1) // 2 - w + 1, 0, None) + start
+        hi = np.minimum(j + (w - 1) // 2 + 1, n[which]) + start
+        z = (cz[hi] - cz[lo]) / w
+    still = np.all(np.abs(z) < STILL_Z / np.sqrt(w), axis=1)
+    # per rest: its still runs (begin, end) among the pooled rows, the first run's start, the last run's end
+    prev = np.concatenate([[False], still[:-1]]) & (j > 0)
+    nxt = np.concatenate([still[1:], [False]]) & (j < n[which] - 1)
+    begins, ends = np.flatnonzero(still & ~prev), np.flatnonzero(still & ~nxt) + 1
+    if not len(begins):
+        return out
+    rest_of = which[begins]
+    longest = np.zeros(len(r), np.int64)
+    np.maximum.at(longest, rest_of, ends - begins)
+    keep = longest >= 2  # else no still run to keep: the rest as detected
+    b0 = np.full(len(r), -1)
+    e1 = np.full(len(r), -1)
+    b0[rest_of[::-1]] = begins[::-1]  # the first run's start (the earliest write wins: written in reverse)
+    e1[rest_of] = ends  # the last run's end
+    start = np.cumsum(n) - n
+    out[keep, 0] = a[keep] + (b0[keep] - start[keep])
+    out[keep, 1] = a[keep] + (e1[keep] - start[keep])
     return out
 
 
