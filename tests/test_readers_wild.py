@@ -880,3 +880,18 @@ def test_a_header_of_column_numbers_is_no_sample(tmp_path, first):
     # a data row that merely starts with small integers stays a sample
     np.savetxt(path, np.vstack([[1.0, 2.0, 9.0, 0.0, 0.0, 0.0], data]), delimiter=",", fmt="%.5f")
     assert len(read_recording(path, columns="ax=0,ay=1,az=2", rate=100.0, units="m/s2")) == 201
+
+
+def test_a_trailing_delimiter_is_no_column(tmp_path):
+    """Every row ending with the delimiter (``t,ax,ay,az,``): an empty field, not a fifth column named ''."""
+    from optcal.core.recording.sniff import sniff_layout
+
+    rng = np.random.default_rng(0)
+    path = tmp_path / "trail.csv"
+    rows = [f"{i * 0.01:.2f},{rng.normal(0, 0.01):.5f},{rng.normal(0, 0.01):.5f},{1 + rng.normal(0, 0.01):.5f},"
+            for i in range(300)]
+    path.write_text("t,ax,ay,az,\n" + "\n".join(rows) + "\n")
+    lay = sniff_layout(path)
+    assert lay.ncol == 4 and lay.header == ["t", "ax", "ay", "az"]
+    rec = read_recording(path, units="g")
+    assert len(rec) == 300 and rec.rate == pytest.approx(100.0)

@@ -266,4 +266,10 @@ def sniff_layout(path: Path, known: Collection[str] = (), what: str = "a raw rec
                 "(an empty or text cell?); fix or remove it"
             )
     meta = {f[0].strip().lower(): f[1].strip() for _, f in before if len(f) >= 2}
-    return Layout(delim, rows[start][0], ref[0], ref[1], header, meta, rows[start][1], dec, commented)
+    width, numeric = ref[0], ref[1]
+    if delim is not None and width > 1 and not numeric[-1] and all(f[-1].strip() == "" for _, f in rows[start:]):
+        # every data row ends with the delimiter (a logger's trailing tab): an empty field, not a column
+        width, numeric = width - 1, numeric[:-1]
+        if header is not None and len(header) > width and not header[-1].strip():
+            header = header[:width]
+    return Layout(delim, rows[start][0], width, numeric, header, meta, rows[start][1], dec, commented)
