@@ -267,9 +267,10 @@ def sniff_layout(path: Path, known: Collection[str] = (), what: str = "a raw rec
             )
     meta = {f[0].strip().lower(): f[1].strip() for _, f in before if len(f) >= 2}
     width, numeric = ref[0], ref[1]
-    if delim is not None and width > 1 and not numeric[-1] and all(f[-1].strip() == "" for _, f in rows[start:]):
-        # every data row ends with the delimiter (a logger's trailing tab): an empty field, not a column
+    if (delim is not None and width > 1 and not numeric[-1] and all(f[-1].strip() == "" for _, f in rows[start:])
+            and (header is None or not header[-1].strip())):
+        # every row ends with the delimiter, the header too if any: an empty field, not a column (a column the
+        # header names that is empty on every row stays one)
         width, numeric = width - 1, numeric[:-1]
-        if header is not None and len(header) > width and not header[-1].strip():
-            header = header[:width]
+        header = None if header is None else header[:width]
     return Layout(delim, rows[start][0], width, numeric, header, meta, rows[start][1], dec, commented)
