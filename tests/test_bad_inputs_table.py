@@ -190,6 +190,7 @@ def _imu_files(d):
     imu(lin_g, "imu_lin_gc.json", block(False, "counts", 16.4 * 180 / np.pi))  # Kalibr-ready but for counts
     t = np.arange(500) / 100.0
     np.savetxt(d / "gyro_shifted.csv", np.column_stack([t + 0.005, np.zeros((500, 3))]), delimiter=",", fmt="%.10g")
+    np.savetxt(d / "gyro_late.csv", np.column_stack([t + 100.0, np.zeros((500, 3))]), delimiter=",", fmt="%.10g")
     t = np.arange(6000) / 100.0
     np.savetxt(d / "rest_gyro_shifted.csv", np.column_stack([t + 0.005, np.zeros((6000, 3))]), delimiter=",",
                fmt="%.10g")
@@ -337,6 +338,12 @@ CASES = [
         "the calibration's gyroscope in deg/s; give its rates in deg/s, or calibrate in rad/s"),
     row("imu-gyro-units-contradict-names", ["imu", "wit_rad.csv", "--gyro-units", "deg/s", "-o", "i.json"],
         "are in rad/s (gx(rad/s), gy(rad/s), gz(rad/s)); give --gyro-units rad/s, or drop it"),
+    # a gyroscope file at its own times (issue #29): interpolated when they overlap, refused when they do not
+    row("imu-gyro-file-times-do-not-overlap", ["imu", "rest.csv", "--gyro", "gyro_late.csv", "--gyro-units",
+                                               "deg/s", "-o", "i.json"],
+        "do not overlap: give both files' times in one clock"),
+    row("calibrate-gyro-without-raw", ["calibrate", "rest.csv", "--gyro", "gyro_shifted.csv", "-o", "c.json"],
+        "--gyro judges the rests of a raw recording on its gyroscope too: give --raw"),
     row("calibrate-rows-of-two-devices", ["calibrate", "wit_two.csv", "--raw"],
         "its rows come from 2 devices (column DeviceName: WT901(A), WT901(B))"),
     row("calibrate-clock-stands-still", ["calibrate", "wit_clock.csv", "--raw"],
