@@ -307,8 +307,9 @@ def test_a_rail_in_converted_units_is_found_where_the_rate_piles_up():
     from optcal.core.recording.reading import piled_extremes, piled_saturation
 
     rng = np.random.default_rng(0)
-    t = np.arange(4000) / 22.0
-    x = 300.0 * np.sin(2 * np.pi * 0.3 * t) + rng.normal(0, 0.5, 4000)
+    x = rng.normal(0, 0.5, 4000)  # rests, and 30 fast turns of 0.5 s peaking at ±300 °/s
+    for k, sign in zip(range(60, 3900, 128), np.tile([1.0, -1.0], 15)):
+        x[k:k + 11] += sign * 300.0 * np.sin(np.pi * np.arange(11) / 10.0)
     q = np.round(x * 131.07) / 131.07  # counts, converted
     clipped = np.clip(q, -32768 / 131.07, 32767 / 131.07)
     assert piled_extremes(clipped) == [-32768 / 131.07, 32767 / 131.07]
@@ -316,6 +317,9 @@ def test_a_rail_in_converted_units_is_found_where_the_rate_piles_up():
     W = np.column_stack([clipped, np.round(0.7 * x * 131.07) / 131.07, np.zeros(4000)])
     sat, where = piled_saturation(W)
     assert list(where) == ["gx"] and np.array_equal(sat, np.abs(clipped) > 249.99)
+    # a gyroscope that never turns, printed to 0.01 °/s, reading 0.02 or 0.03: its extremes pile up, no rail
+    still = np.where(rng.random(4000) < 0.5, 0.02, 0.03)
+    assert piled_extremes(still) == []
 
 
 def test_calibrate_with_the_gyroscope_file_takes_the_rests_imu_takes(tmp_path, capsys):

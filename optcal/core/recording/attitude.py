@@ -35,6 +35,7 @@ import numpy as np
 from optcal.core.motion_integrator import MotionIntegrator, log_vertex, rotate_back
 from optcal.core.recording.detection import chunks, group_medians, range_rows, runs
 
+NOISE_PATH = 3.0  # a motion's path must exceed this many times the rests' noise path over as long (scale_bound)
 SLOW_DEG = 0.2  # °: the attitude straying more than this inside a still run moves (a hand's wobble stays within)
 SLOW_SIGMAS = 5.0  # ... and more than this × the walk of the integrated white noise over the stretch judged
 SLOW_CHUNK_S = 4.0  # s: a still run's attitude is compared with its median over pieces of at most this
@@ -60,8 +61,13 @@ def scale_bound(X: np.ndarray, A: np.ndarray, rests: np.ndarray, turning: np.nda
     # a turn the gyroscope did not see (a recording cut and joined, a sensor re-seated while logging paused) has
     # no turning sample between the rests, or next to nothing of the others' ratio: no bound
     _, theta, mid, big = _motions(A, rests, turning)
-    path = np.concatenate([[0.0], np.cumsum(np.linalg.norm(X, axis=1))]) / rate
+    step = np.linalg.norm(X, axis=1)
+    path = np.concatenate([[0.0], np.cumsum(step)]) / rate
     moved = path[mid[1:]] - path[mid[:-1]]
+    # nor does one whose path is what the rests' own noise draws in as long (poses logged apart, their gyroscope at
+    # its level throughout: a flicker counted as turning gave 0.04 output units per rad/s for a gyroscope in °/s)
+    at_rest = float(np.median(step[range_rows(rests)[0]])) if len(rests) else 0.0
+    big &= moved > NOISE_PATH * at_rest * (mid[1:] - mid[:-1]) / rate
     if not big.any():
         return float("nan")
     ratio = moved[big] / theta[big]

@@ -47,6 +47,8 @@ RATE_RANGE = (1.0, 1e5)  # Hz: a time column's unit is the first that gives a ra
 RAIL_RUN = 10  # samples in a row at one extreme value: a rail (saturation_of)
 RAIL_PILE = 3  # a rate's extreme value held by this many samples, and this many times as many as ...
 RAIL_PILE_NEAR = 5  # ... any of this many values nearest inside it: a rail the rate returns to (piled_extremes)
+RAIL_PILE_SPREAD = 20.0  # ... lying beyond this many robust SDs of the rate from its median: out in the turns' tail
+# (a gyroscope at rest that reads 0.02 or 0.03 °/s piles up at its extremes too, within a count of its median)
 HELD_FRACTION = 0.2  # rows equal to the one before on every axis: at least this fraction of all rows, and of the
 # fifth of the rows where the outputs move most: the log repeats the sensor's samples (it runs faster than the
 # sensor outputs), where a quantised sensor repeats itself at rest only (the corpus: at most 5 % of all rows, 0.3 %
@@ -455,8 +457,11 @@ def piled_extremes(x: np.ndarray) -> list[float]:
     clipped at a rail returns to it on every fast turn, where an unclipped peak is a tail that the values
     beside it share (a ±250 °/s gyroscope of another lab, its counts converted to °/s and logged at 22 Hz, sat
     at ±250.004 on 3-14 samples per axis, 1 on each value beside them, in runs shorter than
-    :data:`RAIL_RUN`)."""
+    :data:`RAIL_RUN`). The extreme must lie beyond :data:`RAIL_PILE_SPREAD` robust SDs (MAD) of the median: a
+    rate that never turns, a count or two either side of its level, piles up at its extremes without a rail."""
     x = x[np.isfinite(x)]
+    med = float(np.median(x)) if len(x) else 0.0
+    spread = RAIL_PILE_SPREAD * 1.4826 * float(np.median(np.abs(x - med))) if len(x) else 0.0
     n, k = len(x), 256
     if n <= 2 * k:
         ends = (np.sort(-x), np.sort(x))
@@ -470,7 +475,9 @@ def piled_extremes(x: np.ndarray) -> list[float]:
             vals, cnt = np.unique(sign * x, return_counts=True)
         if len(vals) <= RAIL_PILE_NEAR:
             continue
-        if cnt[-1] >= RAIL_PILE and cnt[-1] >= RAIL_PILE * cnt[-1 - RAIL_PILE_NEAR:-1].max():
+        far = sign * vals[-1] - med if sign > 0 else med - sign * vals[-1]  # how far out the extreme lies
+        if (cnt[-1] >= RAIL_PILE and cnt[-1] >= RAIL_PILE * cnt[-1 - RAIL_PILE_NEAR:-1].max()
+                and far > max(spread, 0.0) and spread > 0):
             out.append(float(sign * vals[-1]))
     return sorted(out)
 

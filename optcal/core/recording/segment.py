@@ -670,6 +670,9 @@ def gyro_turning(W: np.ndarray, b: int, seg: np.ndarray, rest: np.ndarray, rate:
     q = _quantum(Wf[finite], GYRO_ROUNDING)
     ok = finite[2:] & finite[1:-1] & finite[:-2]
     s = np.maximum(_noise_sd(np.diff(Wf, 2, axis=0)[ok], GYRO_ROUNDING), q / np.sqrt(12.0))
+    # the step a turn must exceed (_turning_samples): the output's own quantum, a rounding residue being none (rates
+    # printed to 0.01 °/s leave 1e-17 where they repeat: a quantum of 0 let every flicker of a count turn)
+    q = _quantum(Wf[finite])
     s = np.where(s > 0, s, 1.0)
     G = Wf[: nb * b].reshape(nb, b, 3).mean(axis=1)
     t = (np.arange(n, dtype=float) - (b - 1) / 2.0) / b
