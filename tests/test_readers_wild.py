@@ -895,3 +895,17 @@ def test_a_trailing_delimiter_is_no_column(tmp_path):
     assert lay.ncol == 4 and lay.header == ["t", "ax", "ay", "az"]
     rec = read_recording(path, units="g")
     assert len(rec) == 300 and rec.rate == pytest.approx(100.0)
+
+
+def test_a_unix_time_in_nanoseconds_is_read_as_such(tmp_path):
+    """A logger's epoch stamps in ns at 1 kHz (1.73e18): in µs they would also give a rate above 1 Hz (1.0 Hz) and were
+    taken for it (a rocket club's IMU log: 16,618 s at 1 Hz, 452 "rests" of 3-10 samples). A first value that is a
+    date in one unit only settles it: ns, 1 kHz."""
+    rng = np.random.default_rng(1)
+    t = 1_730_000_000_000_000_000 + np.arange(3000, dtype=np.int64) * 1_000_000
+    path = tmp_path / "epoch_ns.csv"
+    acc = np.array([0.0, 0.0, 1.0]) + 1e-3 * rng.standard_normal((3000, 3))
+    path.write_text("timestamp,ax,ay,az\n" + "\n".join(f"{ti},{a:.6f},{b:.6f},{c:.6f}" for ti, (a, b, c)
+                                                       in zip(t.tolist(), acc)) + "\n")
+    rec = read_recording(path, units="g")
+    assert rec.reading["time_unit"] == "ns" and rec.rate == pytest.approx(1000.0, rel=1e-3)

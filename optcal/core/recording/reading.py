@@ -44,6 +44,7 @@ from optcal.core.tablefile import COMMENT, DECODE_ERRORS, column_key, is_comment
 INT16_RAILS = (-32768.0, 32767.0)
 TIME_UNITS = {"s": 1.0, "ms": 1e-3, "us": 1e-6, "ns": 1e-9}  # to seconds
 RATE_RANGE = (1.0, 1e5)  # Hz: a time column's unit is the first that gives a rate above 1 Hz, up to 100 kHz
+EPOCH_YEARS = (946684800.0, 4102444800.0)  # s: Unix times from 2000 to 2100 (a time column that is a date)
 RAIL_RUN = 10  # samples in a row at one extreme value: a rail (saturation_of)
 RAIL_PILE = 3  # a rate's extreme value held by this many samples, and this many times as many as ...
 RAIL_PILE_NEAR = 5  # ... any of this many values nearest inside it: a rail the rate returns to (piled_extremes)
@@ -216,7 +217,7 @@ def read_recording(path, columns=None, rate: float | None = None, units: str | N
                 f"(t = {t[i + 1]:g}); {way}"
             )
         given = rate if rate is not None else meta_rate
-        unit = time_unit or time_scale(float(np.median(steps)), given, path)
+        unit = time_unit or time_scale(float(np.median(steps)), given, path, float(t[0]))
         t = t * TIME_UNITS[unit]
         t, jitter = even_times(t) if log is None and even else (t, 0.0)
         fs = 1.0 / float(np.median(np.diff(t)))
@@ -298,11 +299,18 @@ def _header_kind(lay: Layout, mat: bool) -> str:
     return "variables" if mat else "comment line" if lay.commented_header else "line"
 
 
-def time_scale(step: float, rate: float | None, path) -> str:
+def time_scale(step: float, rate: float | None, path, first: float | None = None) -> str:
     """The unit of a time column from its median ``step``: the one that gives ``rate`` (Hz) when a rate is
-    known (within 5 %), else the first of s, ms, µs, ns that gives a plausible sample rate, above
-    :data:`RATE_RANGE`'s 1 Hz and at most its 100 kHz."""
+    known (within 5 %); else, when the column's ``first`` value is a date in one unit only (a Unix time between
+    :data:`EPOCH_YEARS`) that gives a plausible rate, that unit (1.73e18 is nanoseconds: in microseconds it would
+    be the year 56,800, and the rate 1 Hz where the log's is 1 kHz); else the first of s, ms, µs, ns that gives a
+    plausible sample rate, above :data:`RATE_RANGE`'s 1 Hz and at most its 100 kHz."""
     rates = {u: 1.0 / (step * f) for u, f in TIME_UNITS.items()}
+    if rate is None and first is not None and first > 0:
+        dated = [u for u, f in TIME_UNITS.items() if EPOCH_YEARS[0] <= first * f <= EPOCH_YEARS[1]
+                 and RATE_RANGE[0] < rates[u] <= RATE_RANGE[1]]
+        if len(dated) == 1:
+            return dated[0]
     said = ", ".join(f"{r:.4g} Hz in {u}" for u, r in rates.items())
     if rate is not None:
         for u, r in rates.items():
