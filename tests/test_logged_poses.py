@@ -104,7 +104,8 @@ def test_jumps_are_single_sample_steps_not_recorded_turns_or_tremor():
 def test_ck_explorer_every_logged_pose_and_the_count_the_fit_used(capsys):
     """CK-Explorer's logger (no gyroscope, 160 poses of 100 samples back to back, 4-9 mg of tremor in a quarter of
     them): every pose found, and the report's count is the fit's: the poses' recheck drops one that moved while
-    held (its force drifts by 1.1 mg), and the text says 159 of the 160, as the calibration file does."""
+    held (its force drifts by 1.1 mg), and the text says 159 of the 160, as the calibration file does; the others
+    keep their numbers."""
     path = corpus_root() / "ck_explorer" / "acc_log.csv"
     assert main(["calibrate", str(path), "--raw", "--units", "g", "--rate", "100"]) == 0
     out = capsys.readouterr().out
@@ -112,4 +113,9 @@ def test_ck_explorer_every_logged_pose_and_the_count_the_fit_used(capsys):
     assert "model nonlinear12, 159 positions (1 of the 160 dropped: see the notes)" in out
     assert "position 19 (19.1-19.9 s) re-examined sample by sample: it moved while held" in out
     assert main(["calibrate", str(path), "--raw", "--units", "g", "--rate", "100", "--json"]) == 0
-    assert json.loads(capsys.readouterr().out)["n_positions"] == 159
+    out = json.loads(capsys.readouterr().out)
+    assert out["n_positions"] == 159
+    # the positions keep the recording's numbers: 19 is missing, the last is still 159 (notes and the interval
+    # list name the same poses)
+    numbers = [row["position"] for row in out["positions"]]
+    assert 19 not in numbers and numbers[18:21] == [18, 20, 21] and numbers[-1] == 159

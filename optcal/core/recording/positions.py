@@ -118,8 +118,10 @@ def recheck_poses(data, model, x, suspects, name=None):
     if not notes:
         return None, []
     new = replace(det, intervals=iv[keep], notes=list(det.notes))
-    # the recording's noise model is kept: a pose's ends trimmed do not change it
-    return positions_from_recording(rec, new, floor_like=data.extra.get("noise_floor")), notes
+    # the recording's noise model is kept: a pose's ends trimmed do not change it; the positions keep their numbers
+    # (a dropped pose leaves a gap: position 9 stays the recording's ninth interval, as its report lists it)
+    out = positions_from_recording(rec, new, floor_like=data.extra.get("noise_floor"))
+    return replace(out, position=np.asarray(data.position)[keep]), notes
 
 
 def mat_positions(path, units: str = "g") -> PositionsData:
