@@ -119,7 +119,7 @@ def recheck_poses(data, model, x, suspects, name=None):
         return None, []
     new = replace(det, intervals=iv[keep], notes=list(det.notes))
     # the recording's noise model is kept: a pose's ends trimmed do not change it; the positions keep their numbers
-    # (a dropped pose leaves a gap: position 9 stays the recording's ninth interval, as its report lists it)
+    # (a dropped pose leaves a gap: position 9 stays the interval the report numbers 9)
     out = positions_from_recording(rec, new, floor_like=data.extra.get("noise_floor"))
     return replace(out, position=np.asarray(data.position)[keep]), notes
 
