@@ -142,3 +142,4 @@ def test_every_kept_rest_holds_at_least_half_the_shortest_pose(seed):
         assert f"poses of at least {m} samples (each kept without its edges, which may hold the motion's " \
                f"samples: {m // 2} or more remain)" in describe_detection(det)
     assert "stillness judged on the gyroscope too" in describe_detection(segment_static(s.acc, gyro=s.gyro.N))
+

@@ -788,7 +788,9 @@ def segment_static(recording: Recording, *, min_static_s: float | None = None,
     if len(iv) and seg[keep][-1, 1] == nb:  # the last rest runs to the end: keep the tail samples, up to
         tail = ~np.isfinite(recording.N[nb * b:]).all(axis=1) | recording.saturated[nb * b:]  # a bad one
         iv[-1, 1] = nb * b + (int(np.argmax(tail)) if tail.any() else len(tail))
-    iv = iv[iv[:, 1] > iv[:, 0]]
+    # what the edges and a hinge leave of a pose is kept down to half the shortest pose, as the report says (a
+    # lab's hand-held sweep had "rests" of 10 and 15 samples where 20 or more were promised)
+    iv = iv[iv[:, 1] - iv[:, 0] >= max(3, m // 2)]
     notes = []
     if sg.turning is not None and len(iv):  # no sample the gyroscope sees turning stays in a rest
         # a pose of at least min_static_s (decided on its segment) keeps what its edges leave, down to half that
