@@ -119,3 +119,25 @@ def test_ck_explorer_every_logged_pose_and_the_count_the_fit_used(capsys):
     # list name the same poses)
     numbers = [row["position"] for row in out["positions"]]
     assert 19 not in numbers and numbers[18:21] == [18, 20, 21] and numbers[-1] == 159
+
+
+def test_the_recording_figure_draws_a_bar_for_each_position_fitted(tmp_path, monkeypatch):
+    """calibrate --raw --plot draws the residual of each fitted position over its interval: when the recheck drops a
+    pose (CK-Explorer's position 19) the figure takes the fitted positions' intervals (it had drawn no bar at all:
+    159 residuals against 160 intervals)."""
+    import optcal.core.plots.recording as plots
+
+    seen = {}
+    real = plots.recording_figure
+
+    def spy(recording, detection, residuals_g):
+        fig = real(recording, detection, residuals_g)
+        seen["bars"] = sum(len(c) for c in fig.axes[-1].containers)
+        seen["residuals"] = len(residuals_g)
+        return fig
+
+    monkeypatch.setattr(plots, "recording_figure", spy)
+    path = corpus_root() / "ck_explorer" / "acc_log.csv"
+    assert main(["calibrate", str(path), "--raw", "--units", "g", "--rate", "100", "--plot",
+                 str(tmp_path / "ck.png")]) == 0
+    assert seen == {"bars": 159, "residuals": 159} and (tmp_path / "ck.png").stat().st_size > 0

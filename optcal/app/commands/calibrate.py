@@ -124,7 +124,9 @@ def run(args) -> int:
     if args.plot and detection is not None:
         from optcal.core.plots.recording import recording_figure
 
-        figure = recording_figure(detection.recording, detection, cal.problem.residuals_full(cal.x)[0])
+        # the intervals of the positions fitted (the poses' recheck may have trimmed or dropped some): a bar each
+        fitted = cal.problem.data.extra.get("detection") if isinstance(cal.problem.data.extra, dict) else None
+        figure = recording_figure(detection.recording, fitted or detection, cal.problem.residuals_full(cal.x)[0])
     elif args.plot:
         from optcal.core.plots.fit import fit_figure
 
