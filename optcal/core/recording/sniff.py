@@ -43,6 +43,7 @@ from optcal.core.tablefile import (  # noqa: F401 - the layout's names, re-expor
 from optcal.core.tablefile import sniff_layout as sniff_table
 
 log = logging.getLogger(__name__)
+_WARNED: set[str] = set()  # files whose damaged-checksum warning was given (one process, one warning per file)
 
 ROLES = ("t", "ax", "ay", "az", "gx", "gy", "gz", "temp")
 GYRO = ("gx", "gy", "gz")  # angular rate, in the file's units (rad/s, °/s or counts): optional, all three or none
@@ -155,8 +156,10 @@ def load_mat(raw: bytes, path) -> dict:
         except Exception as exc2:  # noqa: BLE001 - scipy's parser on damaged bytes: one line, whatever it raises
             raise InputError(f"cannot read MAT file {path}: a compressed variable is damaged ({exc2}); save it "
                              "again from MATLAB") from None
-        log.warning("%s: %d compressed variable(s) fail their zlib checksum but inflate in full; read as MATLAB "
-                    "reads them: check the values, or save the file again", path, repaired[1])
+        if str(path) not in _WARNED:  # said once, though the file is read for its layout and again for its data
+            _WARNED.add(str(path))
+            log.warning("%s: %d compressed variable(s) fail their zlib checksum but inflate in full; read as MATLAB "
+                        "reads them: check the values, or save the file again", path, repaired[1])
         return m
     except Exception as exc:  # noqa: BLE001 - scipy's parser raises many kinds on bytes it does not expect
         raise InputError(f"cannot read MAT file {path}: {exc or type(exc).__name__}; save it again from MATLAB "
