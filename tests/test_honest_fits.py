@@ -441,3 +441,14 @@ def test_forced_on_too_few_positions_the_default_falls_back_to_a_model_they_reac
                                    "diag6 instead"), cal.notes[0]
     assert cal.notes[0].endswith("that they reach in every parameter (forced: see below)")
     assert cal.notes[1].startswith("forced although the data do not determine it")
+
+
+def test_a_forced_model_with_unobservable_directions_does_not_call_the_data_exact():
+    """nonlinear12 named and forced on six positions (rank 6 of 12): its residuals vanish because the model has free
+    directions, not because the data are copies; the note says the structure (not "the data are exact")."""
+    diag6 = get_model("diag6")
+    truth = {k: v for k, v in PAPER_TRUTH.items() if k in diag6.names}
+    sim = simulate(diag6, truth, np.random.default_rng(4), scheme="6", noise_g=100e-6)
+    cal = calibrate(sim.data, "nonlinear12", noise_g=100e-6, force_weak=True)
+    assert cal.model.name == "nonlinear12" and cal.observability.rank < 12
+    assert cal.forced and not any("simulated without noise or copied" in r for r in cal.forced), cal.forced

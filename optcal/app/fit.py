@@ -202,7 +202,9 @@ def _fit(problem: CalibrationProblem, slv, solver: str, x0, budget, seed, noise_
                         "errors assume the noise of the positions kept" if low.size else ""))
     notes += _weak_notes(problem, x, sd, obs, gof)
     refused = list(refused)
-    if not any(r.kind == "exact" for r in refused):  # no residual at all says it once
+    # no residual at all says it once; a model with unobservable directions fits any data exactly (its rank, not the
+    # data, is the cause: the structural refusal says so, and the data are not called copies)
+    if not any(r.kind == "exact" for r in refused) and obs.rank >= model.n_params:
         refused += determination.exact(gof, len(problem.data))
     refused += determination.plausibility(model, x, problem.data, problem.g_local)
     weak = determination.undetermined(model, x, sd)
