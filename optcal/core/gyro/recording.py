@@ -141,6 +141,8 @@ def _with_piled_rails(rec):
     from optcal.core.recording.reading import piled_saturation
 
     N = np.asarray(rec.N, float)
+    if rec.units == "counts" and np.all(N == np.round(N)):
+        return rec  # whole counts: an ADC's rails are its format's (the reader finds them), no pile to look for
     piled, where = piled_saturation(N)
     if not where:
         return rec

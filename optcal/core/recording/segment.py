@@ -103,8 +103,8 @@ def _noise_sd(d2: np.ndarray, rounding: float = ROUNDING) -> np.ndarray:
     the differences inside the cut, corrected for the cut (a normal cut at ±3σ keeps 97.33 % of its
     variance). Second differences cancel a constant rate of change: a slow turn does not pass for noise."""
     a = np.abs(np.ascontiguousarray(np.asarray(d2, float).T))  # (3, n): each axis one contiguous row (faster)
-    # outputs on a decimal grid (0.01 m/s²) leave differences of 1e-17 where they are 0: those are 0
-    a[a <= rounding * np.max(a, axis=1, initial=0.0)[:, None]] = 0.0
+    if rounding > 0:  # outputs on a decimal grid (0.01 m/s²) leave differences of 1e-17 where they are 0: those are 0
+        a[a <= rounding * np.max(a, axis=1, initial=0.0)[:, None]] = 0.0
     s0 = np.percentile(a, 10.0, axis=1) / (Q10_HALF_NORMAL * np.sqrt(6.0))
     if not np.all(s0 > 0):
         # coarse outputs (a gyroscope at 0.06 °/s per count, sampled faster than it changes) can hold a tenth of
@@ -115,13 +115,17 @@ def _noise_sd(d2: np.ndarray, rounding: float = ROUNDING) -> np.ndarray:
     return np.sqrt(ms / (6.0 * TRUNCATED_VARIANCE_3SD))
 
 
-def _quantum(N: np.ndarray, rounding: float = ROUNDING) -> np.ndarray:
+def _quantum(N: np.ndarray, rounding: float | tuple = ROUNDING) -> np.ndarray:
     """Per axis, the smallest non-zero step between consecutive outputs (the quantisation step of a coarse
-    ADC; for fine outputs just a small number)."""
+    ADC; for fine outputs just a small number), a step below ``rounding`` of the largest being a float's rounding
+    residue (0 counts every step); a tuple of roundings gives one quantum each, from one pass over the steps."""
     d = np.abs(np.diff(N, axis=0))
-    d = np.where(d > rounding * np.max(d, axis=0, initial=0.0), d, np.inf)  # a rounding residue is no step
-    q = d.min(axis=0)
-    return np.where(np.isfinite(q), q, 0.0)
+    big = np.max(d, axis=0, initial=0.0)
+    out = []
+    for r in (rounding if isinstance(rounding, tuple) else (rounding,)):
+        q = np.min(np.where(d > r * big, d, np.inf), axis=0)  # a rounding residue is no step
+        out.append(np.where(np.isfinite(q), q, 0.0))
+    return tuple(out) if isinstance(rounding, tuple) else out[0]
 
 
 def _sums(x: np.ndarray) -> np.ndarray:
@@ -667,12 +671,11 @@ def gyro_turning(W: np.ndarray, b: int, seg: np.ndarray, rest: np.ndarray, rate:
     Wf = np.where(finite[:, None], W, 0.0)
     # the gyroscope's thresholds were set with a rounding residue taken for a step and for noise (GYRO_ROUNDING;
     # on a coarse gyroscope in rad/s the level is then its quantisation's, q/√12): kept as they were chosen
-    q = _quantum(Wf[finite], GYRO_ROUNDING)
-    ok = finite[2:] & finite[1:-1] & finite[:-2]
-    s = np.maximum(_noise_sd(np.diff(Wf, 2, axis=0)[ok], GYRO_ROUNDING), q / np.sqrt(12.0))
     # the step a turn must exceed (_turning_samples): the output's own quantum, a rounding residue being none (rates
     # printed to 0.01 °/s leave 1e-17 where they repeat: a quantum of 0 let every flicker of a count turn)
-    q = _quantum(Wf[finite])
+    q_noise, q = _quantum(Wf[finite], (GYRO_ROUNDING, ROUNDING))
+    ok = finite[2:] & finite[1:-1] & finite[:-2]
+    s = np.maximum(_noise_sd(np.diff(Wf, 2, axis=0)[ok], GYRO_ROUNDING), q_noise / np.sqrt(12.0))
     s = np.where(s > 0, s, 1.0)
     G = Wf[: nb * b].reshape(nb, b, 3).mean(axis=1)
     t = (np.arange(n, dtype=float) - (b - 1) / 2.0) / b
