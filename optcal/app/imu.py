@@ -4,13 +4,13 @@ docs/gyroscope.md, "The command")."""
 
 from __future__ import annotations
 
-import re
 from dataclasses import dataclass, field
 
 import numpy as np
 
 from optcal.app.workflows.gyro import GyroFit, calibrate_gyro
 from optcal.core.errors import InputError
+from optcal.core.gyro.analysis import GyroRefused
 from optcal.core.gyro.data import GyroData
 
 
@@ -59,6 +59,11 @@ class ImuCalibration:
         write_json_object(self.to_dict(source), path, overwrite=overwrite)
 
 
+def _spans(times: np.ndarray, most: int = 6) -> str:
+    """Spans (k, 2) of shown times (s) for a note: the first ``most``, "…" after them."""
+    return ", ".join(f"{a:.1f}-{b:.1f} s" for a, b in times[:most]) + (" …" if len(times) > most else "")
+
+
 def calibrate_imu(positions, gyro, *, model=None, solver: str = "lm", options: dict | None = None,
                   g_local: float = 1.0, seed: int = 0, budget: int | None = None, gyro_units: str,
                   gyro_scale: float | None = None, gyro_bias: str = "rests",
@@ -97,21 +102,17 @@ def calibrate_imu(positions, gyro, *, model=None, solver: str = "lm", options: d
         data = data.with_rests(found)
         notes.append(f"{len(found)} rest(s) the accelerometer's detection left inside motions were found by the "
                      f"gyroscope (still for {MISSED_REST_MIN_S:g} s or more) and used for the gyroscope only, at t = "
-                     + ", ".join(f"{acc.shown_t[a]:.1f}-{acc.shown_t[b - 1]:.1f} s" for a, b in found[:6])
-                     + (" …" if len(found) > 6 else ""))
+                     + _spans(np.column_stack([acc.shown_t[found[:, 0]], acc.shown_t[found[:, 1] - 1]])))
     if len(data.dropped_motions):
         notes.append(f"{len(data.dropped_motions)} motion(s) during which the gyroscope reached a rail left out of "
-                     f"its fit ({data.n_motions} used), at t = "
-                     + ", ".join(f"{a - acc.origin:.1f}-{b - acc.origin:.1f} s" for a, b in data.dropped_motions[:6])
-                     + (" …" if len(data.dropped_motions) > 6 else "") + "; turn more slowly to keep them")
+                     f"its fit ({data.n_motions} used), at t = {_spans(data.dropped_motions - acc.origin)}; turn "
+                     "more slowly to keep them")
     if gyro.reading.get("gyro_joined"):
         notes.append(f"the gyroscope's file has its own times: {gyro.reading['gyro_joined']}")
     if len(data.gapped_motions):
         notes.append(f"{len(data.gapped_motions)} motion(s) across a gap in the samples left out of the gyroscope's "
-                     f"fit ({data.n_motions} used), at t = "
-                     + ", ".join(f"{a - acc.origin:.1f}-{b - acc.origin:.1f} s" for a, b in data.gapped_motions[:6])
-                     + (" …" if len(data.gapped_motions) > 6 else "") + ": a rotation cannot be integrated over "
-                     "samples that are not there")
+                     f"fit ({data.n_motions} used), at t = {_spans(data.gapped_motions - acc.origin)}: a rotation "
+                     "cannot be integrated over samples that are not there")
     scale = gyro_scale if gyro_scale is not None else NOMINAL_SCALE.get(gyro_units)
     try:
         fit = calibrate_gyro(data, bias=gyro_bias, g_sensitivity=g_sensitivity, scale=scale, solver=solver,
@@ -125,9 +126,8 @@ def calibrate_imu(positions, gyro, *, model=None, solver: str = "lm", options: d
         way = "; ".join(w for n, w in ((len(data.dropped_motions), "turn more slowly, or record with a wider "
                                         "gyroscope range"),
                                        (len(data.gapped_motions), "record without gaps")) if n)
-        # the reason without its details and its way out
-        first = re.sub(r" \([^()]*\)", "", str(exc).split("; ")[0].removeprefix("gyroscope fit refused: "))
-        first = first.split(": ")[0]
+        # the gates' first reason, without their way out (the motions left out are the cause)
+        first = exc.refusals[0].reason if isinstance(exc, GyroRefused) else str(exc)
         raise InputError(f"{n_out} of {n_out + data.n_motions} motions {why} and are left out, and the "
                          f"{data.n_motions} left do not determine the gyroscope ({first}); {way}") from None
     return ImuCalibration(cal, fit, data, positions.units, solver, notes + fit.notes)

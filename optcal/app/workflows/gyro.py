@@ -22,11 +22,11 @@ import numpy as np
 from optcal.core import analysis
 from optcal.core.errors import InputError
 from optcal.core.gyro.analysis import (
+    GyroRefused,
     check_observable,
     chi2_note,
     g_sensitivity_test,
     plausibility,
-    refusal_line,
     scale_note,
 )
 from optcal.core.gyro.data import GyroData
@@ -112,7 +112,7 @@ def gate(fit: GyroFit, *, scale=None, force_weak: bool = False) -> GyroFit:
     refused = plausibility(p.model.names, fit.x, fit.stderr, chi2_dof=fit.chi2_dof, residual_deg=residual,
                            units=units, nominal=declared)
     if refused and not force_weak:
-        raise InputError(refusal_line(refused))
+        raise GyroRefused(refused)
     if refused:
         fit.forced = [r.reason for r in refused]
         fit.notes.insert(0, "gyroscope forced although implausible: " + "; ".join(fit.forced))

@@ -95,6 +95,15 @@ class GyroRefusal:
     reason: str
 
 
+class GyroRefused(InputError):
+    """A gyroscope fit refused by its gates: the one line of :func:`refusal_line`, and the ``refusals`` behind it
+    (for a caller that words the line its own way)."""
+
+    def __init__(self, refusals: list[GyroRefusal]):
+        super().__init__(refusal_line(refusals))
+        self.refusals = refusals
+
+
 def _fmt(v: float) -> str:
     return f"{v:.3g}"
 

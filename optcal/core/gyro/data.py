@@ -103,9 +103,10 @@ def still_rests(W: np.ndarray, t: np.ndarray, rests: np.ndarray) -> np.ndarray:
     return out
 
 
+GAP_STEPS = 5.0  # a time step more than this many median steps long is a gap: no motion is integrated across it
+
 # A stretch inside a motion where the gyroscope stays still for at least this long (s), with the accelerometer
 # as quiet as in the rests (its sample SD within this factor of theirs), is a pose of its own.
-GAP_STEPS = 5.0  # a time step this many median steps long is a gap: no motion is integrated across it
 MISSED_REST_MIN_S = 1.0
 MISSED_REST_ACC_FACTOR = 3.0
 

@@ -10,9 +10,10 @@ from pathlib import Path
 import numpy as np
 
 from optcal.core.errors import InputError
-from optcal.core.gyro.data import GyroData
+from optcal.core.gyro.data import GAP_STEPS, GyroData
 from optcal.core.model import Context, get_model
 from optcal.core.recording.clock import CLOCK_TIME
+from optcal.core.recording.robotlogs import TIME_TOLERANCE, at_times
 
 # How the gyroscope's units are given to the reader, which only labels the samples with them
 _READER_UNITS = {"counts": "counts", "deg/s": "volts", "rad/s": "volts", "volts": "volts"}
@@ -20,9 +21,6 @@ _READER_UNITS = {"counts": "counts", "deg/s": "volts", "rad/s": "volts", "volts"
 # The gyroscope's units as its columns' names give them (wx(deg/s), AsX(°/s), gyro_x [rad/s]), lower case
 NAMED_UNITS = {**{u: "deg/s" for u in ("°/s", "deg/s", "dps", "degree/s", "degrees/s", "deg/sec", "°/sec", "º/s")},
                **{u: "rad/s" for u in ("rad/s", "rad/sec", "rads/s")}}
-
-# Two time columns agree when no sample differs by more than this fraction of the median step.
-TIME_TOLERANCE = 0.1
 
 
 def join_times(t_acc: np.ndarray, t_gyro: np.ndarray) -> None:
@@ -41,33 +39,29 @@ def join_times(t_acc: np.ndarray, t_gyro: np.ndarray) -> None:
 
 def on_times_of(rec, acc):
     """The gyroscope's recording ``rec`` (a second file) at the accelerometer's times ``acc.t``: as it is when the
-    two share their times (within :data:`TIME_TOLERANCE` of a step), else interpolated linearly to them, as a
-    ROS bag's gyroscope topic is (:func:`optcal.core.recording.robotlogs.join`). An accelerometer sample outside
-    the gyroscope's span, or inside a gap of its samples (:data:`~optcal.core.gyro.data.GAP_STEPS` steps or
-    more), has no gyroscope sample: NaN, which the rests' detection takes for motion and the gyroscope's fit
-    leaves out with the motions holding it. ``reading["gyro_joined"]`` says how they were joined."""
-    from optcal.core.gyro.data import GAP_STEPS
-
+    two share their times, else interpolated linearly to them, as a ROS bag's gyroscope topic is
+    (:func:`optcal.core.recording.robotlogs.at_times`). An accelerometer sample outside the gyroscope's span, or
+    inside a gap of its samples (more than :data:`~optcal.core.gyro.data.GAP_STEPS` steps), has no gyroscope
+    sample: NaN, which the rests' detection takes for motion and the gyroscope's fit leaves out with the motions
+    holding it. ``reading["gyro_joined"]`` says how they were joined."""
     t, tg = np.asarray(acc.t, float), np.asarray(rec.t, float)
-    if len(t) == len(tg) and len(t) > 1 and np.max(np.abs(t - tg)) <= TIME_TOLERANCE * (t[-1] - t[0]) / (len(t) - 1):
-        return rec  # the same times (within a tenth of the mean step; join_times checks against the median's)
     if len(tg) < 2 or tg[-1] <= t[0] or tg[0] >= t[-1]:
         raise InputError(f"the gyroscope's times ({tg[0]:.6g}-{tg[-1]:.6g} s) and the accelerometer's "
                          f"({t[0]:.6g}-{t[-1]:.6g} s) do not overlap: give both files' times in one clock")
-    j = np.searchsorted(tg, t)
-    lo, hi = np.clip(j - 1, 0, len(tg) - 1), np.clip(j, 0, len(tg) - 1)
-    ok = (t >= tg[0]) & (t <= tg[-1]) & (tg[hi] - tg[lo] <= GAP_STEPS * float(np.median(np.diff(tg))))
+    # the rail flags go along, interpolated: a sample beside a saturated one is set aside too
+    X, ok, same = at_times(t, tg, np.column_stack([rec.N, rec.saturated]), GAP_STEPS)
+    if same:
+        return rec
     if ok.mean() < 0.5:
         raise InputError(f"the gyroscope's samples cover {100 * ok.mean():.0f} % of the accelerometer's times: give "
                          "both files' times in one clock, or record both sensors throughout")
-    N = np.column_stack([np.interp(t, tg, rec.N[:, k]) for k in range(3)])
-    N[~ok] = np.nan
+    N = np.where(ok[:, None], X[:, :3], np.nan)
     uncovered = int((~ok).sum())
     how = ("interpolated linearly to the accelerometer's times"
            + (f" ({uncovered} accelerometer sample(s) without a gyroscope sample: outside its span or in a gap of "
               "its samples)" if uncovered else ""))
-    return replace(rec, t=t, N=N, rate=acc.rate, saturated=rec.saturated[lo] | rec.saturated[hi],
-                   temp=None, labels=None, reading={**rec.reading, "gyro_joined": how, "gyro_uncovered": uncovered})
+    return replace(rec, t=t, N=N, rate=acc.rate, saturated=X[:, 3] > 0, temp=None, labels=None,
+                   reading={**rec.reading, "gyro_joined": how, "gyro_uncovered": uncovered})
 
 
 def _columns(spec, n: int) -> list[str] | None:
@@ -127,10 +121,8 @@ def read_gyro(data, acc, *, gyro=None, gyro_columns=None, units: str | None, rat
     second file with its own times is taken at the accelerometer's (:func:`on_times_of`; a calibration's fit),
     else kept as it is (``apply`` writes the samples as they were; ``noise`` would see the interpolation's
     smoothing), and then refused by :func:`join_times` unless the times are the same."""
-    from optcal.core.recording.reading import read_recording
-
     rec = _read_gyro(data, acc, gyro=gyro, gyro_columns=gyro_columns, units=units, rate=rate, time_unit=time_unit,
-                     calibration=calibration, interpolate=interpolate, read_recording=read_recording)
+                     calibration=calibration, interpolate=interpolate)
     return _with_piled_rails(rec)
 
 
@@ -149,8 +141,10 @@ def _with_piled_rails(rec):
     return replace(rec, saturated=np.asarray(rec.saturated, bool) | piled, reading={**rec.reading, "gyro_piled": where})
 
 
-def _read_gyro(data, acc, *, gyro, gyro_columns, units, rate, time_unit, calibration, interpolate, read_recording):
+def _read_gyro(data, acc, *, gyro, gyro_columns, units, rate, time_unit, calibration, interpolate):
     """:func:`read_gyro` without its rails' pile-up check."""
+    from optcal.core.recording.reading import read_recording
+
     if gyro is None and acc.reading.get("topic") is not None:
         rec = log_gyro(acc, units or "rad/s", gyro_columns)
         return replace(rec, reading={**rec.reading, "gyro_units": units or "rad/s"})

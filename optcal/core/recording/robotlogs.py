@@ -78,23 +78,38 @@ def sort_stamps(t: np.ndarray, path, name: str, tick: float) -> np.ndarray:
     return order
 
 
-def join(t_acc: np.ndarray, t_gyro: np.ndarray, W: np.ndarray) -> tuple[np.ndarray, np.ndarray, str]:
-    """A gyroscope's samples ``W`` at the accelerometer's times (integer stamps, both increasing): as they are
-    when the stamps agree within :data:`TIME_TOLERANCE` of a step, else linearly interpolated to the
-    accelerometer's stamps inside the gyroscope's span. Returns which accelerometer samples are kept, W at them,
-    and how, in words."""
+def at_times(t_acc: np.ndarray, t_gyro: np.ndarray, X: np.ndarray,
+             gap_steps: float | None = None) -> tuple[np.ndarray, np.ndarray, bool]:
+    """Samples ``X`` (m, k) taken at the increasing times ``t_gyro`` (m,), at the increasing times ``t_acc`` (n,):
+    as they are when the times agree within :data:`TIME_TOLERANCE` of a step, else linearly interpolated (times
+    counted from ``t_gyro[0]`` before the one conversion to float: integer stamps lose no precision). Returns them
+    (n, k), which of ``t_acc`` they hold (inside ``t_gyro``'s span and, with ``gap_steps``, not inside a gap of
+    more than that many of its median steps), and whether the times were the same."""
     if len(t_acc) == len(t_gyro) and len(t_acc) > 1:
         step = float(np.median(np.diff(t_acc)))
         if np.max(np.abs(t_acc - t_gyro)) <= TIME_TOLERANCE * step:
-            return np.ones(len(t_acc), bool), W, "at the same stamps"
+            return X, np.ones(len(t_acc), bool), True
+    x, xp = (t_acc - t_gyro[0]).astype(float), (t_gyro - t_gyro[0]).astype(float)
+    ok = (x >= 0) & (x <= xp[-1])
+    if gap_steps is not None:
+        j = np.clip(np.searchsorted(xp, x), 1, len(xp) - 1)
+        ok &= xp[j] - xp[j - 1] <= gap_steps * float(np.median(np.diff(xp)))
+    return np.column_stack([np.interp(x, xp, X[:, k]) for k in range(X.shape[1])]), ok, False
+
+
+def join(t_acc: np.ndarray, t_gyro: np.ndarray, W: np.ndarray) -> tuple[np.ndarray, np.ndarray, str]:
+    """A gyroscope's samples ``W`` at the accelerometer's times (integer stamps, both increasing): as they are
+    when the stamps agree within :data:`TIME_TOLERANCE` of a step, else linearly interpolated to the
+    accelerometer's stamps inside the gyroscope's span (:func:`at_times`). Returns which accelerometer samples are
+    kept, W at them, and how, in words."""
     if len(t_gyro) < 2:
         raise InputError(f"the gyroscope has {len(t_gyro)} sample(s); a calibration needs its samples throughout")
-    keep = (t_acc >= t_gyro[0]) & (t_acc <= t_gyro[-1])
-    x, xp = (t_acc[keep] - t_gyro[0]).astype(float), (t_gyro - t_gyro[0]).astype(float)
-    Wi = np.column_stack([np.interp(x, xp, W[:, j]) for j in range(3)])
+    Wi, keep, same = at_times(t_acc, t_gyro, W)
+    if same:
+        return keep, W, "at the same stamps"
     dropped = int((~keep).sum())
     out = f" ({dropped} accelerometer sample(s) outside the gyroscope's span dropped)" if dropped else ""
-    return keep, Wi, "interpolated linearly to the accelerometer's stamps" + out
+    return keep, Wi[keep], "interpolated linearly to the accelerometer's stamps" + out
 
 
 def log_layout(samples: LogSamples) -> tuple[Layout, np.ndarray]:

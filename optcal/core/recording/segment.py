@@ -115,17 +115,19 @@ def _noise_sd(d2: np.ndarray, rounding: float = ROUNDING) -> np.ndarray:
     return np.sqrt(ms / (6.0 * TRUNCATED_VARIANCE_3SD))
 
 
-def _quantum(N: np.ndarray, rounding: float | tuple = ROUNDING) -> np.ndarray:
-    """Per axis, the smallest non-zero step between consecutive outputs (the quantisation step of a coarse
-    ADC; for fine outputs just a small number), a step below ``rounding`` of the largest being a float's rounding
-    residue (0 counts every step); a tuple of roundings gives one quantum each, from one pass over the steps."""
+def _quanta(N: np.ndarray, roundings=(ROUNDING,)) -> np.ndarray:
+    """Per rounding and axis (len(roundings), 3), the smallest non-zero step between consecutive outputs (the
+    quantisation step of a coarse ADC; for fine outputs just a small number), a step below that rounding of the
+    largest being a float's rounding residue (0 counts every step); one pass over the steps for all of them."""
     d = np.abs(np.diff(N, axis=0))
     big = np.max(d, axis=0, initial=0.0)
-    out = []
-    for r in (rounding if isinstance(rounding, tuple) else (rounding,)):
-        q = np.min(np.where(d > r * big, d, np.inf), axis=0)  # a rounding residue is no step
-        out.append(np.where(np.isfinite(q), q, 0.0))
-    return tuple(out) if isinstance(rounding, tuple) else out[0]
+    q = np.array([np.min(np.where(d > r * big, d, np.inf), axis=0) for r in roundings])  # a residue is no step
+    return np.where(np.isfinite(q), q, 0.0)
+
+
+def _quantum(N: np.ndarray, rounding: float = ROUNDING) -> np.ndarray:
+    """Per axis, the quantisation step of the outputs ``N`` (:func:`_quanta` for one rounding)."""
+    return _quanta(N, (rounding,))[0]
 
 
 def _sums(x: np.ndarray) -> np.ndarray:
@@ -673,7 +675,7 @@ def gyro_turning(W: np.ndarray, b: int, seg: np.ndarray, rest: np.ndarray, rate:
     # on a coarse gyroscope in rad/s the level is then its quantisation's, q/√12): kept as they were chosen
     # the step a turn must exceed (_turning_samples): the output's own quantum, a rounding residue being none (rates
     # printed to 0.01 °/s leave 1e-17 where they repeat: a quantum of 0 let every flicker of a count turn)
-    q_noise, q = _quantum(Wf[finite], (GYRO_ROUNDING, ROUNDING))
+    q_noise, q = _quanta(Wf[finite], (GYRO_ROUNDING, ROUNDING))
     ok = finite[2:] & finite[1:-1] & finite[:-2]
     s = np.maximum(_noise_sd(np.diff(Wf, 2, axis=0)[ok], GYRO_ROUNDING), q_noise / np.sqrt(12.0))
     s = np.where(s > 0, s, 1.0)
