@@ -163,6 +163,18 @@ def test_output_cut_short_by_the_reader_is_not_a_traceback():
     assert "Traceback" not in err and "BrokenPipe" not in err
 
 
+def test_python_dash_m_runs_the_same_command_line(tmp_path):
+    """`python -m optcal` is the `optcal` script: the same parser, the same one-line refusal and exit status."""
+    import subprocess
+    import sys
+
+    proc = subprocess.run([sys.executable, "-m", "optcal", "calibrate", str(tmp_path / "absent.csv")],
+                          capture_output=True, text=True, timeout=120)
+    assert proc.returncode == 2
+    assert proc.stderr.startswith("optcal calibrate: error:") and proc.stderr.count("\n") == 1
+    assert "absent.csv" in proc.stderr and "Traceback" not in proc.stderr
+
+
 def test_study_is_a_plug_in_command(capsys):
     from optcal.app.cli import _command_modules
 
