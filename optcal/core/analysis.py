@@ -236,7 +236,7 @@ def _exact_fit(problem: CalibrationProblem, x: np.ndarray, rms: float, cost: flo
 def chi2_moments(problem: CalibrationProblem, x_full: np.ndarray, sigma: np.ndarray, floor) -> tuple[float, float]:
     """Mean and Satterthwaite degrees of freedom of χ² = Σ (r_i/σ_i)² when the position means carry the
     correlated noise of a recording's floor (:meth:`optcal.core.recording.floor.NoiseFloor.covariance`, per axis): with
-    r = (I − H)e to first order (H the hat matrix of :func:`_hat_matrix`), e the means' noise as residuals
+    r = (I − H)e to first order (H the hat matrix of :func:`_hat_factor`), e the means' noise as residuals
     (Σ_e = Σ_k D_k Σ^k D_k / K_k², D_k the specific force's direction cosines; per axis with a reference) and
     W = diag(1/σ²), E χ² = tr(W M Σ_e M) and Var χ² = 2 tr((W M Σ_e M)²), M = I − H; the degrees of freedom
     are 2 (E χ²)² / Var χ² (Satterthwaite 1946; Box 1954). For white noise they are m − rank."""
@@ -251,8 +251,8 @@ def chi2_moments(problem: CalibrationProblem, x_full: np.ndarray, sigma: np.ndar
         A = problem.specific_force(x)
         u = A / np.linalg.norm(A, axis=1, keepdims=True)
         S = sum(np.outer(u[:, k], u[:, k]) * floor.covariance(k) / K[k] ** 2 for k in range(3))
-    H, _ = _hat_matrix(problem, x)
-    M = np.eye(len(H)) - H
+    U, _ = _hat_factor(problem, x)
+    M = np.eye(len(U)) - U @ U.T  # dense: the floor's covariance S is too (a raw recording's few positions)
     Q = (M @ S @ M) / np.asarray(sigma, float)[:, None] ** 2
     expected = float(np.trace(Q))
     return expected, float(2.0 * expected**2 / (2.0 * np.sum(Q * Q.T)))
@@ -284,22 +284,29 @@ def loss_weights(r: np.ndarray, loss: str, f_scale: float) -> np.ndarray:
     raise ValueError(f"unknown loss {loss!r}; one of {', '.join(ROBUST_LOSSES)}")
 
 
-def _hat_matrix(problem: CalibrationProblem, x_full: np.ndarray, weights=None) -> tuple[np.ndarray, int]:
+def _hat_factor(problem: CalibrationProblem, x_full: np.ndarray, weights=None) -> tuple[np.ndarray, int]:
     """The hat matrix W½J(JᵀWJ)⁺JᵀW½ of the position residuals (J in natural units, over the directions with
-    relative singular value above RTOL) and the residual degrees of freedom, m − rank."""
+    relative singular value above RTOL) as its factor U (m, rank), H = UUᵀ, and the residual degrees of freedom,
+    m − rank. The factor, not H: H is m × m, and a file of thousands of positions made it gigabytes and its
+    uses minutes, where U has a column per parameter."""
     u = natural_units(problem, x_full)
     J = problem.jacobian_full(np.asarray(x_full, float))[: n_position_residuals(problem)] * u
     if weights is not None:
         J = J * np.sqrt(np.asarray(weights, float))[:, None]
     U, s, _ = np.linalg.svd(J, full_matrices=False)
     keep = s > RTOL * s[0]
-    return U[:, keep] @ U[:, keep].T, len(J) - int(keep.sum())
+    return U[:, keep], len(J) - int(keep.sum())
 
 
 def hat_values(problem: CalibrationProblem, x_full: np.ndarray, weights: np.ndarray | None = None) -> np.ndarray:
     """Leverage h of each position residual: the diagonal of the hat matrix (Hoaglin & Welsch 1978). A
     residual with h near 1 is fitted by its own parameters and cannot show an error; Σh is the rank."""
-    return np.clip(np.diag(_hat_matrix(problem, x_full, weights)[0]), 0.0, 1.0)
+    return np.clip(_leverages(_hat_factor(problem, x_full, weights)[0]), 0.0, 1.0)
+
+
+def _leverages(U: np.ndarray) -> np.ndarray:
+    """The diagonal of H = UUᵀ."""
+    return np.einsum("ij,ij->i", U, U)
 
 
 def _residual_sigma(problem: CalibrationProblem, x_full: np.ndarray, sm: np.ndarray) -> np.ndarray:
@@ -392,107 +399,140 @@ def _labels(data) -> list:
     return [None] * len(data)
 
 
+GROUP_BLOCK = 512  # positions whose neighbours pose_groups finds at a time
 POSE_GROUP_DEG = 1.0  # positions whose specific forces lie within this angle of each other are one pose (a rest
 # split by a drift or a knock): together they can pin part of the model as a lone position does
 
 
 def pose_groups(A: np.ndarray, deg: float = POSE_GROUP_DEG) -> np.ndarray:
     """A group number per position (n,) of the specific forces ``A`` (n, 3): positions joined when their
-    directions lie within ``deg`` of each other, and through chains of such positions (single linkage)."""
+    directions lie within ``deg`` of each other, and through chains of such positions (single linkage): each
+    position takes the least group number among its neighbours, and each number the number of the position it
+    names (pointer jumping, so a long chain takes a few rounds), until nothing changes. The neighbours are found
+    :data:`GROUP_BLOCK` rows at a time: a file of thousands of samples never makes an n × n array."""
     u = A / np.maximum(np.linalg.norm(A, axis=1, keepdims=True), 1e-300)
-    near = (u @ u.T) >= np.cos(np.radians(deg))
-    group = np.arange(len(u))
-    while True:  # each position takes the least group number among its neighbours until nothing changes
-        new = np.min(np.where(near, group[None, :], len(u)), axis=1)
+    n = len(u)
+    cos = np.cos(np.radians(deg))
+    group = np.arange(n)
+    while True:
+        new = np.empty_like(group)
+        for i in range(0, n, GROUP_BLOCK):
+            near = (u[i:i + GROUP_BLOCK] @ u.T) >= cos
+            new[i:i + GROUP_BLOCK] = np.min(np.where(near, group[None, :], n), axis=1)
+        while not np.array_equal(new[new], new):
+            new = new[new]
         if np.array_equal(new, group):
             return group
         group = new
 
 
-def _unchecked(H: np.ndarray, sig: np.ndarray, d: int) -> np.ndarray:
+def _unchecked(h: np.ndarray, sig: np.ndarray, d: int) -> np.ndarray:
     """Positions (n,) that alone pin part of the model, so that the others cannot check them: the linear
     downdate of the outlier test predicts a position from the others with SD σ_p = σ/√(1−h) (h its leverage, σ
     its residual's noise in g), and the magnitude's curvature adds about ½σ_p² to its residual, which must stay
     under the residual's own SD σ√(1−h): untested where 1 − h ≤ (σ/2)^(2/3) (a leverage above 0.9997 at 10 µg of
-    noise, 0.9991 at 57 µg: there a residual of a few µg reads as many σ and a prediction error of grams)."""
+    noise, 0.9991 at 57 µg: there a residual of a few µg reads as many σ and a prediction error of grams).
+    ``h``: the leverages (m,)."""
     with np.errstate(invalid="ignore"):
-        bad = (1.0 - np.diag(H)) <= (np.abs(np.asarray(sig, float)) / 2.0) ** (2.0 / 3.0)
+        bad = (1.0 - h) <= (np.abs(np.asarray(sig, float)) / 2.0) ** (2.0 / 3.0)
     return bad.reshape(-1, d).any(axis=1)
 
 
-def _unchecked_poses(H: np.ndarray, sig: np.ndarray, d: int, groups: np.ndarray) -> np.ndarray:
+def _unchecked_poses(U: np.ndarray, sig: np.ndarray, d: int, groups: np.ndarray) -> np.ndarray:
     """Positions (n,) of poses of several positions (``groups``, :func:`pose_groups`) that together alone pin part
     of the model, by the criterion of :func:`_unchecked` on the least eigenvalue of I − H over their rows (1 − h
     for a lone position): two halves of one rest that alone sees an axis upside down pin its scale factor and
     offset as one position would (leverages 0.499 and 0.501). Each position is still tested against the others
-    (its sibling predicts it); what no other pose can check is an error of the pose as a whole."""
+    (its sibling predicts it); what no other pose can check is an error of the pose as a whole. ``U``: the hat
+    matrix's factor (:func:`_hat_factor`)."""
     sig = np.abs(np.asarray(sig, float))
     out = np.zeros(len(groups), bool)
     for g in np.unique(groups[np.bincount(groups)[groups] > 1]):  # the poses of several positions (few)
         rows = (np.flatnonzero(groups == g)[:, None] * d + np.arange(d)).ravel()
-        least = float(np.linalg.eigvalsh(np.eye(rows.size) - H[np.ix_(rows, rows)])[0])
+        # the least eigenvalue of I − H over the rows, 1 − (the largest singular value of U's rows)²: a pose of
+        # thousands of positions (a file of samples) is an SVD of (rows, rank), not an eigenproblem of rows²
+        least = 1.0 - float(np.linalg.norm(U[rows], 2)) ** 2
         out[groups == g] = least <= (float(np.min(sig[rows])) / 2.0) ** (2.0 / 3.0)
     return out
 
 
-def _scan(r, H, sigma, d, dof, alpha1, sequential):
+def _scan(r, U, sigma, d, dof, alpha1, sequential):
     """Backward outlier scan (Belsley, Kuh & Welsch 1980, §2.1, repeated): the position whose deletion
     residual is least plausible is set aside while its p-value is below ``alpha1``, and the others are judged
     on the fit without the set-aside ones (the linear downdate r + H_·D (I − H_DD)⁻¹ r_D). ``sigma`` per
     residual, or None: then σ is the RMS of the fit without the set-aside positions and the candidate
     (externally studentised, Student's t / F). Returns the set-aside positions, each position's statistic
-    (in σ), p-value, its prediction error from the other positions (g) and the noise used (per residual)."""
+    (in σ), p-value, its prediction error from the other positions (g) and the noise used (per residual).
+    ``U``: the hat matrix's factor (:func:`_hat_factor`); H's blocks are formed only over the set-aside rows."""
     from optcal.core.distributions import chi2_sf, f_sf
 
     m = len(r)
     n = m // d
+    h = _leverages(U)
+    starts = np.arange(0, m, d)
+
+    def p_values(qv, nu):  # p-values of the positions' statistics, with nu residual degrees of freedom
+        if sigma is not None:
+            return chi2_sf(qv, d)
+        if nu - d < 1:
+            return np.full(len(qv), np.nan)
+        with np.errstate(invalid="ignore"):
+            return f_sf(qv / d, d, nu - d)
+
     D: list[int] = []
     while True:
         rows = np.array([k for i in D for k in range(i * d, i * d + d)], int)
         if rows.size:
-            A = np.linalg.inv(np.eye(rows.size) - H[np.ix_(rows, rows)])
-            rr = r + H[:, rows] @ (A @ r[rows])
-            HH = H + H[:, rows] @ A @ H[rows, :]
+            # the downdate through the factor (Woodbury): with G = U_Dᵀ U_D, (I − H_DD)⁻¹ = I + U_D (I − G)⁻¹ U_Dᵀ,
+            # and H + H_·D (I − H_DD)⁻¹ H_D· = U (I − G)⁻¹ Uᵀ; nothing of size m × |D| or |D| × |D|
+            UD = U[rows]
+            B = np.linalg.inv(np.eye(U.shape[1]) - UD.T @ UD)
+            t = B @ (UD.T @ r[rows])
+            rr = r + U @ t
+            hh = np.einsum("ij,ij->i", U @ B, U)
+            eD = r[rows] + UD @ t  # the set-aside positions' prediction errors from the others, (I − H_DD)⁻¹ r_D
         else:
-            A, rr, HH = None, r, H
+            rr, hh = r, h
         with np.errstate(divide="ignore", invalid="ignore"):
-            e2 = np.where(np.diag(HH) < 1 - 1e-9, rr**2 / (1.0 - np.diag(HH)), np.nan)
+            e2 = np.where(hh < 1 - 1e-9, rr**2 / (1.0 - hh), np.nan)
         keep = np.ones(m, bool)
         keep[rows] = False
         nu = dof - rows.size
         if sigma is None:
             rss = float(np.sum(rr[keep] ** 2))
-            per = np.add.reduceat(np.where(keep, e2, 0.0), np.arange(0, m, d))
+            per = np.add.reduceat(np.where(keep, e2, 0.0), starts)
             s2 = np.clip(rss - per, 0.0, None) / max(nu - d, 1)
             sig = np.repeat(np.sqrt(s2), d)
             with np.errstate(divide="ignore", invalid="ignore"):  # s = 0: no degrees of freedom left
-                q = np.add.reduceat(e2 / sig**2, np.arange(0, m, d))
-            with np.errstate(invalid="ignore"):
-                pv = f_sf(q / d, d, nu - d) if nu - d >= 1 else np.full(n, np.nan)
+                q = np.add.reduceat(e2 / sig**2, starts)
         else:
             sig = sigma
-            q = np.add.reduceat(e2 / sig**2, np.arange(0, m, d))
-            pv = chi2_sf(q, d)
-        q[_unchecked(HH, sig, d)] = np.nan
-        pv = np.where(np.isfinite(q), pv, np.nan)
-        if D:  # the set-aside positions: their prediction errors from the others, e_D = (I − H_DD)⁻¹ r_D
-            eD = A @ r[rows]
-            sD = np.full(rows.size, np.sqrt(rss / max(nu, 1))) if sigma is None else sigma[rows]
-            qD = (eD**2 / (np.diag(A) * sD**2)).reshape(-1, d).sum(axis=1)
-            q[D] = qD
-            pv[D] = f_sf(qD / d, d, max(nu, 1)) if sigma is None else chi2_sf(qD, d)
-            sig = sig.copy()
-            sig[rows] = sD
-        cand = [i for i in range(n) if i not in D and np.isfinite(pv[i])]
-        if not sequential or not cand or len(D) >= n // 2 or (sigma is None and nu - 2 * d < 1):
-            break
-        j = max(cand, key=lambda i: q[i])  # the least plausible (p-values underflow to 0 together)
-        if pv[j] >= alpha1:
+            q = np.add.reduceat(e2 / sig**2, starts)
+        q[_unchecked(hh, sig, d)] = np.nan
+        # the candidates: tested positions not set aside (all untested when no degree of freedom is left)
+        cand = np.isfinite(q)
+        cand[D] = False
+        if sigma is None and nu - d < 1:
+            cand[:] = False
+        cand = np.flatnonzero(cand)
+        stop = not sequential or not len(cand) or len(D) >= n // 2 or (sigma is None and nu - 2 * d < 1)
+        if not stop:  # the least plausible is the largest statistic (p-values underflow to 0 together)
+            j = int(cand[np.argmax(q[cand])])
+            stop = p_values(q[j:j + 1], nu)[0] >= alpha1
+        if stop:  # p-values only now, for every position: the scan needs the worst one's alone
+            pv = np.where(np.isfinite(q), p_values(q, nu), np.nan)
+            if D:  # the set-aside positions, judged by their prediction errors from the others
+                sD = np.full(rows.size, np.sqrt(rss / max(nu, 1))) if sigma is None else sigma[rows]
+                qD = (eD**2 / ((1.0 + hh[rows]) * sD**2)).reshape(-1, d).sum(axis=1)
+                q[D] = qD
+                pv[D] = f_sf(qD / d, d, max(nu, 1)) if sigma is None else chi2_sf(qD, d)
+                sig = sig.copy()
+                sig[rows] = sD
             break
         D.append(j)
     off = rr.copy()
     if D:
-        off[rows] = A @ r[rows]
+        off[rows] = eD
     return D, np.sqrt(q), pv, off, sig
 
 
@@ -515,7 +555,7 @@ def position_diagnostics(problem: CalibrationProblem, x_full: np.ndarray, noise_
     d = problem.rows_per_position
     n = len(problem.data)
     w = np.ones(len(r)) if weights is None else np.asarray(weights, float)
-    H, dof = _hat_matrix(problem, x, weights)
+    U, dof = _hat_factor(problem, x, weights)
     alpha1 = 1.0 - (1.0 - alpha) ** (1.0 / n)
     if noise_g is not None:
         sig, source = np.full(len(r), float(noise_g)), "stated"
@@ -525,13 +565,13 @@ def position_diagnostics(problem: CalibrationProblem, x_full: np.ndarray, noise_
         sig, source = np.full(len(r), float(f_scale)), "robust scale"
     else:
         sig, source = None, "leave-one-out"
-    D, stat, pv, off, sig = _scan(r, H, sig, d, dof, alpha1, sequential=weights is None)
+    D, stat, pv, off, sig = _scan(r, U, sig, d, dof, alpha1, sequential=weights is None)
     out = np.zeros(n, bool)
     out[D] = True
     if weights is not None:
         out = np.isfinite(pv) & (pv < alpha1)
     tested = bool(np.any(np.isfinite(pv)))
-    h = np.diag(H)
+    h = _leverages(U)
     from optcal.core.distributions import chi2_isf, norm_isf, t_isf
 
     if d == 1:
@@ -547,8 +587,8 @@ def position_diagnostics(problem: CalibrationProblem, x_full: np.ndarray, noise_
     groups = pose_groups(problem.specific_force(x))
     return PositionDiagnostics(np.arange(n), np.asarray(problem.data.position), _labels(problem.data), res, sg,
                                lev, stat, pv, wt, out, offp, thr, alpha1, source, tested,
-                               _unchecked(H, sig, d), groups, problem.specific_force(x) / problem.g_local,
-                               _unchecked_poses(H, sig, d, groups))
+                               _unchecked(h, sig, d), groups, problem.specific_force(x) / problem.g_local,
+                               _unchecked_poses(U, sig, d, groups))
 
 
 def noise_scale(problem: CalibrationProblem, x_full: np.ndarray, alpha: float = OUTLIER_ALPHA) -> float:
@@ -559,8 +599,8 @@ def noise_scale(problem: CalibrationProblem, x_full: np.ndarray, alpha: float = 
     x = np.asarray(x_full, float)
     r = problem.position_residuals(x)
     d = problem.rows_per_position
-    H, dof = _hat_matrix(problem, x)
-    D, _, _, off, _ = _scan(r, H, None, d, dof, 1.0 - (1.0 - alpha) ** (1.0 / len(problem.data)), True)
+    U, dof = _hat_factor(problem, x)
+    D, _, _, off, _ = _scan(r, U, None, d, dof, 1.0 - (1.0 - alpha) ** (1.0 / len(problem.data)), True)
     keep = np.ones(len(r), bool)
     for i in D:
         keep[i * d: i * d + d] = False

@@ -66,7 +66,9 @@ def null_space(problem, x_full: np.ndarray, rtol: float = RTOL) -> tuple[int, np
     units) and the natural units of the position residuals' Jacobian at ``x_full``."""
     u = natural_units(problem, x_full)
     J = problem.jacobian_full(x_full)[: n_position_residuals(problem)] * u
-    _, s, vt = np.linalg.svd(J, full_matrices=True)
+    # every right singular vector, and no more left ones than J has columns (full_matrices=True made U m × m:
+    # gigabytes for a file of thousands of positions)
+    _, s, vt = np.linalg.svd(J, full_matrices=J.shape[0] < J.shape[1])
     s_full = np.zeros(J.shape[1])
     s_full[: len(s)] = s
     rel = s_full / s_full[0]

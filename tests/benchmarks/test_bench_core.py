@@ -106,3 +106,18 @@ def test_bench_scipy_lm_calibration(benchmark):
     assert res.success and res.fun < 24 * (30e-6) ** 2
     benchmark.extra_info.update({"final_cost": res.fun, "nfev": res.nfev, "njev": res.njev,
                                  "max_abs_error": float(np.abs(res.x_full - sim.truth_vector(m)).max())})
+
+
+def test_bench_calibrate_5000_positions(benchmark):
+    """A positions file of 5,000 reference rows (a new user's table of samples against a reference IMU): the
+    whole calibration with its outlier scan, which carries the hat matrix as its factor (a dense m × m hat
+    matrix and an SVD with full_matrices made it minutes and gigabytes). extra_info: the solver's own time."""
+    from optcal.app.fit import calibrate
+
+    m = get_model("linear9")
+    truth = {k: v for k, v in PAPER_TRUTH.items() if k in m.names}
+    sim = simulate(m, truth, np.random.default_rng(2), scheme="random:5000", noise_g=500e-6, reference=True)
+    res = benchmark.pedantic(calibrate, args=(sim.data, m), kwargs={"reference": True}, rounds=3, iterations=1)
+    assert res.x.shape == (m.n_params,) and np.all(np.isfinite(res.x))
+    benchmark.extra_info["positions"] = 5000
+    benchmark.extra_info["solver_s"] = float(res.result.wall_time_s)
