@@ -24,11 +24,13 @@ from dataclasses import dataclass
 import numpy as np
 
 from optcal.core.analysis import GoodnessOfFit, Observability
-from optcal.core.data import PositionsData
-from optcal.core.errors import InputError
+from optcal.core.data import MANY_POSITIONS, PositionsData
+from optcal.core.errors import InputError, listing
 from optcal.core.gravity import G0
 from optcal.core.model import Model, get_model
 from optcal.core.problem import CalibrationProblem
+
+MANY_ROWS_AS_SAMPLES = MANY_POSITIONS  # positions: an implausible fit of this many may be a recording's samples
 
 # Residual degrees of freedom a fit needs: with fewer, the residuals can hardly show a bad position or a
 # missing effect, and a noise estimate from 1 or 2 degrees of freedom is uncertain by a factor of several
@@ -167,20 +169,22 @@ def plausibility(model: Model, x: np.ndarray, data: PositionsData, g_local: floa
     and volts: the zero-g output K·b within 0.5 g of the outputs' sphere centre), angles within
     :data:`ANGLE_MAX_RAD`, nonlinear terms' effect at 1 g within :data:`NONLINEAR_MAX` of the scale, and
     temperature and drift terms' effect over the data's spans within the offset and scale bounds. One
-    Refusal naming every parameter out of bounds (the first three in full)."""
+    Refusal naming every parameter out of bounds (the first in full)."""
     x = np.asarray(x, float)
     P = model.to_dict(x)
     units = model.units(data.units)
     nominal, centre = nominal_scale(data, g_local)
     K = {a: abs(P[f"K_{a}"]) for a in "xyz" if f"K_{a}" in P}
     bad: list[str] = []
+    names: list[str] = []
 
     def out(name, text):
+        names.append(name)
         bad.append(f"{name} = {P[name]:.4g} {units.get(name, '')} {text}".replace("  ", " "))
 
     for a, k in K.items():
         if nominal is not None and not abs(k / nominal - 1) <= SCALE_TOL:
-            out(f"K_{a}", f"is {k / nominal:.3g} times the nominal {nominal:.5g} (bounds ±{SCALE_TOL:.0%})")
+            out(f"K_{a}", f"against the nominal {nominal:.5g} ± {SCALE_TOL:.0%}")
     dtemp = span(data.temp, centred=True) if "temp" in model.needs else 0.0
     dt = span(data.t, centred=False) if "t" in model.needs else 0.0
     for k, name in enumerate(model.names):
@@ -196,19 +200,24 @@ def plausibility(model: Model, x: np.ndarray, data: PositionsData, g_local: floa
         elif fam == "S" and not v <= ANGLE_MAX_RAD:
             out(name, f"({math.degrees(v):.3g}°) is beyond ±{math.degrees(ANGLE_MAX_RAD):.0f}°")
         elif fam in ("K2", "K3") and K.get(a) and not v / K[a] <= NONLINEAR_MAX:
-            out(name, f"changes the output at 1 g by {v / K[a]:.3g} of the scale factor (bound {NONLINEAR_MAX:g})")
+            out(name, f"changes the output at 1 g by {v / K[a]:.3g} of the scale factor, bound {NONLINEAR_MAX:g}")
         elif fam in ("kappa", "c") and not v <= NONLINEAR_MAX:
-            out(name, f"changes the output at 1 g by {v:.3g} of the scale factor (bound {NONLINEAR_MAX:g})")
+            out(name, f"changes the output at 1 g by {v:.3g} of the scale factor, bound {NONLINEAR_MAX:g}")
         elif fam == "beta" and not v * dtemp <= BIAS_MAX_G:
-            out(name, f"moves the offset by {v * dtemp:.3g} g over the data's ±{dtemp:.3g} °C (bound {BIAS_MAX_G} g)")
+            out(name, f"moves the offset by {v * dtemp:.3g} g over the data's ±{dtemp:.3g} °C, bound {BIAS_MAX_G} g")
         elif fam == "gamma" and not v * dtemp <= SCALE_TOL:
-            out(name, f"changes the scale by {v * dtemp:.3g} over the data's ±{dtemp:.3g} °C (bound {SCALE_TOL:g})")
+            out(name, f"changes the scale by {v * dtemp:.3g} over the data's ±{dtemp:.3g} °C, bound {SCALE_TOL:g}")
         elif fam == "d" and not v * dt <= BIAS_MAX_G:
-            out(name, f"moves the offset by {v * dt:.3g} g over the data's {dt:.4g} s (bound {BIAS_MAX_G} g)")
+            out(name, f"moves the offset by {v * dt:.3g} g over the data's {dt:.4g} s, bound {BIAS_MAX_G} g")
     if not bad:
         return []
-    more = f" and {len(bad) - 3} more" if len(bad) > 3 else ""
-    return [Refusal("implausible", f"the fit of {model.name} is physically implausible: {'; '.join(bad[:3])}{more}")]
+    # the first parameter out of bounds in full and the others by name: one clause of the line, which the CLI's
+    # cut to 300 characters would otherwise shred (a new user saw "K_y = 1.136e+06 (m/s²)/g is … nominal 9.8066
+    # (bounds ±30%); … is 487 …")
+    more = f" (also {listing(names[1:], 4)})" if len(bad) > 1 else ""
+    many = f"; {len(data)} rows: a recording's samples? pass `raw`" if len(data) >= MANY_ROWS_AS_SAMPLES else ""
+    return [Refusal("implausible", f"the fit of {model.name} is physically implausible: {bad[0]}{more}"
+                    + many)]
 
 
 # What a sensor's datasheet already says, as the spread of a parameter across parts (MPU-6050, LIS3DH,
@@ -250,8 +259,7 @@ def way_out(refusals: list[Refusal], model: Model, smaller: str | None) -> str:
     kinds = {r.kind for r in refusals}
     force = "or pass `force_weak` to write it anyway, marked as forced"
     if "implausible" in kinds:
-        return ("are these static positions of one sensor in these units? check the units (`units`), that the "
-                f"positions were still and the intervals; {force}")
+        return f"check the units and the poses, {force}"
     if "exact_data" in kinds:
         return f"calibrate from recorded positions, whose means carry noise; {force}"
     need = model.n_params + MIN_DOF
