@@ -452,3 +452,17 @@ def test_a_forced_model_with_unobservable_directions_does_not_call_the_data_exac
     cal = calibrate(sim.data, "nonlinear12", noise_g=100e-6, force_weak=True)
     assert cal.model.name == "nonlinear12" and cal.observability.rank < 12
     assert cal.forced and not any("simulated without noise or copied" in r for r in cal.forced), cal.forced
+
+
+def test_robust_note_counts_every_down_weighted_position():
+    """Seven displaced positions under the Cauchy loss: the note names five and counts the rest (it named five
+    and said nothing of the two others, the worst among them)."""
+    sim = simulate(MODEL, TRUTH, np.random.default_rng(6), scheme="36", noise_g=SIGMA)
+    N = sim.data.N.copy()
+    bad = [2, 5, 9, 14, 20, 27, 33]
+    N[bad] += 3e-3 * N[bad] / np.linalg.norm(N[bad], axis=1, keepdims=True)
+    cal = calibrate(replace(sim.data, N=N), MODEL, solver="scipy-trf", options={"loss": "cauchy"}, noise_g=SIGMA)
+    note = next(n for n in cal.notes if n.startswith("robust loss cauchy"))
+    low = np.flatnonzero(cal.diagnostics.weight < 0.5)
+    assert set(bad) <= set(low.tolist()) and len(low) >= 7
+    assert f", … ({len(low) - 5} more), so the errors assume" in note, note

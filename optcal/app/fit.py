@@ -198,7 +198,7 @@ def _fit(problem: CalibrationProblem, slv, solver: str, x0, budget, seed, noise_
         low = np.flatnonzero(diag.weight < 0.5)
         notes.append(f"robust loss {loss} (f_scale = {f_scale * 1e6:.3g} µg): standard errors weight each position "
                      "by the loss (IRLS weights)"
-                     + (f"; it gives less than half weight to {', '.join(diag.name(i) for i in low[:5])}, so the "
+                     + (f"; it gives less than half weight to {listing((diag.name(i) for i in low), 5)}, so the "
                         "errors assume the noise of the positions kept" if low.size else ""))
     notes += _weak_notes(problem, x, sd, obs, gof)
     refused = list(refused)
