@@ -175,6 +175,8 @@ def test_a_cold_cache_is_announced_and_a_warm_one_is_not(tmp_path, monkeypatch, 
     with caplog.at_level(logging.WARNING, logger="optcal"):
         cache.load()
     assert "compiling the evaluation kernels" in caplog.text
+    # the CLI's handler prefixes "optcal: warning: "; the message does not name optcal again
+    assert caplog.records[-1].getMessage().startswith("compiling the evaluation kernels")
 
 
 @pytest.mark.parametrize("name", ["scipy-lm", "bsas", "staged:bas", "nlopt-bobyqa"])

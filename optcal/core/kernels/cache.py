@@ -13,7 +13,7 @@ import os
 import sys
 from pathlib import Path
 
-COLD_NOTE = ("optcal: compiling the evaluation kernels (the first use after an install: about half a minute; "
+COLD_NOTE = ("compiling the evaluation kernels (the first use after an install: about half a minute; "
              "numba caches them for every later run)")
 
 
