@@ -43,6 +43,8 @@ from optcal.core.tablefile import COMMENT, DECODE_ERRORS, column_key, is_comment
 
 INT16_RAILS = (-32768.0, 32767.0)
 TIME_UNITS = {"s": 1.0, "ms": 1e-3, "us": 1e-6, "ns": 1e-9}  # to seconds
+STEADY_NORM = 0.7  # an accelerometer's magnitude: its median at least this × its 95th percentile (_swapped)
+RATE_NORM = 0.3  # a gyroscope's: its median under this × its 95th percentile (at rest most of the time)
 RATE_RANGE = (1.0, 1e5)  # Hz: a time column's unit is the first that gives a rate above 1 Hz, up to 100 kHz
 EPOCH_YEARS = (946684800.0, 4102444800.0)  # s: Unix times from 2000 to 2100 (a time column that is a date)
 RAIL_RUN = 10  # samples in a row at one extreme value: a rail (saturation_of)
@@ -245,6 +247,13 @@ def read_recording(path, columns=None, rate: float | None = None, units: str | N
     W = gyro_sat = None
     if "gx" in data:
         W = np.column_stack([data["gx"], data["gy"], data["gz"]])
+        if columns is None and lay.header is None and _swapped(N, W):
+            a, g = (", ".join(str(cols[r]) for r in rs) for rs in (("ax", "ay", "az"), ("gx", "gy", "gz")))
+            raise InputError(
+                f"{path}: {lay.ncol} columns and no header, read by position as t, ax, ay, az, gx, gy, gz; but columns "
+                f"{a} vary as a gyroscope's rates do (near 0 most of the time) and {g} as an accelerometer's (a "
+                f"magnitude that stays near one value); name them with `columns`, e.g. t=0,ax={cols['gx']},"
+                f"ay={cols['gy']},az={cols['gz']},gx={cols['ax']},gy={cols['ay']},gz={cols['az']}")
         gyro_sat, gyro_how = gyro_saturation_of(W, units, fmt)
         how.update(gyro_how)
     names = {r: (lay.header[j] if lay.header else j) for r, j in cols.items()}
@@ -374,6 +383,19 @@ def even_times(t: np.ndarray) -> tuple[np.ndarray, float]:
     if np.ptp(level) >= JITTER_LOST * step:
         return t, 0.0
     return grid, off
+
+
+def _swapped(N: np.ndarray, W: np.ndarray) -> bool:
+    """Whether the columns read by position as the accelerometer ``N`` and the gyroscope ``W`` are the other way
+    round (a lab's t, gx, gy, gz, ax, ay, az without a header): an accelerometer turned between poses reads a
+    magnitude near g throughout (its median at least :data:`STEADY_NORM` of its 95th percentile), a gyroscope a
+    magnitude near 0 at every rest (its median under :data:`RATE_NORM` of its 95th percentile)."""
+    def ratio(X):
+        m = np.linalg.norm(X[:: max(1, len(X) // 20000)], axis=1)
+        top = float(np.percentile(m, 95))
+        return float(np.median(m)) / top if top > 0 else np.nan
+
+    return bool(ratio(N) < RATE_NORM and ratio(W) > STEADY_NORM)
 
 
 def held_rows(N: np.ndarray) -> np.ndarray | None:
