@@ -299,6 +299,24 @@ def test_bad_input_exit_2_one_line_nothing_written(tmp_path, capsys, case, extra
     assert not out.exists()
 
 
+def test_two_files_without_times_of_different_lengths_are_refused(tmp_path, capsys):
+    """Two files with no time column read at one `--rate` start at 0 together only by assumption: of different
+    lengths (a lab's 108,000 and 72,000 rows at 1,200 Hz), nothing aligns them, and they were joined over the
+    shorter one's span without a word. Refused in one line; of the same length they are the same samples."""
+    acc, gyr, x, sim = _two_clocks(tmp_path)
+    a = np.loadtxt(acc, delimiter=",", skiprows=1)[:, 1:]
+    g = np.loadtxt(gyr, delimiter=",")[:, 1:]
+    np.savetxt(acc, a, delimiter=",", fmt="%.9g")
+    np.savetxt(gyr, g, delimiter=",", fmt="%.9g")
+    rate = f"{1.0 / float(np.median(np.diff(sim.data.t))):.9g}"
+    out = tmp_path / "imu.json"
+    code, text, err = run_cli(["imu", str(acc), "--gyro", str(gyr), "--rate", rate, "--gyro-units", "counts",
+                               "--gyro-scale", "1000", "--model", "linear9", "-o", str(out)], capsys)
+    assert code == 2 and len(err.strip().splitlines()) == 1 and not out.exists()
+    assert f"the accelerometer's file has {len(a)} samples and the gyroscope's {len(g)}, and neither has a time " \
+           "column" in err
+
+
 def test_a_rail_in_converted_units_is_found_where_the_rate_piles_up():
     """A ±250 °/s gyroscope whose counts were converted to °/s (32768/131.07 = 250.004) and logged at 22 Hz: its
     fast turns sit at ±250.004 for 1-7 samples at a time, too briefly for a run of 10 (a rocket board of another

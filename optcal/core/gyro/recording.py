@@ -45,6 +45,11 @@ def on_times_of(rec, acc):
     sample: NaN, which the rests' detection takes for motion and the gyroscope's fit leaves out with the motions
     holding it. ``reading["gyro_joined"]`` says how they were joined."""
     t, tg = np.asarray(acc.t, float), np.asarray(rec.t, float)
+    if "t" not in acc.columns and "t" not in rec.columns and len(t) != len(tg):
+        # times made from a rate start both files at 0: nothing says that they started together (a lab's pair of
+        # 108,000 and 72,000 rows at 1,200 Hz was joined over its first 60 s without a word)
+        raise InputError(f"the accelerometer's file has {len(t)} samples and the gyroscope's {len(tg)}, and neither "
+                         "has a time column to align them by; give both files' times, or cut them to the same samples")
     if len(tg) < 2 or tg[-1] <= t[0] or tg[0] >= t[-1]:
         raise InputError(f"the gyroscope's times ({tg[0]:.6g}-{tg[-1]:.6g} s) and the accelerometer's "
                          f"({t[0]:.6g}-{t[-1]:.6g} s) do not overlap: give both files' times in one clock")
