@@ -250,7 +250,7 @@ def test_saturated_samples_are_flagged_and_their_interval_dropped(tmp_path, rec2
     # (a ±0.67 g range: every pose of the 24-position scheme has an axis beyond it)
     assert main(["calibrate", path, "--raw", "--units", "counts", "--model", "linear9", "--saturation", "11000"]) == 2
     err = _err_line(capsys)
-    assert "found 0 static interval(s)" in err and "needs at least 9" in err
+    assert "found 0 static interval(s)" in err and "needs at least 12" in err
 
 
 # -- intervals by hand ----------------------------------------------------------------------------------
@@ -420,17 +420,18 @@ def test_bad_input_no_static_intervals(tmp_path, capsys):
     t, N, _, _ = synth(np.random.default_rng(6), moving_only=True)
     path = write(tmp_path / "turning.csv", t, N)
     code, err = _cli(["calibrate", path, "--raw", "--units", "counts", "--model", "linear9"], capsys)
-    assert code == 2 and "found 1 static interval(s)" in err and "needs at least 9" in err
+    assert code == 2 and "found 1 static interval(s)" in err and "needs at least 12" in err
     # the one interval is the rest at the start and the rest of the recording turns: it holds just that pose, and
     # the way out is more poses (issue #29: no other detector or setting would find another)
-    assert "the recording holds just 1 pose(s); record at least 9, in different orientations" in err
+    # (12: linear9's parameters and the 3 residual degrees of freedom its fit asks for, the fit's own number)
+    assert "the recording holds just 1 pose(s); record at least 12, in different orientations" in err
 
 
 def test_bad_input_too_few_poses_says_how_many(tmp_path, capsys):
     t, N, _, _ = synth(np.random.default_rng(7), dirs=scheme("6"))
     path = write(tmp_path / "six.csv", t, N)
     code, err = _cli(["calibrate", path, "--raw", "--units", "counts", "--model", "nonlinear12"], capsys)
-    assert code == 2 and "found 6 static interval(s)" in err and "needs at least 12" in err
+    assert code == 2 and "found 6 static interval(s)" in err and "needs at least 15" in err
 
 
 def test_bad_input_ms2_declared_as_counts(tmp_path, rec24, capsys):
@@ -523,7 +524,7 @@ def test_the_library_path_gives_the_cli_path_positions(tmp_path, rec24):
     (tmp_path / "six.json").write_text(json.dumps(spans[:6].tolist()))
     given = positions_from_raw(path, units="counts", intervals=tmp_path / "six.json", model="diag6")
     assert given.extra["detection"].method == "given" and np.all(given.n_samples == spans[:6, 1] - spans[:6, 0])
-    with pytest.raises(InputError, match="found 6 static interval.*needs at least 9.*lower `min_static_s`"):
+    with pytest.raises(InputError, match="found 6 static interval.*needs at least 12.*lower `min_static_s`"):
         positions_from_raw(path, units="counts", intervals=tmp_path / "six.json", model="linear9")
 
 

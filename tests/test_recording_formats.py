@@ -181,6 +181,13 @@ def test_time_unit_declared_and_implausible_steps(tmp_path, capsys):
         read_recording(fast, units="counts")
     code, _, err = _cli(["calibrate", fast, "--raw", "--units", "counts"], capsys)
     assert code == 2 and "set --time-unit" in err and len(err.splitlines()) == 1
+    # relative stamps in ns at 1 kHz (a new user's log) are 1 Hz in µs: the data do not tell, and it was read
+    # as a 4.6-hour recording at 1 Hz; refused, naming both, and read as declared
+    rel = write(tmp_path / "rel_ns.csv", np.arange(3000) * 999_936.0, N, tfmt="%.0f")
+    code, _, err = _cli(["calibrate", rel, "--raw", "--units", "counts"], capsys)
+    assert code == 2 and "is 1 Hz in us or 1000 Hz in ns; set --time-unit (or give --rate)" in err
+    assert read_recording(rel, units="counts", time_unit="ns").rate == pytest.approx(1000.064, rel=1e-6)
+    assert read_recording(rel, units="counts", rate=1000.0).reading["time_unit"] == "ns"
 
 
 # -- 3. delimiters, decimal comma, BOM, duplicate names, positions and recordings swapped ---------------
@@ -303,7 +310,7 @@ def test_too_few_intervals_says_why_and_what_to_change(tmp_path, capsys):
     with pytest.raises(InputError) as exc:
         positions_from_raw(path, units="counts", model="linear9", threshold_k=4)
     msg = str(exc.value)
-    assert msg.startswith("found 1 static interval(s) (k = 4), model linear9 needs at least 9")
+    assert msg.startswith("found 1 static interval(s) (k = 4), model linear9 needs at least 12")
     assert "0 sample(s) set aside as saturated" in msg
     assert "23 candidate(s) shorter than `min_static_s` = 1 s (the longest 0.64 s)" in msg
     assert msg.endswith("lower `min_static_s` to 0.6 s")
@@ -370,3 +377,24 @@ def test_a_sensor_that_clips_a_few_codes_short_of_its_format_is_at_its_rail():
     assert sat.tolist() == [False, False, True, True, False, False, False, False]
     assert how["gyro_adc"] == "int16" and how["gyro_rails"] == [-32768, 32767]
     assert saturation_of(W, "counts", None, None)[0].tolist() == sat.tolist()
+
+
+def test_rows_without_time_that_differ_like_positions_hint_at_dropping_raw(tmp_path, capsys):
+    """A positions file of running means (a lab's 178 means of 25 readings, turned continuously between them:
+    consecutive rows differ by 12 % of g, neither clearly samples nor positions) given with --raw was told only
+    to give --rate, which led to "no part of the recording is at rest". The refusal says it may be positions; a
+    recording's samples (differing by their noise) are not told so."""
+    rng = np.random.default_rng(0)
+    ang = np.cumsum(rng.normal(0, 0.12, (178, 2)), axis=0)
+    c0, s0, c1, s1 = np.cos(ang[:, 0]), np.sin(ang[:, 0]), np.cos(ang[:, 1]), np.sin(ang[:, 1])
+    P = np.column_stack([c0 * c1, s0 * c1, s1])
+    path = tmp_path / "means.txt"
+    np.savetxt(path, P, delimiter="\t", fmt="%.6f")
+    assert main(["calibrate", str(path), "--raw", "--units", "g"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.endswith("has no time column; give the sample rate in Hz with --rate (or, if its 178 rows are "
+                        "positions, drop --raw)"), err
+    S = np.tile(P[:1], (500, 1)) + rng.normal(0, 0.002, (500, 3))  # samples of one pose
+    np.savetxt(path, S, delimiter="\t", fmt="%.6f")
+    assert main(["calibrate", str(path), "--raw", "--units", "g"]) == 2
+    assert capsys.readouterr().err.strip().endswith("give the sample rate in Hz with --rate")

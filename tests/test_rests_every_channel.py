@@ -143,3 +143,36 @@ def test_every_kept_rest_holds_at_least_half_the_shortest_pose(seed):
                f"samples: {m // 2} or more remain)" in describe_detection(det)
     assert "stillness judged on the gyroscope too" in describe_detection(segment_static(s.acc, gyro=s.gyro.N))
 
+
+
+def test_a_pose_held_still_is_judged_against_the_recording_s_slow_noise():
+    """The poses' recheck drops a pose whose first and last quarters differ beyond what the sensor does at rest:
+    that is its white noise and its flicker (the recording's noise floor), not the white noise alone. A phone of
+    another lab, z wandering 0.4 mg over a 20-s pose (its flicker B 0.2 mg), had that pose dropped as "moved
+    while held" and a 5-s tail of the same pose kept, K_z 12 standard errors off. Here 20-s poses with 0.3 mg of
+    flicker: judged on white noise, some are dropped; with the floor's flicker, none; a pose that turns
+    throughout (an interval inside a 30 °/s turn) is still dropped."""
+    from optcal.core.model import get_model
+    from optcal.core.recording.positions import recheck_poses
+
+    syn = poses_recording(np.random.default_rng(2), n_poses=12, hold_s=20.0, turn_rate_dps=30.0, noise_g=1e-3,
+                          flicker_g=3e-4)
+    rec, rests = syn.recording, syn.rests.copy()
+    data = positions_from_recording(rec, given_intervals(rec, rests))
+    model = get_model("diag6")
+    x = model.from_dict({"K_x": 1.0, "K_y": 1.0, "K_z": 1.0, "b_x": 0.0, "b_y": 0.0, "b_z": 0.0})
+    every = np.arange(len(rests))
+    assert data.extra["noise_floor"].bias_instability.max() > 1e-4  # the floor sees the flicker
+    new, notes = recheck_poses(data, model, x, every)
+    assert not any("dropped" in n for n in notes), notes
+    white_only = type(data)(**{**data.__dict__, "extra": {k: v for k, v in data.extra.items() if k != "noise_floor"}})
+    _, notes_white = recheck_poses(white_only, model, x, every)
+    assert sum("moved while held" in n for n in notes_white) >= 2, notes_white
+    # an interval 1 s inside the turn that follows pose 5 turns throughout: dropped with the floor too
+    gap = rests[6, 0] - rests[5, 1]
+    assert gap >= 120  # the turn lasts longer than the interval
+    turning = rests.copy()
+    turning[5] = (rests[5, 1] + 10, rests[5, 1] + 110)
+    data_t = positions_from_recording(rec, given_intervals(rec, turning))
+    new_t, notes_t = recheck_poses(data_t, model, x, [5])
+    assert len(new_t.N) == len(rests) - 1 and "re-examined sample by sample: it moved while held" in notes_t[0]

@@ -195,6 +195,8 @@ def test_a_recording_of_too_few_poses_is_told_so(tmp_path, capsys):
     assert main(["calibrate", path, "--raw", "--model", "diag6"]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "holds just 3 pose(s)" in err[0] and "variance" not in err[0]
+    # the counts name the rests kept, and diag6's number is the fit's own (6 parameters, 3 residual dof)
+    assert "needs at least 9 (segments: 3 rest, " in err[0] and "record at least 9" in err[0]
 
 
 def test_outputs_on_a_decimal_grid_are_not_taken_for_noiseless():

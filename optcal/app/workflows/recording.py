@@ -22,6 +22,7 @@ from pathlib import Path
 import numpy as np
 
 from optcal.core.data import PositionsData, check_units
+from optcal.core.determination import MIN_DOF
 from optcal.core.errors import InputError
 from optcal.core.model import get_model
 from optcal.core.recording.detection import DEFAULT_KS, DetectionResult, Detector, detect_static, parse_ks, too_few
@@ -97,7 +98,7 @@ def choose_threshold(recording: Recording, model, fit_cost_fn=None, *, ks=DEFAUL
         most = max(search, key=lambda r: r["n_intervals"])
         if most["n_intervals"] < model.n_params:
             raise too_few(most["n_intervals"], model, f"at best (k = {most['k']:g})",
-                          det.diagnosis(most["k"], model.n_params))
+                          det.diagnosis(most["k"], model.n_params + MIN_DOF))
         fits = [r for r in search if r["n_intervals"] >= model.n_params]
         if all(r["n_intervals"] == model.n_params for r in fits):  # no spare degree of freedom: take it
             res = det.result(most["k"])
@@ -177,7 +178,7 @@ def positions_from_raw_recording(rec: Recording, options: RawOptions | None = No
                              "files must share their sample times; cut them to the same samples")
         det = segment_static(rec, min_static_s=min_static_s, window_s=window_s, gyro=rates)
         if det.n_intervals < model.n_params:
-            raise too_few(det.n_intervals, model, "by segmentation", segment_diagnosis(det, model.n_params))
+            raise too_few(det.n_intervals, model, "by segmentation", segment_diagnosis(det, model.n_params + MIN_DOF))
     else:
         ks = parse_ks(threshold_k)
         window_s = 1.0 if window_s is None else window_s
@@ -186,7 +187,8 @@ def positions_from_raw_recording(rec: Recording, options: RawOptions | None = No
             det = detect_static(rec, ks[0], window_s=window_s, min_static_s=min_static_s, init_s=init_s)
             if det.n_intervals < model.n_params:
                 detector = Detector.of(rec, window_s, min_static_s, init_s)
-                raise too_few(det.n_intervals, model, f"(k = {ks[0]:g})", detector.diagnosis(ks[0], model.n_params))
+                raise too_few(det.n_intervals, model, f"(k = {ks[0]:g})",
+                              detector.diagnosis(ks[0], model.n_params + MIN_DOF))
         else:
             det = choose_threshold(rec, model, ks=ks, g_local=g_local, window_s=window_s,
                                    min_static_s=min_static_s, init_s=init_s)

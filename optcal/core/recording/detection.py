@@ -288,9 +288,13 @@ def parse_ks(spec) -> tuple[float, ...]:
 def too_few(found: int, model: Model, how: str = "", diagnosis: tuple[str, str] | None = None) -> InputError:
     """The error for fewer static intervals than ``model`` has parameters, with :meth:`Detector.diagnosis`'s
     counts and advice when detection found them."""
+    from optcal.core.determination import MIN_DOF  # (on a refusal only: not an import of every read)
+
     how = f" {how}" if how else ""
     counts, advice = diagnosis or ("", "record more poses, lower `min_static_s`, or use a smaller model (e.g. diag6)")
+    # the number the fit's own refusal gives (its parameters and MIN_DOF residual degrees of freedom), so that
+    # a user who records that many is not refused again for too few
     return InputError(
-        f"found {found} static interval(s){how}, model {model.name} needs at least {model.n_params}"
+        f"found {found} static interval(s){how}, model {model.name} needs at least {model.n_params + MIN_DOF}"
         f"{' (' + counts + ')' if counts else ''}; {advice}"
     )

@@ -25,7 +25,7 @@ from optcal.core.data import PositionsData
 from optcal.core.errors import InputError
 from optcal.core.ranges import range_means, range_means_sds
 from optcal.core.recording.detection import runs
-from optcal.core.recording.floor import noise_floor
+from optcal.core.recording.floor import FLICKER_FACTOR, noise_floor
 from optcal.core.recording.sniff import mat_table
 
 if TYPE_CHECKING:
@@ -76,6 +76,7 @@ def recheck_poses(data, model, x, suspects, name=None):
     noise_g = np.asarray(det.noise if det.noise is not None else rec.N[iv[0, 0]:iv[0, 1]].std(axis=0), float) / K
     rate = float(rec.rate) if np.isfinite(rec.rate) else 50.0
     w = max(1, int(round(SMOOTH_S * rate)))
+    floor = data.extra.get("noise_floor")
     notes = []
     # a handful of suspects (outliers of one fit), each judged on its own samples by NumPy
     for i in np.asarray(suspects, int):
@@ -84,12 +85,12 @@ def recheck_poses(data, model, x, suspects, name=None):
         m = len(F)
         q = max(m // 4, 1)
         first, last = F[:q].mean(axis=0), F[-q:].mean(axis=0)
-        se = noise_g * np.sqrt(2.0 / q)
+        se = _drift_sd(noise_g, q, floor, K, rate)
         c = np.concatenate([np.zeros((1, 3)), np.cumsum(F, axis=0)])
         lo = np.clip(np.arange(m) - w // 2, 0, max(m - w, 0))
         Fs = (c[lo + min(w, m)] - c[lo]) / min(w, m)
         ref = np.median(F[m // 4: m - m // 4], axis=0)
-        dev = np.max(np.abs(Fs - ref) / (noise_g / np.sqrt(min(w, m))), axis=1)
+        dev = np.max(np.abs(Fs - ref) / _depart_sd(noise_g, min(w, m), floor, K), axis=1)
         still = dev <= DEPART_SIGMAS
         # the longest run of still samples: the pose without the motions at its ends
         starts, stops = runs(still).T
@@ -99,11 +100,14 @@ def recheck_poses(data, model, x, suspects, name=None):
             s0, s1 = int(starts[j]), int(stops[j])
         else:
             s0 = s1 = 0
-        if s1 - s0 >= det.min_samples and (s0 > 0 or s1 < m):
+        # a trim keeps at least half the pose (and a shortest pose): less is a pose that moved throughout (an
+        # interval inside a turn kept 2 of its 100 samples)
+        least = max(det.min_samples, m // 2)
+        if s1 - s0 >= least and (s0 > 0 or s1 < m):
             Fk = F[s0:s1]
             qk = max(len(Fk) // 4, 1)
             drift = np.abs(Fk[:qk].mean(axis=0) - Fk[-qk:].mean(axis=0))
-            if np.all(drift <= DRIFT_SIGMAS * noise_g * np.sqrt(2.0 / qk)):
+            if np.all(drift <= DRIFT_SIGMAS * _drift_sd(noise_g, qk, floor, K, rate)):
                 # a trim that moves the pose's mean by less than its own noise changes nothing the fit sees
                 if np.all(np.abs(Fk.mean(axis=0) - F.mean(axis=0)) < TRIM_SIGMAS * noise_g / np.sqrt(len(Fk))):
                     continue
@@ -111,7 +115,7 @@ def recheck_poses(data, model, x, suspects, name=None):
                 cut = " and ".join(f"{n / rate:.2g} s at its {end}" for n, end in ((s0, "start"), (m - s1, "end")) if n)
                 notes.append(f"{name(i)} ({when}) re-examined sample by sample: {cut} moved, left out")
                 continue
-        if np.any(np.abs(last - first) > DRIFT_SIGMAS * se) or s1 - s0 < det.min_samples:
+        if np.any(np.abs(last - first) > DRIFT_SIGMAS * se) or s1 - s0 < least:
             keep[i] = False
             notes.append(f"{name(i)} ({when}) re-examined sample by sample: it moved while held "
                          f"(its force drifts by {np.max(np.abs(last - first)) * 1e3:.3g} mg), dropped")
@@ -122,6 +126,29 @@ def recheck_poses(data, model, x, suspects, name=None):
     # (a dropped pose leaves a gap: position 9 stays the interval the report numbers 9)
     out = positions_from_recording(rec, new, floor_like=data.extra.get("noise_floor"))
     return replace(out, position=np.asarray(data.position)[keep]), notes
+
+
+def _drift_sd(noise_g: np.ndarray, q: int, floor, K: np.ndarray, rate: float) -> np.ndarray:
+    """SD (3,) in g of the difference between the means of a pose's first and last ``q`` samples when it holds
+    still: √2 × the recording's Allan deviation at τ = q samples (the white noise ``noise_g`` of a sample, and the
+    flicker of the recording's noise floor, σ_A² = N²/τ + (0.664 B)², :mod:`optcal.core.recording.floor`; outputs
+    per g ``K``). White noise alone made a phone's 20-s pose whose force wandered 0.4 mg (its flicker B is 0.2
+    mg) a pose that "moved while held", and dropped it."""
+    white = noise_g * np.sqrt(2.0 / q)
+    B = getattr(floor, "bias_instability", None)
+    if B is None:
+        return white
+    return np.sqrt(white**2 + 2.0 * (FLICKER_FACTOR * np.asarray(B, float) / K) ** 2)
+
+
+def _depart_sd(noise_g: np.ndarray, w: int, floor, K: np.ndarray) -> np.ndarray:
+    """SD (3,) in g of a mean of ``w`` samples about the pose's median when it holds still: its white noise, and
+    the flicker of the recording's noise floor (as :func:`_drift_sd`)."""
+    white = noise_g / np.sqrt(w)
+    B = getattr(floor, "bias_instability", None)
+    if B is None:
+        return white
+    return np.sqrt(white**2 + 2.0 * (FLICKER_FACTOR * np.asarray(B, float) / K) ** 2)
 
 
 def mat_positions(path, units: str = "g") -> PositionsData:

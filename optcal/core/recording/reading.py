@@ -26,9 +26,11 @@ from optcal.core.recording.clock import CLOCK_TIME
 from optcal.core.recording.sniff import (
     KIND_ROWS,
     ROLES,
+    SAMPLE_JUMP,
     Layout,
     compression,
     is_mat,
+    jump_ratio,
     mat_layout,
     open_binary,
     positions_file_reason,
@@ -46,6 +48,7 @@ TIME_UNITS = {"s": 1.0, "ms": 1e-3, "us": 1e-6, "ns": 1e-9}  # to seconds
 STEADY_NORM = 0.7  # an accelerometer's magnitude: its median at least this × its 95th percentile (_swapped)
 RATE_NORM = 0.3  # a gyroscope's: its median under this × its 95th percentile (at rest most of the time)
 RATE_RANGE = (1.0, 1e5)  # Hz: a time column's unit is the first that gives a rate above 1 Hz, up to 100 kHz
+LIKELY_RATE = (5.0, 10e3)  # Hz: an IMU's rate; a unit that gives less while the next gives this is ambiguous
 EPOCH_YEARS = (946684800.0, 4102444800.0)  # s: Unix times from 2000 to 2100 (a time column that is a date)
 RAIL_RUN = 10  # samples in a row at one extreme value: a rail (saturation_of)
 RAIL_PILE = 3  # a rate's extreme value held by this many samples, and this many times as many as ...
@@ -226,7 +229,11 @@ def read_recording(path, columns=None, rate: float | None = None, units: str | N
     else:
         fs = rate if rate is not None else meta_rate
         if fs is None and need_time:
-            raise InputError(f"{path} has no time column; give the sample rate in Hz with `rate`")
+            # rows that differ by more than samples do (not clearly either kind: table_kind) may be positions
+            r = jump_ratio(N_rows := np.column_stack([data["ax"], data["ay"], data["az"]]))
+            maybe = (f" (or, if its {len(N_rows)} rows are positions, drop `raw`)" if refuse_positions
+                     and r is not None and r > SAMPLE_JUMP else "")
+            raise InputError(f"{path} has no time column; give the sample rate in Hz with `rate`{maybe}")
         t = np.arange(n) / (fs or 1.0)
         fs = np.nan if fs is None else fs
     N = np.column_stack([data["ax"], data["ay"], data["az"]])
@@ -313,7 +320,8 @@ def time_scale(step: float, rate: float | None, path, first: float | None = None
     known (within 5 %); else, when the column's ``first`` value is a date in one unit only (a Unix time between
     :data:`EPOCH_YEARS`) that gives a plausible rate, that unit (1.73e18 is nanoseconds: in microseconds it would
     be the year 56,800, and the rate 1 Hz where the log's is 1 kHz); else the first of s, ms, µs, ns that gives a
-    plausible sample rate, above :data:`RATE_RANGE`'s 1 Hz and at most its 100 kHz."""
+    plausible sample rate, above :data:`RATE_RANGE`'s 1 Hz and at most its 100 kHz, unless that rate is below
+    :data:`LIKELY_RATE` and a later unit's within it (1 Hz in µs or 1 kHz in ns: refused, asking for the unit)."""
     rates = {u: 1.0 / (step * f) for u, f in TIME_UNITS.items()}
     if rate is None and first is not None and first > 0:
         dated = [u for u, f in TIME_UNITS.items() if EPOCH_YEARS[0] <= first * f <= EPOCH_YEARS[1]
@@ -327,9 +335,16 @@ def time_scale(step: float, rate: float | None, path, first: float | None = None
                 return u
         raise InputError(f"{path}: the time column's median step {step:g} gives {said}, none of them the rate "
                          f"{rate:g} Hz; fix the rate, set `time_unit`, or drop the time column from `columns`")
-    for u, r in rates.items():
-        if RATE_RANGE[0] < r <= RATE_RANGE[1]:
-            return u
+    plausible = [u for u, r in rates.items() if RATE_RANGE[0] < r <= RATE_RANGE[1]]
+    if plausible:
+        u = plausible[0]
+        # under LIKELY_RATE[0] in one unit and within LIKELY_RATE in the next (relative stamps of a 1-kHz log in
+        # ns are 1 Hz in µs: a new user's was read as a 4.6-hour recording), the data do not tell which
+        likely = [v for v in plausible[1:] if LIKELY_RATE[0] <= rates[v] <= LIKELY_RATE[1]]
+        if rates[u] < LIKELY_RATE[0] and likely:
+            raise InputError(f"{path}: the time column's median step {step:g} is {rates[u]:.4g} Hz in {u} or "
+                             f"{rates[likely[0]]:.4g} Hz in {likely[0]}; set `time_unit` (or give `rate`)")
+        return u
     raise InputError(f"{path}: the time column's median step {step:g} gives {said}, none between 1 Hz and 100 kHz; "
                      "set `time_unit`, or drop the time column from `columns` and give `rate`")
 

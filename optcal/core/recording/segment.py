@@ -859,9 +859,10 @@ def segment_diagnosis(det: DetectionResult, needed: int) -> tuple[str, str]:
     outside = len(rec) - det.n_static_samples  # samples not in a found interval
     moving = int(L[~sg.rest].sum() + L[short_rest].sum())
     turn = sg.reason == "turn"
-    parts = [(int(trend.sum() + turn.sum()), "turn"), (int(noisy.sum()), "shake"),
+    # the segments kept as rests first: "no segment at rest" was said of a recording that is one long rest
+    parts = [(int(sg.kept.sum()), "rest"), (int(trend.sum() + turn.sum()), "turn"), (int(noisy.sum()), "shake"),
              (int(short_rest.sum()), f"rest < `min_static_s` = {sec(det.min_samples)}")]
-    counts = ", ".join(f"{k} {what}" for k, what in parts if k) or "no segment at rest"
+    counts = ", ".join(f"{k} {what}" for k, what in parts if k) or "none"
     counts = "segments: " + counts + (f"; {sec(sg.n_bad_blocks * b)} saturated or missing" if sg.n_bad_blocks else "")
     longest = int(L[short_rest].max()) if short_rest.any() else 0
     moving_frac = float(L[~sg.rest].sum()) / max(len(rec), 1)
