@@ -359,6 +359,30 @@ def test_calibrate_with_the_gyroscope_file_takes_the_rests_imu_takes(tmp_path, c
     assert code == 2 and "--gyro judges the rests of a raw recording on its gyroscope too: give --raw" in err
 
 
+def test_calibrate_takes_the_gyroscope_columns_imu_takes(tmp_path, capsys):
+    """One headerless file whose gyroscope columns are named by number (a lab's log of accelerometer, gyroscope and
+    magnetometer counts): ``calibrate --raw --gyro-columns`` judges the rests on them as ``imu`` does, the same
+    rests (it had no such option: 40 rests where imu took 35); without --raw refused in one line."""
+    path, x, sim = _recording(tmp_path)
+    a = np.loadtxt(path, delimiter=",", skiprows=1)
+    bare = tmp_path / "bare.csv"
+    np.savetxt(bare, a, delimiter=",", fmt="%.9g")  # t, ax, ay, az, gx, gy, gz without a header
+    cols = ["--columns", "t=0,ax=1,ay=2,az=3", "--gyro-columns", "4,5,6"]
+    code, text, err = run_cli(["calibrate", str(bare), "--raw", *cols, "--json"], capsys)
+    assert code == 0, err
+    cal = json.loads(text)
+    code, text, err = run_cli(["imu", str(bare), *cols, "--gyro-units", "counts", "--gyro-scale", "1000", "--json"],
+                              capsys)
+    assert code == 0, err
+    imu = json.loads(text)
+    assert cal["recording"]["intervals"] == imu["recording"]["intervals"]
+    code, text, err = run_cli(["calibrate", str(bare), "--raw", "--columns", "t=0,ax=1,ay=2,az=3", "--json"], capsys)
+    alone = json.loads(text)  # the accelerometer alone: its own rests (what the option changes)
+    assert code == 0 and alone["recording"]["intervals"] != cal["recording"]["intervals"]
+    code, text, err = run_cli(["calibrate", str(bare), *cols], capsys)
+    assert code == 2 and "--gyro-columns judges the rests of a raw recording on its gyroscope too: give --raw" in err
+
+
 def test_a_rest_shorter_than_the_stillness_window_stays_within_itself():
     """still_rests on a rest of 8 samples at 200 Hz (the window is 10): the loop over rests it replaced averaged with
     np.convolve's "same", which returns the window's length when the rest is shorter, and moved the rest's end 2

@@ -57,6 +57,9 @@ def add_arguments(p):
     p.add_argument("--gyro", metavar="GYRO_FILE", help="with --raw: a second file with the gyroscope's samples "
                    "(t, gx, gy, gz; at its own times, interpolated to DATA's), whose stillness the rests are judged on "
                    "too, as optcal imu judges them (the fit is the accelerometer's)")
+    p.add_argument("--gyro-columns", metavar="SPEC", help="with --raw: the gyroscope's columns by name or 0-based "
+                   "index, gx,gy,gz in DATA (default: those its header names, e.g. gx or gyr_x), or t,gx,gy,gz in "
+                   "--gyro (default: its first four), as optcal imu takes them")
     add_noise_from_options(p, "dwell per position for --noise-from, s (default: each position's n over the "
                            "sample rate: a raw DATA's, else --rate, else the noise recording's)",
                            "read with --units, --columns and --rate, as a raw DATA")
@@ -64,14 +67,14 @@ def add_arguments(p):
 
 
 def _gyro_of(args):
-    """With ``--gyro``: the gyroscope's samples at the recording's times, for the rests' stillness (its units do
-    not matter there: the detection is units-free), else None."""
-    if getattr(args, "gyro", None) is None:
+    """With ``--gyro`` or ``--gyro-columns``: the gyroscope's samples at the recording's times, for the rests'
+    stillness (its units do not matter there: the detection is units-free), else None."""
+    if getattr(args, "gyro", None) is None and getattr(args, "gyro_columns", None) is None:
         return None
     from optcal.core.gyro.recording import read_gyro
 
-    return lambda rec: read_gyro(args.data, rec, gyro=args.gyro, units="volts", rate=args.rate,
-                                 time_unit=args.time_unit, interpolate=True)
+    return lambda rec: read_gyro(args.data, rec, gyro=args.gyro, gyro_columns=args.gyro_columns, units="volts",
+                                 rate=args.rate, time_unit=args.time_unit, interpolate=True)
 
 
 def _default_positions(args):
@@ -95,8 +98,9 @@ def run(args) -> int:
         raise InputError("--dwell-s sets the dwell for --noise-from; give --noise-from too, or leave it out")
     if args.budget is not None and args.budget < 1:
         raise InputError(f"--budget {args.budget} must be a number of evaluations of 1 or more")
-    if args.gyro is not None and not args.raw:
-        raise InputError("--gyro judges the rests of a raw recording on its gyroscope too: give --raw")
+    if (args.gyro is not None or args.gyro_columns is not None) and not args.raw:
+        flag = "--gyro" if args.gyro is not None else "--gyro-columns"
+        raise InputError(f"{flag} judges the rests of a raw recording on its gyroscope too: give --raw")
     inputs = (args.data, args.presets, args.noise_from, args.gyro)
     refuse_same_file(args.output, *inputs)
     refuse_overwrite(args.output, args.force)
