@@ -424,7 +424,7 @@ def test_bad_input_no_static_intervals(tmp_path, capsys):
     # the one interval is the rest at the start and the rest of the recording turns: it holds just that pose, and
     # the way out is more poses (issue #29: no other detector or setting would find another)
     # (12: linear9's parameters and the 3 residual degrees of freedom its fit asks for, the fit's own number)
-    assert "the recording holds just 1 pose(s); record at least 12, in different orientations" in err
+    assert "the recording holds rests in just 1 orientation(s); record at least 12, in different orientations" in err
 
 
 def test_bad_input_too_few_poses_says_how_many(tmp_path, capsys):

@@ -190,13 +190,29 @@ def test_a_recording_of_too_few_poses_is_told_so(tmp_path, capsys):
     det = segment_static(syn.recording)
     assert det.n_intervals == 3
     counts, advice = segment_diagnosis(det, 6)
-    assert advice.startswith("the recording holds just 3 pose(s); record at least 6")
+    assert advice.startswith("the recording holds rests in just 3 orientation(s); record at least 6")
     path = _write(tmp_path / "three.csv", syn.recording)
     assert main(["calibrate", path, "--raw", "--model", "diag6"]) == 2
     err = capsys.readouterr().err.strip().splitlines()
-    assert len(err) == 1 and "holds just 3 pose(s)" in err[0] and "variance" not in err[0]
+    assert len(err) == 1 and "holds rests in just 3 orientation(s)" in err[0] and "variance" not in err[0]
     # the counts name the rests kept, and diag6's number is the fit's own (6 parameters, 3 residual dof)
     assert "needs at least 9 (segments: 3 rest, " in err[0] and "record at least 9" in err[0]
+
+
+def test_short_rests_in_one_orientation_are_not_advised_a_shorter_pose():
+    """A file of one face (a lab's +X file of a six-file set): a long rest and ten short ones, all within 2° of +x.
+    The refusal said "lower min_static_s to 0.2 s", which then found five rests of the same face and refused
+    again; it says the recording holds rests in one orientation. Short rests in other orientations are still
+    advised a shorter pose."""
+    ang = np.radians([0] + [2, -2] * 5)
+    dirs = np.column_stack([np.cos(ang), np.sin(ang), np.zeros_like(ang)])
+    syn = poses_recording(np.random.default_rng(0), dirs, hold_s=[5.0] + [0.35] * 10, motion="step", noise_g=1e-3)
+    counts, advice = segment_diagnosis(segment_static(syn.recording), 9)
+    assert advice.startswith("the recording holds rests in just 1 orientation(s); record at least 9"), advice
+    spread = np.random.default_rng(1).normal(size=(11, 3))
+    syn = poses_recording(np.random.default_rng(0), spread, hold_s=[5.0] + [0.35] * 10, motion="step", noise_g=1e-3)
+    counts, advice = segment_diagnosis(segment_static(syn.recording), 9)
+    assert advice.startswith("lower `min_static_s` to 0.3 s"), advice
 
 
 def test_outputs_on_a_decimal_grid_are_not_taken_for_noiseless():

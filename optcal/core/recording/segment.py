@@ -74,6 +74,7 @@ GYRO_Z = 8.0  # an averaged rate this many noise SDs from the level at rest (any
 TURN_FRACTION = 0.005  # ... when it is also this fraction of the recording's turns (the 99th percentile of the
 # averaged rate): about 1 °/s for hand turns at 200 °/s, above a hand's sway in a held pose (tenths of °/s)
 SHAKING_HOLD_POSES = 2  # a shaking segment the gyroscope sees still is a rest when it lasts this many shortest poses
+ORIENTATION_DEG = 5.0  # °: rests whose outputs point within this of each other are one orientation (a refusal's count)
 SETTLE_S = 0.15  # s: samples this long after a turn are left out of a rest (a settling fades under the noise)
 GYRO_MARGIN_S = 0.05  # s: and this long before one (the turn's first samples)
 
@@ -856,8 +857,6 @@ def segment_diagnosis(det: DetectionResult, needed: int) -> tuple[str, str]:
     trend = sg.reason == "trend"
     noisy = sg.reason == "noisy"
     short_rest = sg.short
-    outside = len(rec) - det.n_static_samples  # samples not in a found interval
-    moving = int(L[~sg.rest].sum() + L[short_rest].sum())
     turn = sg.reason == "turn"
     # the segments kept as rests first: "no segment at rest" was said of a recording that is one long rest
     parts = [(int(sg.kept.sum()), "rest"), (int(trend.sum() + turn.sum()), "turn"), (int(noisy.sum()), "shake"),
@@ -866,13 +865,17 @@ def segment_diagnosis(det: DetectionResult, needed: int) -> tuple[str, str]:
     counts = "segments: " + counts + (f"; {sec(sg.n_bad_blocks * b)} saturated or missing" if sg.n_bad_blocks else "")
     longest = int(L[short_rest].max()) if short_rest.any() else 0
     moving_frac = float(L[~sg.rest].sum()) / max(len(rec), 1)
+    # the rests a lower min_static_s would keep (at least half the shortest pose) and those found
+    candidates = short_rest & (L >= det.min_samples // 2)
+    seen = _orientations(rec, np.vstack([det.intervals, sg.segments[candidates] * b]))
     if det.n_intervals == 0 and moving_frac >= 0.5:
         advice = ("no part of the recording is at rest (a continuous motion, not held poses); hold poses still "
                   "for `min_static_s`, or give `intervals`")
-    elif moving >= 0.75 * outside and longest < det.min_samples // 2:
-        # what is not a rest moves (or pauses too briefly): the recording has these poses and no more, so
-        # another detector or lower settings find nothing new
-        advice = (f"the recording holds just {det.n_intervals} pose(s); record at least {needed}, in different "
+    elif 0 < seen < needed:
+        # its rests, and those a shorter min_static_s would keep, lie in fewer orientations than the model needs:
+        # neither shorter poses nor another detector finds new ones (a lab's file of one face was told to lower
+        # min_static_s, then refused again)
+        advice = (f"the recording holds rests in just {seen} orientation(s); record at least {needed}, in different "
                   "orientations, each held still for `min_static_s`")
     elif short_rest.sum() >= needed - det.n_intervals and longest >= det.min_samples // 2:
         advice = (f"lower `min_static_s` to {max(np.floor(longest / rate * 10) / 10, 0.1):g} s"
@@ -881,6 +884,20 @@ def segment_diagnosis(det: DetectionResult, needed: int) -> tuple[str, str]:
         advice = ("record more poses, each held still for longer than `min_static_s`, or try `method` "
                   "variance or give `intervals`")
     return counts, advice
+
+
+def _orientations(rec: Recording, ranges: np.ndarray) -> int:
+    """How many orientations the sample ranges ``ranges`` (k, 2) of ``rec`` hold: their mean outputs' directions
+    joined within :data:`ORIENTATION_DEG` (single linkage, :func:`optcal.core.analysis.pose_groups`)."""
+    from optcal.core.analysis import pose_groups
+
+    r = ranges[ranges[:, 1] > ranges[:, 0]]
+    if not len(r):
+        return 0
+    N = np.where(np.isfinite(rec.N), rec.N, 0.0)
+    c = np.concatenate([np.zeros((1, 3)), np.cumsum(N, axis=0)])
+    means = (c[r[:, 1]] - c[r[:, 0]]) / (r[:, 1] - r[:, 0])[:, None]
+    return len(np.unique(pose_groups(means, ORIENTATION_DEG)))
 
 
 def interval_scores(found: np.ndarray, truth: np.ndarray, n: int, tol: int) -> dict:
