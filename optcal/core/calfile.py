@@ -22,7 +22,6 @@ Floats are written with ``repr`` precision (Python's ``json`` does this), so a r
 
 from __future__ import annotations
 
-import json
 import math
 from dataclasses import dataclass, field
 from datetime import datetime, timezone
@@ -212,6 +211,8 @@ def read_calibration(path) -> CalibrationFile:
     """Read and validate a calibration file. Another format or version, a missing or unknown field, a value
     of the wrong type or out of range (the schema :class:`optcal.core.calfile_schema.CalibrationRecord`) is an
     :class:`InputError` of one line naming the field."""
+    import json  # here: a command that reads no calibration file does not import it
+
     path = Path(path)
     try:
         d = json.loads(path.read_text())

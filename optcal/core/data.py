@@ -9,8 +9,6 @@ se_z`` (standard error of the mean per axis, correlated noise included, output u
 
 from __future__ import annotations
 
-import csv
-import difflib
 import io
 import math
 from dataclasses import dataclass, field, replace
@@ -125,6 +123,8 @@ class PositionsData:
             cols += [(f"se_{a}", self.sem[:, i]) for i, a in enumerate("xyz")]
         if self.ref is not None:
             cols += [(f"ref_{a}", self.ref[:, i]) for i, a in enumerate("xyz")]
+        import csv  # here: reading positions or a recording does not need it
+
         buf = io.StringIO()
         w = csv.writer(buf, lineterminator="\n")
         w.writerow([c for c, _ in cols])
@@ -177,6 +177,8 @@ def read_positions(path: str | Path, units: str = "g") -> PositionsData:
                              f"{', '.join(map(str, where))}); keep one, or rename the others")
     missing = [c for c in REQUIRED if c not in header]
     if missing:
+        import difflib  # here: only a refusal names close columns
+
         hints = []
         for m in missing:
             close = difflib.get_close_matches(m, header, n=1, cutoff=0.5)

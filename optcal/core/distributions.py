@@ -8,7 +8,8 @@ evaluate the regularised incomplete gamma and beta functions by their power seri
 Barnett 1986), and the quantiles by safeguarded Newton steps on the logarithm of the tail.
 tests/test_distributions.py checks each function against scipy.stats over a grid of arguments (relative
 error ≤ 1e-10 for the tails, 1e-10 for the quantiles). The normal quantile is the standard library's
-(``statistics.NormalDist.inv_cdf``, Wichura's AS 241).
+(``statistics.NormalDist.inv_cdf``, Wichura's AS 241), taken from the C function behind it where CPython has
+one (:func:`_inv_cdf`).
 
 Every function takes scalars or arrays (broadcast; NumPy's rules) and returns a float or a float array.
 """
@@ -16,14 +17,28 @@ Every function takes scalars or arrays (broadcast; NumPy's rules) and returns a 
 from __future__ import annotations
 
 import math
-from statistics import NormalDist
 
 import numpy as np
+
+try:  # CPython's accelerator of the statistics module: the function NormalDist.inv_cdf calls
+    from _statistics import _normal_dist_inv_cdf
+except ImportError:  # pragma: no cover - another Python
+    _normal_dist_inv_cdf = None
 
 _EPS = 1e-16
 _TINY = 1e-300
 _MAX_TERMS = 100_000
-_STD_NORMAL = NormalDist()
+
+
+def _inv_cdf(p: float) -> float:
+    """The standard normal quantile, ``statistics.NormalDist().inv_cdf(p)`` for 0 < p < 1 (Wichura's AS 241). The
+    statistics module itself is imported only where its C function is missing: it imports random, fractions
+    and decimal, which every command would pay for one quantile."""
+    if _normal_dist_inv_cdf is not None:
+        return _normal_dist_inv_cdf(p, 0.0, 1.0)
+    from statistics import NormalDist
+
+    return NormalDist().inv_cdf(p)
 
 
 def _lentz(coef, first: float) -> float:
@@ -152,7 +167,7 @@ def _chi2_isf(q, df):
             return (math.log(qq) if qq > 0 else -math.inf), (-xf / qq if qq > 0 else -math.inf)
         return (-math.log(p) if p > 0 else math.inf), (-xf / p if p > 0 else -math.inf)
 
-    z = -_STD_NORMAL.inv_cdf(q)
+    z = -_inv_cdf(q)
     c = 2.0 / (9.0 * df)
     guess = df * max(1.0 - c + z * math.sqrt(c), 0.1) ** 3  # Wilson & Hilferty (1931)
     return math.exp(_solve_log(logtail, math.log(guess), target if upper else -target))
@@ -192,7 +207,7 @@ def _t_isf(q, df):
         sf, tf = _t_sf(math.exp(u), df)
         return (math.log(sf), -tf / sf) if sf > 0 else (-math.inf, -math.inf)
 
-    z = -_STD_NORMAL.inv_cdf(q)
+    z = -_inv_cdf(q)
     guess = z * (1.0 + (z * z + 1.0) / (4.0 * df))  # Cornish-Fisher's first term
     return math.exp(_solve_log(logtail, math.log(max(guess, 1e-3)), math.log(q)))
 
@@ -204,7 +219,7 @@ def _norm_isf(q):
         return math.inf
     if q == 1.0:
         return -math.inf
-    return -_STD_NORMAL.inv_cdf(q)
+    return -_inv_cdf(q)
 
 
 def _elementwise(f, *args):

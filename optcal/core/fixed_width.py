@@ -67,8 +67,9 @@ def read_fixed_width(raw: bytes, ncol: int, usecols: list[int]) -> np.ndarray | 
     if n * L != len(buf) or L < 2:
         return None
     M = buf.reshape(n, L)
-    # n rows ending in a newline, and no other newline in the buffer: every line is L bytes long
-    if not (M[:, -1] == 10).all() or raw.count(b"\n") != n:
+    # n rows ending in a newline, and no other newline in the buffer: every line is L bytes long (a newline
+    # elsewhere fails the layout, no column's letter takes it)
+    if not (M[:, -1] == 10).all():
         return None
     letters = _letters(M[:, :-1])
     if letters is None:

@@ -5,7 +5,6 @@ one whole or not at all (:mod:`optcal.core.atomicfile`)."""
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
 
 from optcal.core.errors import InputError
@@ -25,6 +24,8 @@ def read_json_object(path, what: str) -> dict:
 
 def parse_json_object(text: str, path, what: str) -> dict:
     """:func:`read_json_object` for text already read."""
+    import json  # here: a command that reads and writes no JSON does not import it
+
     try:
         obj = json.loads(text)
     except json.JSONDecodeError as exc:
@@ -38,6 +39,8 @@ def write_json_object(obj: dict, path, *, overwrite: bool = False) -> None:
     """Write ``obj`` as indented JSON through a temporary file renamed into place (:mod:`optcal.core.atomicfile`);
     an existing file is kept unless ``overwrite`` (the CLI's ``--force``). One-line :class:`InputError` for
     both."""
+    import json
+
     from optcal.core.atomicfile import EXISTS, write_atomic
 
     path = Path(path)

@@ -10,7 +10,6 @@ about ten times the Cramér-Rao spread of a 24-position fit.
 
 from __future__ import annotations
 
-import json
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -77,6 +76,8 @@ class Presets:
         return centre, width
 
     def to_json(self) -> str:
+        import json
+
         return json.dumps({"values": self.values, "halfwidth": self.halfwidth}, indent=2)
 
 

@@ -13,7 +13,6 @@ It lives outside :mod:`optcal.core.recording` because :mod:`optcal.core.data` re
 from __future__ import annotations
 
 import bz2
-import csv
 import gzip
 import io
 import itertools
@@ -122,6 +121,8 @@ def csv_fields(line: str, delim: str | None) -> list[str]:
     None splits on whitespace."""
     if delim is None:
         return split_fields(line, None)
+    import csv  # here: a whitespace-separated file's reading does not need it
+
     try:
         (fields,) = csv.reader([line], delimiter=delim, skipinitialspace=True)
     except (csv.Error, ValueError):  # an unbalanced quote: the plain split names the cells

@@ -8,11 +8,18 @@ holds them, and may not be installed), so :func:`names` and :func:`describe_all`
 entry, ``ng:<NAME>``, only when asked (``families=True``): every name they return by default is one
 :func:`solver_class` knows. Third-party solvers are found through the entry-point group ``optcal.solvers``:
 each entry point names a Solver class (or a callable that registers several).
+
+The package's own solver modules are imported when first needed (:func:`load_builtins`): a look-up of a name
+that is one module's own (``lm``, in ``lm.py``) imports that module alone, anything else (another name, a
+listing, a wrapper or family prefix, an entry point, a registration from outside the package) all of them
+first, so that the answers are those of a registry holding every built-in solver.
 """
 
 from __future__ import annotations
 
+import importlib
 import importlib.util
+import os
 from collections.abc import Callable
 
 from optcal.core.errors import InputError
@@ -22,22 +29,61 @@ _SOLVERS: dict[str, tuple[type[Solver], dict]] = {}
 _WRAPPERS: dict[str, Callable[..., Solver]] = {}
 _FAMILIES: dict[str, Callable[..., Solver]] = {}
 _entry_points_loaded = False
+_builtins_loaded = False
+_FOLDER = os.path.dirname(os.path.abspath(__file__))
+
+
+def load_builtins() -> None:
+    """Import every solver module of this package (once; each registers its solvers, wrappers and families): the
+    modules of its own folder other than ``base``, ``registry`` and private ones, relative to the package, so
+    that this discovery cannot reach another layer."""
+    global _builtins_loaded
+    if _builtins_loaded:
+        return
+    import pkgutil
+
+    _builtins_loaded = True  # before the imports: their registrations must not load them again
+    try:
+        for m in sorted(i.name for i in pkgutil.iter_modules([_FOLDER])):
+            if m not in ("base", "registry") and not m.startswith("_"):
+                importlib.import_module(f".{m}", __package__)
+    except BaseException:
+        _builtins_loaded = False
+        raise
+
+
+def _load_module_of(name: str) -> None:
+    """Import the solver module named ``name`` (``lm.py`` for ``lm``), when the package has one: a command that
+    runs one solver imports no other."""
+    if (name.isidentifier() and not name.startswith("_") and name not in ("base", "registry")
+            and os.path.isfile(os.path.join(_FOLDER, f"{name}.py"))):
+        importlib.import_module(f".{name}", __package__)
+
+
+def _builtins_before(obj) -> None:
+    """Load the built-in solvers before ``obj`` (a class or factory) is registered from outside the package, so
+    that one taking a built-in's name is refused at its own registration."""
+    if not str(getattr(obj, "__module__", "")).startswith(f"{__package__}."):
+        load_builtins()
 
 
 def register(cls: type[Solver]) -> type[Solver]:
     """Class decorator: register a solver under ``cls.name``."""
+    _builtins_before(cls)
     _add(cls.name, cls, {})
     return cls
 
 
 def register_variant(name: str, cls: type[Solver], **options) -> None:
     """Register ``cls`` with fixed options under another name."""
+    _builtins_before(cls)
     cls(**options)  # validate now, not at first use
     _add(name, cls, options)
 
 
 def register_wrapper(prefix: str, factory: Callable[..., Solver]) -> None:
     """Register a wrapper prefix: ``prefix:inner`` builds ``factory(inner_solver, **options)``."""
+    _builtins_before(factory)
     _check_prefix(prefix, "wrapper")
     _WRAPPERS[prefix] = factory
 
@@ -48,6 +94,7 @@ def register_family(prefix: str, factory: Callable[..., Solver]) -> None:
     naming close names) and its options. For the listings it may carry ``family`` (the conformance family
     of its members), ``options`` (the Options every member takes), ``requires`` (packages), a docstring
     whose first line describes the family, and ``list_hint`` (how to list the library's names)."""
+    _builtins_before(factory)
     _check_prefix(prefix, "family")
     _FAMILIES[prefix] = factory
 
@@ -73,6 +120,7 @@ def load_entry_points() -> list[str]:
     global _entry_points_loaded
     if _entry_points_loaded:
         return []
+    load_builtins()  # first: a plug-in cannot take a built-in solver's name
     _entry_points_loaded = True
     from importlib import metadata  # here: scanning the installed packages costs a command tens of ms
 
@@ -97,16 +145,19 @@ def names(include_variants: bool = True, families: bool = False) -> list[str]:
 
 
 def wrappers() -> list[str]:
+    load_builtins()
     return sorted(_WRAPPERS)
 
 
 def family_prefixes() -> list[str]:
     """The registered family prefixes (``ng``)."""
+    load_builtins()
     return sorted(_FAMILIES)
 
 
 def family_factory(prefix: str) -> Callable[..., Solver]:
     """The factory registered for the family ``prefix:`` (its attributes and docstring describe it)."""
+    load_builtins()
     if prefix not in _FAMILIES:
         raise InputError(f"unknown solver family {prefix!r}; families: {', '.join(family_prefixes()) or 'none'}")
     return _FAMILIES[prefix]
@@ -118,12 +169,15 @@ def _prefixes() -> str:
 
 def wrapper_factory(prefix: str) -> Callable[..., Solver]:
     """The factory registered for ``prefix:`` (its ``options`` and docstring describe it)."""
+    load_builtins()
     if prefix not in _WRAPPERS:
         raise InputError(f"unknown solver wrapper {prefix!r}; wrappers: {', '.join(wrappers()) or 'none'}")
     return _WRAPPERS[prefix]
 
 
 def solver_class(name: str) -> tuple[type[Solver], dict]:
+    if name not in _SOLVERS:
+        _load_module_of(name)
     if name not in _SOLVERS:  # a plug-in cannot take a built-in solver's name: look further only for others
         load_entry_points()
     if name not in _SOLVERS:
@@ -141,6 +195,7 @@ def get(name: str, **options) -> Solver:
     """
     name = name.strip()
     if ":" in name:
+        load_builtins()
         prefix, inner_name = name.split(":", 1)
         if prefix in _FAMILIES:
             return _FAMILIES[prefix](inner_name, **options)

@@ -113,8 +113,7 @@ def _err(where: str, msg: str) -> InputError:
 
 
 def _registry():
-    from optcal import solvers  # noqa: F401 - imports every solver module, which registers it
-    from optcal.solvers import registry
+    from optcal.solvers import registry  # its listings import every solver module, which registers it
 
     return registry
 

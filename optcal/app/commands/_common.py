@@ -2,13 +2,14 @@
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
 
 from optcal.core.errors import InputError
 
 
 def read_json_object(path: str, what: str) -> dict:
+    import json  # here: a command that reads no JSON does not import it
+
     try:
         obj = json.loads(Path(path).read_text())
     except OSError as exc:
@@ -29,6 +30,8 @@ def parse_options(items: list[str] | None) -> dict:
         if "=" not in item:
             raise InputError(f"--option {item!r} must be KEY=VALUE")
         k, v = item.split("=", 1)
+        import json
+
         try:
             out[k.strip()] = json.loads(v)
         except json.JSONDecodeError:

@@ -8,8 +8,6 @@ single-sensor options and output unchanged.
 
 from __future__ import annotations
 
-import json
-
 from optcal.app.commands._common import (
     check_output_folder,
     check_seed,
@@ -117,6 +115,8 @@ def run(args) -> int:
 
     detection = positions.extra["detection"]
     if args.json:
+        import json
+
         print(json.dumps({"accelerometer": {**cal.to_dict(), "units": cal.model.units(positions.units)},
                           "gyroscope": block, "notes": imu.notes, "recording": detection_summary(detection)},
                          indent=2))

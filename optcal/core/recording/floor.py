@@ -170,9 +170,11 @@ def _second_differences(y: np.ndarray, lengths: np.ndarray, m: np.ndarray):
     seg_end = np.repeat(np.cumsum(lengths), lengths)  # where each sample's interval ends, in the pooled samples
     total = len(y)
     for k, mm in enumerate(np.asarray(m, int)):  # octaves (tens at most), each one vectorised over samples
-        i = np.arange(max(total - 2 * mm + 1, 0))
-        i = i[seg_end[i] >= i + 2 * mm]
-        yield k, mm, i, C[i + 2 * mm] - 2.0 * C[i + mm] + C[i]
+        n = max(total - 2 * mm + 1, 0)
+        inside = seg_end[:n] >= np.arange(n) + 2 * mm
+        # every start's difference from three slices of C, then those inside one interval: the same arithmetic
+        # as gathering the rows of each start, without three gathers
+        yield k, mm, np.flatnonzero(inside), (C[2 * mm:2 * mm + n] - 2.0 * C[mm:mm + n] + C[:n])[inside]
 
 
 def pooled_avar(x: np.ndarray, intervals: np.ndarray, m: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -210,18 +212,19 @@ def _allan(y: np.ndarray, lengths: np.ndarray, m: np.ndarray, u: np.ndarray | No
             continue
         # each interval's sums of d_a·d_b (its differences are one run of i): the per-axis sums and, through
         # u_iᵀ S_i u_i, the sums of the squared projections
-        run = np.flatnonzero(np.r_[True, which[i][1:] != which[i][:-1]])
+        wi = which[i]
+        run = np.flatnonzero(np.r_[True, wi[1:] != wi[:-1]])
         S = np.add.reduceat(d[:, _PA] * d[:, _PB], run, axis=0)
         avar[k] = S[:, :3].sum(axis=0) / (2.0 * mm * mm * i.size)
-        ui = u[which[i][run]]
+        ui = u[wi[run]]
         c = np.diff(np.r_[run, i.size]).astype(float)
         mean = np.sum(S * ui[:, _PA] * ui[:, _PB] * _PW, axis=1) / (2.0 * mm * mm * c)
-        A = W[which[i][run]] * np.sqrt(c)[:, None]
+        A = W[wi[run]] * np.sqrt(c)[:, None]
         if len(A) < 3 or np.linalg.cond(A) > MAX_COND:  # the poses reaching this τ do not tell the axes apart
             continue
         L = np.linalg.pinv(A) * np.sqrt(c)[None, :]  # σ² = L @ mean
         along[k] = L @ mean
-        var = np.sum(L**2 * (2.0 * (W[which[i][run]] @ avar[k]) ** 2 / (c / mm))[None, :], axis=1)
+        var = np.sum(L**2 * (2.0 * (W[wi[run]] @ avar[k]) ** 2 / (c / mm))[None, :], axis=1)
         nu[k] = np.where(var > 0, 2.0 * avar[k] ** 2 / np.where(var > 0, var, 1.0), 0.0)
     return avar, count, along, nu
 

@@ -4,7 +4,6 @@ end], ...]}``, seconds from the recording's first sample), or from a label colum
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
 
 import numpy as np
@@ -51,6 +50,8 @@ def read_intervals(path) -> tuple[np.ndarray, list[str] | None]:
     recording's first sample (``"unit": "samples"`` beside it: sample indices), returned as
     :class:`IntervalTimes` for :func:`given_intervals` to place on the recording. Returns the intervals and
     the section names (None when the file has none)."""
+    import json  # here: a recording's path that reads no intervals file does not import it
+
     path = Path(path)
     try:
         text = path.read_text()

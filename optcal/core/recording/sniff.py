@@ -14,7 +14,6 @@ command line puts its option names there (optcal/app/commands/_dataopts.py).
 
 from __future__ import annotations
 
-import difflib
 import io
 import logging
 import struct
@@ -311,6 +310,8 @@ def resolve_column(ref: str, lay: Layout, path: Path) -> int:
         if not 0 <= j < lay.ncol:
             raise InputError(f"{path}: column index {j} is out of range; the file has {lay.ncol} columns (0-based)")
         return j
+    import difflib  # here: only a refusal names a close column
+
     names = lay.header or []
     close = difflib.get_close_matches(ref, names, n=1, cutoff=0.5)
     hint = f" (did you mean {close[0]!r}?)" if close else ""
