@@ -69,7 +69,7 @@ def _good_rows(n=24, scale=1.0):
 
 BAD_INPUTS = {
     "missing column": ("position,ax,ay\n0,1,0\n", "missing column(s) az"),
-    "misnamed column": ("position,acc_x,acc_y,acc_z\n" + _good_rows(), "rename 'acc_x' → 'ax'"),
+    "misnamed column": ("position,accx1,accy1,accz1\n" + _good_rows(), "rename 'accx1' → 'ax'"),
     "non-numeric": ("position,ax,ay,az\n" + _good_rows().replace("0,0.0,0.0,1.0", "0,0.0,abc,1.0", 1), "not a number"),
     "nan": ("position,ax,ay,az\n" + _good_rows().replace("0,0.0,0.0,1.0", "0,0.0,nan,1.0", 1), "is nan"),
     "inf": ("position,ax,ay,az\n" + _good_rows().replace("0,0.0,0.0,1.0", "0,0.0,inf,1.0", 1), "is inf"),
@@ -181,3 +181,13 @@ def test_study_is_a_plug_in_command(capsys):
     mods = dict(_command_modules())
     assert mods["study"].__name__ == "optcal.app.commands.study"
     assert {"calibrate", "simulate", "apply", "nav", "discover", "solvers"} <= set(mods)
+
+
+@pytest.mark.parametrize("option", [["--columns", "ax=0,ay=1,az=2"], ["--time-unit", "ms"], ["--min-static", "1"],
+                                    ["--method", "variance"]])
+def test_a_raw_recording_s_option_on_a_positions_file_is_refused(positions, capsys, option):
+    """Options that read a raw recording only were dropped without a word on a positions file (a user's
+    --columns): refused in one line naming the option and --raw."""
+    code, out, err = _run(capsys, "calibrate", positions, *option)
+    assert code == 2 and out == "" and len(err.strip().splitlines()) == 1
+    assert err.startswith(f"optcal calibrate: error: {option[0]} reads a raw recording: add --raw"), err

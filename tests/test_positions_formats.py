@@ -103,7 +103,7 @@ def test_the_checks_and_messages_stay_with_every_delimiter(tmp_path, P):
     body = _table(P, ";", ",", True).splitlines()
     cases = {
         "dup": ("position;ax;ay;az;ax\n" + "\n".join(r + ";1" for r in body), "names column 'ax' 2 times"),
-        "misnamed": ("position;acc_x;acc_y;acc_z\n" + "\n".join(body), "rename 'acc_x' → 'ax'"),
+        "misnamed": ("position;accx1;accy1;accz1\n" + "\n".join(body), "rename 'accx1' → 'ax'"),
         "word": ("# one remark\nposition;ax;ay;az\n" + "\n".join(body[:3] + ["3;0,1;abc;0,9"] + body[4:]),
                  "line 6, column 'ay': 'abc' is not a number"),
         "nan": ("position;ax;ay;az\n" + "\n".join(body[:2] + ["2;nan;0;1"] + body[3:]), "line 4, column 'ax' is nan"),
@@ -118,6 +118,12 @@ def test_the_checks_and_messages_stay_with_every_delimiter(tmp_path, P):
         with pytest.raises(InputError) as exc:
             read_positions(path)
         assert fragment in str(exc.value), (name, str(exc.value))
+    # the raw reader's names of the axes read here too (a lab's pose table of acc_x, acc_y, acc_z was refused)
+    aliased = tmp_path / "aliased.csv"
+    aliased.write_text("pose_name;acc_x;Acc_Y;ACCELZ\n" + "\n".join(body))
+    plain = tmp_path / "plain.csv"
+    plain.write_text("position;ax;ay;az\n" + "\n".join(body))
+    np.testing.assert_array_equal(read_positions(aliased).N, read_positions(plain).N)
     binary = tmp_path / "bin.csv"
     binary.write_bytes(b"\x00\x01\x02MATLAB\x00")
     with pytest.raises(InputError, match="cannot read .* binary file, not text"):

@@ -19,6 +19,7 @@ import numpy as np
 from optcal.core.errors import InputError
 from optcal.core.tablefile import (
     COMMENT,
+    column_key,
     commented_header,
     csv_fields,
     delimiter_of,
@@ -175,6 +176,7 @@ def read_positions(path: str | Path, units: str = "g") -> PositionsData:
         if len(where) > 1 and name:
             raise InputError(f"{path}: the header names column {name!r} {len(where)} times (columns "
                              f"{', '.join(map(str, where))}); keep one, or rename the others")
+    header = _named_axes(header)
     missing = [c for c in REQUIRED if c not in header]
     if missing:
         import difflib  # here: only a refusal names close columns
@@ -245,6 +247,24 @@ def _cell(path: Path, line: int, column: str, cell: str) -> float:
     if not math.isfinite(value):
         raise InputError(f"{path}: line {line}, column {column!r} is {cell}; remove the position or re-average it")
     return value
+
+
+def _named_axes(header: list[str]) -> list[str]:
+    """``header`` with the accelerometer's axes under the names the raw reader knows them by (acc_x, AccX, ACCELX,
+    ``acc_x [m/s^2]``: :data:`optcal.core.columns.ALIASES`) renamed ax, ay, az, when the header has no ax, ay, az
+    of its own and one column each answers to them (a lab's pose table of acc_x, acc_y, acc_z was refused)."""
+    from optcal.core.columns import ALIAS_KEYS
+
+    if any(c in header for c in REQUIRED):
+        return header
+    keys = [column_key(h) for h in header]
+    found = {a: [j for j, k in enumerate(keys) if k in ALIAS_KEYS[a]] for a in REQUIRED}
+    if not all(len(j) == 1 for j in found.values()):
+        return header
+    out = list(header)
+    for a, (j,) in found.items():
+        out[j] = a
+    return out
 
 
 def _perhaps_samples(n: int) -> str:

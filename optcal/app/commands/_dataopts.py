@@ -45,6 +45,11 @@ def add_gravity_options(p: argparse.ArgumentParser) -> None:
     g.add_argument("--height", type=float, metavar="M", help="ellipsoidal height, m (with --latitude; default 0)")
 
 
+# the options that read a raw recording only (flag, argparse name): refused on a positions file
+RAW_ONLY = (("--columns", "columns"), ("--time-unit", "time_unit"), ("--adc", "adc"), ("--labels", "labels"),
+            ("--intervals", "intervals"), ("--min-static", "min_static"), ("--method", "method"))
+
+
 def add_data_options(p: argparse.ArgumentParser, *, units_of_calibration: bool = False) -> None:
     d = p.add_argument_group("data")
     units_help = "output units of the data: g, m/s2, counts, volts, mg"
@@ -159,6 +164,11 @@ def load_positions(args, path, gyro_of=None) -> PositionsData:
     data, so that following one advice never meets the other. ``gyro_of``: as :func:`load_raw_positions`'s."""
     if getattr(args, "raw", False):
         return load_raw_positions(args, path, gyro_of)
+    # a raw recording's options on a positions file would be dropped without a word (a user's --columns was)
+    given = [f for f, a in RAW_ONLY if getattr(args, a, None) is not None]
+    if given:
+        raise InputError(f"{' and '.join(given[:2])} read{'s' if len(given) == 1 else ''} a raw recording: add --raw "
+                         "(a positions file's columns are found by their names, ax, ay, az or acc_x, AccX, ...)")
     from optcal.core.recording.positions import read_positions_file
 
     with flag_names():
