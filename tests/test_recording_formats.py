@@ -398,3 +398,42 @@ def test_rows_without_time_that_differ_like_positions_hint_at_dropping_raw(tmp_p
     np.savetxt(path, S, delimiter="\t", fmt="%.6f")
     assert main(["calibrate", str(path), "--raw", "--units", "g"]) == 2
     assert capsys.readouterr().err.strip().endswith("give the sample rate in Hz with --rate")
+
+
+@pytest.mark.parametrize("arrow", [True, False], ids=["arrow", "numpy"])
+def test_interleaved_record_types_are_read_as_one_table(tmp_path, monkeypatch, arrow):
+    """A logger that writes several record types in one CSV (a MicroStrain IMU's: the raw packets' rows leave the
+    filter's cells empty, the filter's rows the raw ones) was refused at its first row of the other type. The
+    rows without the chosen columns' values are left out and said; the samples are those of the raw rows alone.
+    A single row with an empty cell in an ordinary file is still refused, naming it."""
+    import optcal.core.recording.reading as reading
+
+    if not arrow:
+        monkeypatch.setattr(reading, "_arrow_reader", lambda: None)
+    rng = np.random.default_rng(5)
+    n = 400
+    t = 1.7e9 + np.arange(n) * 0.01
+    A = np.round(rng.normal(0, 0.002, (n, 3)) + [0.0, 0.0, 1.0], 6)
+    W = np.round(rng.normal(0, 0.001, (n, 3)), 6)
+    lines = ["state,timestamp,scaledAccelX,scaledAccelY,scaledAccelZ,scaledGyroX,scaledGyroY,scaledGyroZ,quatW,quatX"]
+    for i in range(n):
+        lines.append("R," + ",".join(f"{v:.6f}" for v in (t[i], *A[i], *W[i])) + ",,")
+        if i % 2:  # a filter record between raw ones: its own columns, the raw ones empty
+            lines.append(f"S,{t[i] + 0.005:.6f},,,,,,,0.99,0.01")
+    path = tmp_path / "interleaved.csv"
+    path.write_text("\n".join(lines) + "\n")
+    cols = "t=timestamp,ax=scaledAccelX,ay=scaledAccelY,az=scaledAccelZ,gx=scaledGyroX,gy=scaledGyroY,gz=scaledGyroZ"
+    rec = read_recording(path, columns=cols, units="g")
+    np.testing.assert_allclose(rec.N, A, atol=1e-9)
+    np.testing.assert_allclose(rec.W, W, atol=1e-9)
+    assert rec.rate == pytest.approx(100.0, rel=1e-6) and rec.reading["other_record_rows"] == n // 2
+    from optcal.core.recording.report import reading_line
+
+    assert f"{n // 2} row(s) of another record type, interleaved" in reading_line(rec.reading, 0)
+    # one broken row in an ordinary file: refused as before
+    plain = tmp_path / "plain.csv"
+    rows = ["t,ax,ay,az"] + [f"{t[i]:.6f}," + ",".join(f"{v:.6f}" for v in A[i]) for i in range(n)]
+    rows[50] = f"{t[49]:.6f},0.0,,1.0"
+    plain.write_text("\n".join(rows) + "\n")
+    with pytest.raises(InputError):
+        read_recording(plain, units="g")

@@ -43,6 +43,7 @@ class Layout:
     first: list[str]  # the fields of the first data row (to check a fast reader started there)
     decimal: str = "."  # "," for a decimal comma (then the delimiter is not a comma)
     commented_header: bool = False  # the header was a comment line (``# t ax ay az``)
+    sparse: bool = False  # rows of several record types interleaved: a number column may be empty in a row
 
 
 def is_number(s: str, decimal: str = ".") -> bool:
@@ -206,6 +207,30 @@ def _column_numbers(fields) -> bool:
     return v == list(range(1, len(v) + 1)) or v == list(range(len(v)))
 
 
+def _fits(fields: list[str], ref: tuple, dec: str) -> bool:
+    """Whether a row of ``fields`` belongs to the sparse table ``ref`` (width, number columns): its width, and a
+    number or nothing in each number column."""
+    return len(fields) == ref[0] and all(not num or x.strip() == "" or is_number(x, dec)
+                                         for x, num in zip(fields, ref[1]))
+
+
+def _interleaved(rows: list, pattern: list, ref: tuple) -> tuple | None:
+    """The table of a logger that writes several record types in one file (a MicroStrain IMU's CSV: its raw
+    packets' rows leave the filter's cells empty and the filter's rows the raw ones), from the last lines' ``rows``
+    and their patterns: (width, the columns a number is in on some row) when rows of ``ref``'s width but another
+    pattern, a tenth of them at least, differ from it only in empty cells; else None."""
+    width = ref[0]
+    same = [(f, p) for (_, f), p in zip(rows, pattern) if p[0] == width]
+    kinds = {p for _, p in same}
+    if len(kinds) < 2 or sum(1 for _, p in same if p != ref) < max(2, len(rows) // 10):
+        return None
+    union = tuple(any(p[1][j] for _, p in same) for j in range(width))
+    # where a row has no number in a number column, the cell is empty: another record's column, not text
+    if not all(f[j].strip() == "" for f, p in same for j in range(width) if union[j] and not p[1][j]):
+        return None
+    return width, union
+
+
 def sniff_layout(path: Path, known: Collection[str] = (), what: str = "a raw recording needs one row per "
                  "sample (t, ax, ay, az)") -> Layout:
     """Delimiter, header, leading key/value lines and the first data line, from the file's first lines. The
@@ -226,6 +251,10 @@ def sniff_layout(path: Path, known: Collection[str] = (), what: str = "a raw rec
     rows = [(i, split_fields(ln, delim)) for i, ln in lines]
     pattern = [(len(f), tuple(is_number(x, dec) for x in f)) for _, f in rows]
     ref = _most_common(pattern[-TAIL:])
+    sparse = _interleaved(rows[-TAIL:], pattern[-TAIL:], ref) if delim is not None else None
+    if sparse is not None:  # several record types whose rows leave each other's cells empty: one table
+        ref = sparse
+        pattern = [ref if _fits(f, ref, dec) else p for (_, f), p in zip(rows, pattern)]
     if not any(ref[1]):
         raise InputError(f"{path} has no numeric rows; {what}")
     start = max(k for k, p in enumerate(pattern) if p == ref)
@@ -274,4 +303,5 @@ def sniff_layout(path: Path, known: Collection[str] = (), what: str = "a raw rec
         # header names that is empty on every row stays one)
         width, numeric = width - 1, numeric[:-1]
         header = None if header is None else header[:width]
-    return Layout(delim, rows[start][0], width, numeric, header, meta, rows[start][1], dec, commented)
+    return Layout(delim, rows[start][0], width, numeric, header, meta, rows[start][1], dec, commented,
+                  sparse is not None)

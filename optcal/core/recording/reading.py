@@ -186,6 +186,12 @@ def read_recording(path, columns=None, rate: float | None = None, units: str | N
     order = [r for r in ROLES if r in cols]
     idx = [cols[r] for r in order]
     raw = table[:, idx] if table is not None else _load_numeric(path, lay, idx)
+    other = 0
+    if lay.sparse:  # the rows of the other record types hold none of the chosen sensor columns: left out
+        sensors = [k for k, r in enumerate(order) if r not in ("t", "temp")]
+        mine = ~np.isnan(raw[:, sensors]).all(axis=1)
+        other = int((~mine).sum())
+        raw = raw[mine]
     data = dict(zip(order, raw.T))
     n = len(raw)
     if n < 2:
@@ -268,6 +274,8 @@ def read_recording(path, columns=None, rate: float | None = None, units: str | N
         how["units_from_names"] = True
     if repeat is not None:
         how["held_rows"] = int(repeat.sum())
+    if other:
+        how["other_record_rows"] = other
     if "t" in data and jitter > 0:
         how["stamps_jitter_s"] = jitter
     if len(t) and t[0] >= EPOCH_S:
@@ -546,6 +554,8 @@ def _load_numeric(path: Path, lay: Layout, usecols: list[int], max_rows: int | N
         out = _load_arrow(path, lay, usecols)
         if out is not None:
             return out
+    if lay.sparse:  # interleaved record types: an empty cell is NaN (numpy.loadtxt refuses it)
+        return _load_sparse(path, lay, usecols, max_rows)
     if lay.delimiter is None and max_rows is None and lay.decimal == ".":
         out = _load_fixed_width(path, lay, usecols)
         if out is not None:
@@ -566,6 +576,22 @@ def _load_numeric(path: Path, lay: Layout, usecols: list[int], max_rows: int | N
                              "them (a logger's prompts or messages) and read the file again") from None
         msg = str(exc).splitlines()[0].rstrip(".")
         raise InputError(f"{path}: {msg} (data start on line {lay.skiprows + 1}); fix or remove that row") from None
+
+
+def _load_sparse(path: Path, lay: Layout, usecols: list[int], max_rows: int | None) -> np.ndarray:
+    """The chosen columns of a table of interleaved record types (:attr:`Layout.sparse`), an empty cell as NaN:
+    numpy.genfromtxt, where Arrow is not installed or for the first ``max_rows`` rows."""
+    comma = {j: (lambda s: float(s.replace(b",", b".")) if s.strip() else np.nan) for j in usecols} \
+        if lay.decimal == "," else None
+    try:
+        with _text(path) as fh:
+            out = np.genfromtxt(fh, delimiter=lay.delimiter, skip_header=lay.skiprows, usecols=usecols, dtype=float,
+                                comments=None, invalid_raise=True, max_rows=max_rows, converters=comma,
+                                missing_values="", filling_values=np.nan)
+    except ValueError as exc:
+        msg = str(exc).strip().splitlines()[0].rstrip(".")
+        raise InputError(f"{path}: {msg} (data start on line {lay.skiprows + 1}); fix or remove that row") from None
+    return np.atleast_2d(out).reshape(-1, len(usecols))
 
 
 def _text_rows(path: Path, lay: Layout) -> list[tuple[int, str]]:
@@ -634,7 +660,7 @@ def _load_arrow(path: Path, lay: Layout, usecols: list[int]) -> np.ndarray | Non
         out = np.column_stack([table.column(names[j]).to_numpy() for j in usecols]).astype(float, copy=False)
     except (pa.ArrowException, ValueError, OSError):
         return None
-    first = [float(lay.first[j].replace(",", ".")) for j in usecols]
+    first = [float(lay.first[j].replace(",", ".")) if lay.first[j].strip() else np.nan for j in usecols]
     if len(out) == 0 or not np.array_equal(out[0], first, equal_nan=True):
         return None  # it did not start on the first data row (e.g. blank lines in the preamble, a BOM)
     return out

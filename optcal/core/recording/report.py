@@ -82,6 +82,9 @@ def reading_line(how: dict, n_saturated: int) -> str:
                      f"rails {lo:.0f} and {hi:.0f} counts)")
     if "saturation" in how:
         parts.append(f"saturation at |output| ≥ {how['saturation']:g}")
+    if how.get("other_record_rows"):
+        parts.append(f"{how['other_record_rows']} row(s) of another record type, interleaved, without the chosen "
+                     "columns' values, left out")
     if how.get("held_rows"):
         parts.append(f"{how['held_rows']} row(s) that repeat the row before on every axis left out (the log runs "
                      "faster than the sensor outputs; the rate is the sensor's)")
