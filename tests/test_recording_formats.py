@@ -437,3 +437,27 @@ def test_interleaved_record_types_are_read_as_one_table(tmp_path, monkeypatch, a
     plain.write_text("\n".join(rows) + "\n")
     with pytest.raises(InputError):
         read_recording(plain, units="g")
+
+
+def test_a_sensor_s_outputs_under_a_prefix_are_its_columns(tmp_path):
+    """MicroStrain's scaledAccelX … scaledGyroZ beside the filter's estCompensatedAccelX and estLinearAccelX: the
+    scaled ones are the sensor's outputs (a prefix of sniff.SENSOR_PREFIXES), the estimates are not read, and a
+    linear acceleration alone (gravity taken out) is not taken for the accelerometer."""
+    rng = np.random.default_rng(2)
+    n = 300
+    A = rng.normal(0, 0.002, (n, 3)) + [0, 0, 1]
+    W = rng.normal(0, 0.001, (n, 3))
+    names = ["timestamp", "scaledAccelX", "scaledAccelY", "scaledAccelZ", "scaledGyroX", "scaledGyroY", "scaledGyroZ",
+             "estCompensatedAccelX", "estCompensatedAccelY", "estCompensatedAccelZ", "estLinearAccelX",
+             "estLinearAccelY", "estLinearAccelZ"]
+    table = np.column_stack([np.arange(n) * 0.01, A, W, A + 0.01, A - [0, 0, 1]])
+    path = tmp_path / "ms.csv"
+    np.savetxt(path, table, delimiter=",", header=",".join(names), comments="", fmt="%.6f")
+    rec = read_recording(path, units="g")
+    assert rec.columns["ax"] == "scaledAccelX" and rec.columns["gz"] == "scaledGyroZ"
+    np.testing.assert_allclose(rec.N, A, atol=1e-6)
+    lin = tmp_path / "linear.csv"
+    np.savetxt(lin, table[:, [0, 10, 11, 12]], delimiter=",", comments="", fmt="%.6f",
+               header="t,estLinearAccelX,estLinearAccelY,estLinearAccelZ")
+    with pytest.raises(InputError, match="cannot tell which columns are ax, ay, az"):
+        read_recording(lin, units="g")

@@ -274,3 +274,22 @@ def test_a_gyroscope_at_its_level_through_poses_logged_apart():
     # the bursts of 2-3 counts cut their faces (14 intervals), the faces are otherwise whole; without the noise-path
     # rule the attitude rule flags nearly everything (recall 0.83, 2 % of the faces' samples kept)
     assert sc["recall"] == 1.0 and sc["precision"] == 1.0 and sc["iou"] > 0.9, (det.n_intervals, sc)
+
+
+def test_a_fast_gyroscope_s_correlated_noise_is_no_turn(monkeypatch):
+    """A 1-kHz IMU behind its low-pass filter (a rocket club's MicroStrain log of one face held still): its rate
+    noise is correlated over tens of samples, so second differences understate what a 0.25-s average scatters,
+    and the pose "turned" throughout (0 rests). From 400 Hz the average is judged by its own scatter: the pose is
+    one rest; judged on white noise alone (the rule switched off), none."""
+    import optcal.core.recording.segment as seg
+    from optcal.core.recording.reading import Recording
+
+    rng = np.random.default_rng(3)
+    n, rate = 12000, 1000.0
+    A = np.array([0.0, 0.0, 1.0]) + rng.normal(0, 1e-3, (n, 3))
+    e = np.vstack([np.zeros((1, 3)), np.cumsum(rng.normal(0, 1, (n + 49, 3)), axis=0)])
+    W = (e[50:] - e[:-50]) / np.sqrt(50) * 0.005  # rad/s, a moving sum of 50 samples
+    rec = Recording(np.arange(n) / rate, A, None, "g", rate, np.zeros(n, bool))
+    assert segment_static(rec, gyro=W).intervals.tolist() == [[0, n]]
+    monkeypatch.setattr(seg, "CORRELATED_RATE", np.inf)
+    assert segment_static(rec, gyro=W).n_intervals == 0

@@ -74,6 +74,8 @@ GYRO_Z = 8.0  # an averaged rate this many noise SDs from the level at rest (any
 TURN_FRACTION = 0.005  # ... when it is also this fraction of the recording's turns (the 99th percentile of the
 # averaged rate): about 1 °/s for hand turns at 200 °/s, above a hand's sway in a held pose (tenths of °/s)
 SHAKING_HOLD_POSES = 2  # a shaking segment the gyroscope sees still is a rest when it lasts this many shortest poses
+CORRELATED_RATE = 400.0  # Hz: a gyroscope sampled this fast is behind a low-pass filter of a few hundred Hz at
+# most (MEMS parts' bandwidths), so its samples are correlated: the averaged rate is judged by its own scatter
 ORIENTATION_DEG = 5.0  # °: rests whose outputs point within this of each other are one orientation (a refusal's count)
 SETTLE_S = 0.15  # s: samples this long after a turn are left out of a rest (a settling fades under the noise)
 GYRO_MARGIN_S = 0.05  # s: and this long before one (the turn's first samples)
@@ -683,9 +685,10 @@ def gyro_turning(W: np.ndarray, b: int, seg: np.ndarray, rest: np.ndarray, rate:
     G = Wf[: nb * b].reshape(nb, b, 3).mean(axis=1)
     t = (np.arange(n, dtype=float) - (b - 1) / 2.0) / b
     w = max(1, int(round(GYRO_WINDOW_S * rate))) if np.isfinite(rate) else 5
+    s_avg = _averaged_noise(Wf, finite, w, s) if np.isfinite(rate) and rate >= CORRELATED_RATE else s
     X = Wf - _rest_level(G, t, seg, rest)
     M = _moving_mean(X, w)
-    samples = _turning_samples(M, s, w, q) | ~finite
+    samples = _turning_samples(M, s_avg, w, q) | ~finite
     # the accelerometer's rests may hold part of a turn, which moves their level (by more than the threshold
     # on a quiet gyroscope): the level again from the gyroscope's own still runs, whole blocks of them
     still = runs(~samples)
@@ -694,7 +697,7 @@ def gyro_turning(W: np.ndarray, b: int, seg: np.ndarray, rest: np.ndarray, rate:
     if len(still):
         X = Wf - _rest_level(G, t, still, np.ones(len(still), bool))
         M = _moving_mean(X, w)
-        samples = _turning_samples(M, s, w, q) | ~finite
+        samples = _turning_samples(M, s_avg, w, q) | ~finite
     per_s = rate if np.isfinite(rate) else 50.0
     turns = _dilate(samples, int(round(SETTLE_S * per_s)), int(round(GYRO_MARGIN_S * per_s)))
     if acc is not None and np.isfinite(rate):  # slow motions, in units the accelerometer's turns give
@@ -708,6 +711,25 @@ def gyro_turning(W: np.ndarray, b: int, seg: np.ndarray, rest: np.ndarray, rate:
     samples = turns
     blocks = samples[: nb * b].reshape(nb, b).any(axis=1)
     return blocks, samples
+
+
+def _averaged_noise(W: np.ndarray, finite: np.ndarray, w: int, s: np.ndarray) -> np.ndarray:
+    """A sample's noise SD (3,) as the average of ``w`` samples sees it: ``s`` (the white noise of second
+    differences), or more when means of ``w`` samples scatter more than s/√w (robustly, from their second
+    differences: :func:`_noise_sd`), for a gyroscope sampled at :data:`CORRELATED_RATE` or faster. Sampled far
+    above its bandwidth (a 1-kHz IMU behind its low-pass filter) its noise is correlated: the white estimate
+    took the averaged noise for turns, and a log of one face held still "turned" throughout. (Applied at every
+    rate, it moved the labelled benchmark's hand-held logs, whose rests' wobble the averages see.)"""
+    k = len(W) // w
+    if k < 10 or w < 2:
+        return s
+    B = W[: k * w].reshape(k, w, 3).mean(axis=1)
+    ok = finite[: k * w].reshape(k, w).all(axis=1)
+    ok3 = ok[2:] & ok[1:-1] & ok[:-2]
+    if ok3.sum() < 8:
+        return s
+    sd = _noise_sd(np.diff(B, 2, axis=0)[ok3], GYRO_ROUNDING)
+    return np.maximum(s, sd * np.sqrt(w))
 
 
 def _moving_mean(X: np.ndarray, w: int) -> np.ndarray:

@@ -48,6 +48,9 @@ _WARNED: set[str] = set()  # files whose damaged-checksum warning was given (one
 ROLES = ("t", "ax", "ay", "az", "gx", "gy", "gz", "temp")
 GYRO = ("gx", "gy", "gz")  # angular rate, in the file's units (rad/s, °/s or counts): optional, all three or none
 
+# prefixes under which a sensor's own outputs go (MicroStrain's scaledAccelX, scaledGyroX; rawAccX; imu_ax):
+# not a filter's or an estimate's (linearAccel, estLinearAccel: gravity taken out)
+SENSOR_PREFIXES = ("scaled", "raw", "imu", "sensor", "measured", "uncalibrated", "uncal")
 CELSIUS = ("c", "°c", "degc", "deg c", "celsius", "degrees c")  # a temperature column's unit, if its name gives one
 # a column named t in degrees is a temperature, not the time (WitMotion's exports: T(°) beside a clock-time column)
 T_IN_DEGREES = (*CELSIUS, "°", "deg", "℃")
@@ -315,6 +318,9 @@ def _named(lay: Layout, keys: list[str], role: str) -> list[int]:
     if role == "t":
         found = [j for j in found if not (keys[j] == "tx" and {"ty", "tz"} <= set(keys))
                  and unit_of(lay.header[j]) not in T_IN_DEGREES]
+    if not found and role in ("ax", "ay", "az", *GYRO):  # a sensor's own outputs under a prefix (scaledAccelX)
+        found = [j for j, k in enumerate(keys) if lay.numeric[j]
+                 and any(k.startswith(p) and k[len(p):] in ALIAS_KEYS[role] for p in SENSOR_PREFIXES)]
     return found
 
 
