@@ -153,6 +153,14 @@ def load_raw_positions(args, path, gyro_of=None) -> PositionsData:
     g_local = gravity_from_args(args)
     with flag_names():
         rec = opts.read(path)
+        more = getattr(args, "more_data", None)
+        if more:  # a file per pose or face: one recording, no rest across two files
+            from optcal.core.recording.join import join_recordings
+
+            if gyro_of is not None:
+                raise InputError("--gyro judges one recording's rests: with several DATA files, give each file's "
+                                 "gyroscope columns in it (--gyro-columns)")
+            rec = join_recordings([rec, *(opts.read(p) for p in more)])
         return positions_from_raw_recording(rec, opts, gyro=None if gyro_of is None else gyro_of(rec), model=model,
                                             g_local=g_local)
 

@@ -34,6 +34,8 @@ class NamedModel(argparse.Action):
 
 def add_arguments(p):
     p.add_argument("data", metavar="DATA", help="positions CSV (or a raw recording with --raw)")
+    p.add_argument("more_data", nargs="*", metavar="MORE", help="with --raw: more recordings of the same sensor, "
+                   "at the same rate (a file per pose or per face), joined in turn to DATA: no rest spans two files")
     p.add_argument("--model", default="nonlinear12", action=NamedModel,
                    help="model name or sum of terms (default nonlinear12; when the positions do not determine it, "
                    "the richest of linear9 and diag6 that they do, said in a note)")
@@ -98,6 +100,9 @@ def run(args) -> int:
         raise InputError("--dwell-s sets the dwell for --noise-from; give --noise-from too, or leave it out")
     if args.budget is not None and args.budget < 1:
         raise InputError(f"--budget {args.budget} must be a number of evaluations of 1 or more")
+    if args.more_data and not args.raw:
+        raise InputError(f"{len(args.more_data) + 1} files are read as one raw recording: give --raw (a positions "
+                         "file is one file)")
     if (args.gyro is not None or args.gyro_columns is not None) and not args.raw:
         flag = "--gyro" if args.gyro is not None else "--gyro-columns"
         raise InputError(f"{flag} judges the rests of a raw recording on its gyroscope too: give --raw")

@@ -82,6 +82,8 @@ def reading_line(how: dict, n_saturated: int) -> str:
                      f"rails {lo:.0f} and {hi:.0f} counts)")
     if "saturation" in how:
         parts.append(f"saturation at |output| ≥ {how['saturation']:g}")
+    if how.get("joined_files"):
+        parts.append(f"{how['joined_files']} files joined in turn, a missing sample between two (no rest spans them)")
     if how.get("other_record_rows"):
         parts.append(f"{how['other_record_rows']} row(s) of another record type, interleaved, without the chosen "
                      "columns' values, left out")

@@ -1,0 +1,63 @@
+"""A file per pose (three labs of issue #29's trials: a phone's six files, an AVR lab's six faces, a rocket club's
+six logs, each concatenated by hand): ``optcal calibrate A B C … --raw`` joins them in turn (each file's clock may
+restart at 0), a missing sample between two, so that no rest spans two files."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from optcal.app.cli import main
+from optcal.core.recording import read_recording
+from optcal.core.recording.join import join_recordings
+from optcal.core.schemes import scheme
+from optcal.core.synthetic_recording import poses_recording
+
+
+def _pose_files(tmp_path, n=12):
+    """One file per pose: 0.5 s of handling (a quarter turn into the pose), 3 s held, its clock from 0."""
+    dirs = scheme(f"random:{n}", np.random.default_rng(0))
+    paths = []
+    for k, d in enumerate(dirs):
+        start = np.roll(d, 1)  # the pose the hand brings it from
+        syn = poses_recording(np.random.default_rng(k), np.vstack([start, d]), hold_s=[0.3, 3.0],
+                              turn_rate_dps=180.0, noise_g=1e-3)
+        rec = syn.recording
+        path = tmp_path / f"pose{k:02d}.csv"
+        np.savetxt(path, np.column_stack([rec.t - rec.t[0], rec.N]), delimiter=",", header="t,ax,ay,az",
+                   comments="", fmt="%.6f")
+        paths.append(path)
+    return paths
+
+
+def test_a_file_per_pose_is_one_recording_and_no_rest_spans_two(tmp_path, capsys):
+    paths = _pose_files(tmp_path)
+    recs = [read_recording(p, units="g") for p in paths]
+    joined = join_recordings(recs)
+    assert len(joined) == sum(len(r) for r in recs) + len(recs) - 1
+    assert np.all(np.diff(joined.t) > 0) and np.isnan(joined.N).any(axis=1).sum() == len(recs) - 1
+    assert main(["calibrate", *map(str, paths), "--raw", "--units", "g", "--model", "linear9", "--json"]) == 0
+    import json
+
+    out = json.loads(capsys.readouterr().out)
+    iv = np.asarray(out["recording"]["intervals"])
+    ends = np.cumsum([len(r) + 1 for r in recs])  # each file's end (its join sample) in the joined samples
+    which = np.searchsorted(ends, iv[:, 0], side="right")
+    assert np.all(iv[:, 1] <= ends[which] - 1)  # every rest ends inside the file it starts in
+    assert sorted(set(which.tolist())) == list(range(len(recs)))  # every file's pose found
+    assert main(["calibrate", *map(str, paths), "--raw", "--units", "g", "--model", "linear9"]) == 0
+    assert f"{len(recs)} files joined in turn" in capsys.readouterr().out
+
+
+def test_files_that_do_not_go_together_are_refused(tmp_path, capsys):
+    paths = _pose_files(tmp_path, 3)
+    a = np.loadtxt(paths[1], delimiter=",", skiprows=1)
+    a[:, 0] *= 2.0  # half the rate
+    np.savetxt(paths[1], a, delimiter=",", header="t,ax,ay,az", comments="", fmt="%.6f")
+    assert main(["calibrate", *map(str, paths), "--raw", "--units", "g"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and "Hz: give recordings of one sensor at one rate" in err
+    assert main(["calibrate", str(paths[0]), str(paths[2])]) == 2
+    assert "2 files are read as one raw recording: give --raw" in capsys.readouterr().err
+    with pytest.raises(Exception):
+        join_recordings([read_recording(paths[0], units="g"), read_recording(paths[2], units="counts")])
