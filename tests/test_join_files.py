@@ -4,10 +4,13 @@ restart at 0), a missing sample between two, so that no rest spans two files."""
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 
 from optcal.app.cli import main
+from optcal.core.errors import InputError
 from optcal.core.recording import read_recording
 from optcal.core.recording.join import join_recordings
 from optcal.core.schemes import scheme
@@ -59,5 +62,6 @@ def test_files_that_do_not_go_together_are_refused(tmp_path, capsys):
     assert len(err.splitlines()) == 1 and "Hz: give recordings of one sensor at one rate" in err
     assert main(["calibrate", str(paths[0]), str(paths[2])]) == 2
     assert "2 files are read as one raw recording: give --raw" in capsys.readouterr().err
-    with pytest.raises(Exception):
-        join_recordings([read_recording(paths[0], units="g"), read_recording(paths[2], units="counts")])
+    other = replace(read_recording(paths[2], units="g"), units="m/s2")
+    with pytest.raises(InputError, match="give recordings of one sensor in one unit"):
+        join_recordings([read_recording(paths[0], units="g"), other])
