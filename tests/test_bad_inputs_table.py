@@ -122,7 +122,27 @@ def source(tmp_path_factory):
     _imu_files(d)
     _reader_files(d, A)
     _robot_files(d)
+    _new_user_files(d)
     return d
+
+
+def _new_user_files(d):
+    """Layouts other labs' files had (issue #29, the new users' third and fourth rounds): a headerless IMU table
+    with the gyroscope first; relative stamps in ns at 1 kHz (1 Hz in µs); two files without times of different
+    lengths; a recording at half the rate of another."""
+    rng = np.random.default_rng(11)
+    W = 0.01 * rng.standard_normal((500, 3))
+    W[100:140, 0] += 1.5  # turns between the rests
+    W[300:340, 1] -= 1.5
+    A = np.array([0.0, 0.0, 1.0]) + 1e-3 * rng.standard_normal((500, 3))  # samples of one pose, not positions
+    t = np.arange(500) / 100.0
+    np.savetxt(d / "gyro_first.csv", np.column_stack([t, W, A]), delimiter=",", fmt="%.10g")
+    np.savetxt(d / "rel_ns.csv", np.column_stack([np.arange(500) * 999_936.0, A]), delimiter=",",
+               header="t,ax,ay,az", comments="", fmt="%.0f")
+    np.savetxt(d / "acc_norate.csv", A, delimiter=",", fmt="%.10g")
+    np.savetxt(d / "gyr_norate.csv", W[:300], delimiter=",", fmt="%.10g")
+    np.savetxt(d / "raw_half.csv", np.column_stack([np.arange(500) / 50.0, A]), delimiter=",", header="t,ax,ay,az",
+               comments="", fmt="%.10g")
 
 
 def _robot_files(d):
@@ -457,6 +477,16 @@ CASES = [
     row("study-report-missing-folder", ["study", "report", "nowhere"], "nowhere"),
     row("study-report-not-a-study", ["study", "report", "notadir"], "study.sqlite"),
     row("study-export-missing-folder", ["study", "export", "nowhere", "-o", "ioh"], "nowhere"),
+    row("raw-gyroscope-first-headerless", ["calibrate", "gyro_first.csv", "--raw"],
+        "vary as a gyroscope's rates do"),
+    row("raw-time-unit-ambiguous", ["calibrate", "rel_ns.csv", "--raw"], "or 1000 Hz in ns; set --time-unit"),
+    row("imu-two-files-without-times-of-other-lengths", ["imu", "acc_norate.csv", "--gyro", "gyr_norate.csv",
+                                                         "--rate", "100", "--gyro-units", "rad/s"],
+        "neither has a time column"),
+    row("calibrate-raw-option-on-positions", [*CAL, "--columns", "ax=1,ay=2,az=3"], "reads a raw recording: add --raw"),
+    row("calibrate-several-files-not-raw", [*CAL, "p.csv"], "files are read as one raw recording: give --raw"),
+    row("calibrate-several-files-other-rate", ["calibrate", "rest.csv", "raw_half.csv", "--raw"], "at one rate"),
+    row("calibrate-gyro-columns-not-raw", [*CAL, "--gyro-columns", "4,5,6"], "judges the rests of a raw recording"),
     row("demo-negative-seed", ["demo", "--seed", "-1"], "--seed -1"),
     row("demo-negative-noise", ["demo", "--noise-ug", "-1"], "--noise-ug -1"),
     row("demo-zero-noise", ["demo", "--noise-ug", "0"], "--noise-ug 0"),

@@ -196,6 +196,15 @@ def read_recording(path, columns=None, rate: float | None = None, units: str | N
     n = len(raw)
     if n < 2:
         raise InputError(f"{path} has {n} sample(s); a raw recording needs many samples per static pose")
+    if "gx" in data and columns is None and lay.header is None and _swapped(
+            *(np.column_stack([data[r] for r in rs]) for rs in (("ax", "ay", "az"), ("gx", "gy", "gz")))):
+        # before the positions test: a gyroscope's rates taken for the accelerometer jump like positions
+        a, g = (", ".join(str(cols[r]) for r in rs) for rs in (("ax", "ay", "az"), ("gx", "gy", "gz")))
+        raise InputError(
+            f"{path}: {lay.ncol} columns and no header, read by position as t, ax, ay, az, gx, gy, gz; but columns "
+            f"{a} vary as a gyroscope's rates do (near 0 most of the time) and {g} as an accelerometer's (a "
+            f"magnitude that stays near one value); name them with `columns`, e.g. t=0,ax={cols['gx']},"
+            f"ay={cols['gy']},az={cols['gz']},gx={cols['ax']},gy={cols['ay']},gz={cols['az']}")
     reason = positions_file_reason(lay, raw[:, [order.index(a) for a in ("ax", "ay", "az")]]) \
         if refuse_positions and log is None else None
     if reason:
@@ -260,13 +269,6 @@ def read_recording(path, columns=None, rate: float | None = None, units: str | N
     W = gyro_sat = None
     if "gx" in data:
         W = np.column_stack([data["gx"], data["gy"], data["gz"]])
-        if columns is None and lay.header is None and _swapped(N, W):
-            a, g = (", ".join(str(cols[r]) for r in rs) for rs in (("ax", "ay", "az"), ("gx", "gy", "gz")))
-            raise InputError(
-                f"{path}: {lay.ncol} columns and no header, read by position as t, ax, ay, az, gx, gy, gz; but columns "
-                f"{a} vary as a gyroscope's rates do (near 0 most of the time) and {g} as an accelerometer's (a "
-                f"magnitude that stays near one value); name them with `columns`, e.g. t=0,ax={cols['gx']},"
-                f"ay={cols['gy']},az={cols['gz']},gx={cols['ax']},gy={cols['ay']},gz={cols['az']}")
         gyro_sat, gyro_how = gyro_saturation_of(W, units, fmt)
         how.update(gyro_how)
     names = {r: (lay.header[j] if lay.header else j) for r, j in cols.items()}
