@@ -8,6 +8,7 @@ from dataclasses import replace
 
 import numpy as np
 import pytest
+from conftest import run_cli
 
 from optcal.app.cli import main
 from optcal.core.errors import InputError
@@ -65,3 +66,43 @@ def test_files_that_do_not_go_together_are_refused(tmp_path, capsys):
     other = replace(read_recording(paths[2], units="g"), units="m/s2")
     with pytest.raises(InputError, match="give recordings of one sensor in one unit"):
         join_recordings([read_recording(paths[0], units="g"), other])
+
+
+def test_imu_joins_files_each_with_its_gyroscope(tmp_path, capsys):
+    """``optcal imu A B C``: an IMU recording split into three files at mid-rest, each file's clock from 0, is
+    read as one: its accelerometer and gyroscope joined in turn (a missing sample between two files), its rests
+    found as in the whole file (the two split rests found in each part), no motion fitted across a join, and the
+    gyroscope's parameters those of the whole file within their standard errors."""
+    import json
+
+    from optcal.core.gyro import draw_truth, get_gyro_model, simulate_imu
+
+    rng = np.random.default_rng(0)
+    model = get_gyro_model(False)
+    x = draw_truth(model, rng, 1000.0)
+    x[9:12] += 32768 / 1000.0
+    d = simulate_imu(model, x, poses=24, rest_s=3.0, rng=rng).data
+    table = np.column_stack([d.t, d.F, np.round(d.W)])
+    head = "t,ax,ay,az,gx,gy,gz"
+    whole = tmp_path / "whole.csv"
+    np.savetxt(whole, table, delimiter=",", header=head, comments="", fmt="%.9g")
+    cuts = [(d.rests[k, 0] + d.rests[k, 1]) // 2 for k in (8, 16)]  # the middle of rests 8 and 16
+    parts = []
+    for k, (a, b) in enumerate(zip([0, *cuts], [*cuts, len(table)])):
+        part = table[a:b].copy()
+        part[:, 0] -= part[0, 0]
+        path = tmp_path / f"part{k}.csv"
+        np.savetxt(path, part, delimiter=",", header=head, comments="", fmt="%.9g")
+        parts.append(str(path))
+    args = ["--gyro-units", "counts", "--gyro-scale", "1000", "--model", "linear9", "--json"]
+    code, text, err = run_cli(["imu", str(whole), *args], capsys)
+    assert code == 0, err
+    one = json.loads(text)
+    code, text, err = run_cli(["imu", *parts, *args], capsys)
+    assert code == 0, err
+    joined = json.loads(text)
+    assert len(joined["recording"]["intervals"]) == len(one["recording"]["intervals"]) + 2
+    g1, g3 = one["gyroscope"], joined["gyroscope"]
+    assert g3["data"]["n_motions"] == g1["data"]["n_motions"]  # the motions of each part; none across a join
+    for k in ("K_x", "K_y", "K_z", "T_xy", "T_yz"):
+        assert abs(g3["parameters"][k] - g1["parameters"][k]) < 3 * g1["stderr"][k], k

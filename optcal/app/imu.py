@@ -93,7 +93,9 @@ def calibrate_imu(positions, gyro, *, model=None, solver: str = "lm", options: d
                     force_weak=force_weak)
     join_times(acc.t, gyro.t)
     F = cal.model.inverse(np.asarray(cal.x, float)[None], acc.N)[0]
-    missing = ~np.isfinite(gyro.N).all(axis=1)  # a second file's gaps (optcal.core.gyro.recording.on_times_of)
+    # a second file's gaps (optcal.core.gyro.recording.on_times_of), and the sample between two joined files
+    # (optcal.core.recording.join), where neither sensor has one
+    missing = ~np.isfinite(gyro.N).all(axis=1) | ~np.isfinite(F).all(axis=1)
     data = GyroData(acc.t, gyro.N, F, det.intervals, units=gyro_units, saturated=gyro.saturated,
                     missing=missing if missing.any() else None)
     found = missed_rests(data)

@@ -106,7 +106,7 @@ def run(args) -> int:
     if (args.gyro is not None or args.gyro_columns is not None) and not args.raw:
         flag = "--gyro" if args.gyro is not None else "--gyro-columns"
         raise InputError(f"{flag} judges the rests of a raw recording on its gyroscope too: give --raw")
-    inputs = (args.data, args.presets, args.noise_from, args.gyro)
+    inputs = (args.data, *args.more_data, args.presets, args.noise_from, args.gyro)
     refuse_same_file(args.output, *inputs)
     refuse_overwrite(args.output, args.force)
     check_output_folder(args.output)

@@ -25,6 +25,9 @@ HELP = "calibrate an IMU's accelerometer and gyroscope from one recording of res
 def add_arguments(p):
     p.add_argument("data", metavar="DATA", help="raw recording with the accelerometer's columns and the gyroscope's "
                    "(named by its header, or by --gyro-columns), unless --gyro gives them in a second file")
+    p.add_argument("more_data", nargs="*", metavar="MORE", help="more recordings of the same IMU at the same rate "
+                   "(a file per pose or per face, each with its gyroscope's columns), joined in turn to DATA: no "
+                   "rest spans two files, no motion is fitted across two")
     p.add_argument("--gyro", metavar="FILE", help="the gyroscope's samples in a second file with the same times "
                    "(t, gx, gy, gz per row, or as --gyro-columns names them)")
     p.add_argument("--gyro-columns", metavar="SPEC", help="the gyroscope's columns by name or 0-based index: gx,gy,gz "
@@ -66,6 +69,33 @@ def gyro_recording(args, acc_rec):
                      interpolate=getattr(args, "interpolate_gyro", False))
 
 
+def _joined_positions(args, gyro_of):
+    """Several files of one IMU (``args.data`` and ``args.more_data``): each file's accelerometer and gyroscope read
+    as one file's are, both joined in turn (:func:`optcal.core.recording.join.join_recordings`: a missing sample
+    between two files, so no rest spans two and no motion across two is fitted), the rests found on the joined
+    recording as :func:`load_raw_positions` finds them. Returns the positions and the joined gyroscope."""
+    from optcal.app.commands._dataopts import flag_names, gravity_from_args, raw_options
+    from optcal.app.workflows.recording import positions_from_raw_recording
+    from optcal.core.recording.join import join_recordings
+
+    if args.gyro is not None:
+        raise InputError("--gyro is one second file: with several DATA files, each file holds its gyroscope's "
+                         "columns (named by its header, or by --gyro-columns)")
+    opts = raw_options(args)
+    with flag_names():
+        accs, gyros = [], []
+        for path in (args.data, *args.more_data):
+            args_data, args.data = args.data, path  # the gyroscope's reader reads the file being joined
+            try:
+                accs.append(opts.read(path))
+                gyros.append(gyro_of(accs[-1]))
+            finally:
+                args.data = args_data
+        rec, gyro = join_recordings(accs), join_recordings(gyros)
+        model = args.model or "diag6"
+        return positions_from_raw_recording(rec, opts, gyro=gyro, model=model, g_local=gravity_from_args(args)), gyro
+
+
 def run(args) -> int:
     import numpy as np  # here: building the command line imports no numpy (tests/test_startup.py)
 
@@ -81,7 +111,7 @@ def run(args) -> int:
     if args.budget is not None and args.budget < 1:
         raise InputError(f"--budget {args.budget} must be a number of evaluations of 1 or more")
     check_imu_options(gyro_scale=args.gyro_scale, gyro_bias=args.gyro_bias, g_sensitivity=args.g_sensitivity)
-    refuse_same_file(args.output, args.data, args.gyro)
+    refuse_same_file(args.output, args.data, *args.more_data, args.gyro)
     refuse_overwrite(args.output, args.force)
     check_output_folder(args.output)
     args.raw = True
@@ -98,7 +128,10 @@ def run(args) -> int:
         return read["gyro"]
 
     units_named = args.gyro_units is None
-    positions = load_raw_positions(args, args.data, gyro_of)
+    if args.more_data:
+        positions, read["gyro"] = _joined_positions(args, gyro_of)
+    else:
+        positions = load_raw_positions(args, args.data, gyro_of)
     gyr = read["gyro"]
     imu = calibrate_imu(positions, gyr, model=args.model if named else None, solver=args.solver,
                         options=parse_options(args.option), g_local=g_local, seed=args.seed, budget=args.budget,

@@ -189,6 +189,7 @@ class GyroData:
         if self.missing is not None and np.any(self.missing):
             self.missing = np.asarray(self.missing, bool)
             self.W = np.where(self.missing[:, None], 0.0, self.W)  # never integrated: their motions are left out
+            self.F = np.where(self.missing[:, None], 0.0, np.asarray(self.F, float))  # (in no rest either)
         self.F = np.ascontiguousarray(self.F, float)
         self.rests = np.asarray(self.rests, np.int64).reshape(-1, 2)
         n = len(self.t)
