@@ -487,6 +487,8 @@ CASES = [
     row("calibrate-several-files-not-raw", [*CAL, "p.csv"], "files are read as one raw recording: give --raw"),
     row("calibrate-several-files-other-rate", ["calibrate", "rest.csv", "raw_half.csv", "--raw"], "at one rate"),
     row("calibrate-gyro-columns-not-raw", [*CAL, "--gyro-columns", "4,5,6"], "judges the rests of a raw recording"),
+    row("imu-several-files-and-a-gyro-file", ["imu", "rest.csv", "raw_half.csv", "--gyro", "rest_gyro_shifted.csv",
+                                              "--gyro-units", "rad/s"], "--gyro is one second file"),
     row("demo-negative-seed", ["demo", "--seed", "-1"], "--seed -1"),
     row("demo-negative-noise", ["demo", "--noise-ug", "-1"], "--noise-ug -1"),
     row("demo-zero-noise", ["demo", "--noise-ug", "0"], "--noise-ug 0"),
