@@ -15,9 +15,8 @@ with ``optcal.calibrate_imu`` and ``optcal.apply_gyro`` for an IMU, come from :m
 
 from __future__ import annotations
 
-import importlib
-
 from optcal.core.errors import BudgetExhausted, InputError
+from optcal.core.lazy import lazy_names
 
 __version__ = "0.1.0"
 
@@ -43,13 +42,4 @@ _LAZY = {
 }
 
 
-def __getattr__(name: str):
-    if name in _LAZY:
-        value = getattr(importlib.import_module(f"{__name__}.{_LAZY[name]}"), name)
-        globals()[name] = value
-        return value
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
-
-
-def __dir__() -> list[str]:
-    return sorted(set(globals()) | set(__all__))
+__getattr__, __dir__ = lazy_names(__name__, _LAZY, __all__)

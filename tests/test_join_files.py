@@ -102,6 +102,11 @@ def test_imu_joins_files_each_with_its_gyroscope(tmp_path, capsys):
     assert code == 0, err
     joined = json.loads(text)
     assert len(joined["recording"]["intervals"]) == len(one["recording"]["intervals"]) + 2
+    # calibrate on the same files, judging the rests on each file's gyroscope, takes imu's rests
+    code, text, err = run_cli(["calibrate", *parts, "--raw", "--gyro-columns", "gx,gy,gz", "--model", "linear9",
+                               "--json"], capsys)
+    assert code == 0, err
+    assert json.loads(text)["recording"]["intervals"] == joined["recording"]["intervals"]
     g1, g3 = one["gyroscope"], joined["gyroscope"]
     assert g3["data"]["n_motions"] == g1["data"]["n_motions"]  # the motions of each part; none across a join
     for k in ("K_x", "K_y", "K_z", "T_xy", "T_yz"):

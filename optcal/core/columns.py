@@ -8,7 +8,7 @@ from __future__ import annotations
 
 from optcal.core.tablefile import column_key
 
-GYRO = ("gx", "gy", "gz")
+GYRO = ("gx", "gy", "gz")  # angular rate, in the file's units (rad/s, °/s or counts): optional, all three or none
 # Header names of the axes, a stem and the axis: ax, acc_x, AccX, ACCELX, accelerometer_x, ...; gx, gyr_x, GYROX,
 # wx, omega_x, ... Names are compared as column_keys (case, a trailing unit in parentheses or brackets, and
 # spaces, underscores, dots and hyphens aside), so acc_x stands for accx, Acc_X, ACC X and acc_x [m/s^2] too.

@@ -144,24 +144,28 @@ def raw_options(args) -> RawOptions:
 
 def load_raw_positions(args, path, gyro_of=None) -> PositionsData:
     """Positions from the raw recording ``path`` as the options ``args`` say, for the model calibrate's ``--model``
-    or discover's ``--base`` names (default diag6); ``gyro_of(recording)`` gives the gyroscope's Recording at the
-    same samples (``optcal imu``), whose stillness the detection also judges."""
+    or discover's ``--base`` names (default diag6); ``gyro_of(recording, file)`` gives the gyroscope's Recording at
+    the same samples (``optcal imu``, ``calibrate --gyro``), whose stillness the detection also judges. With
+    ``args.more_data``, several files of one sensor (a file per pose or face): each read, with its gyroscope, and
+    joined in turn (:func:`optcal.core.recording.join.join_recordings`), so that no rest spans two files."""
     from optcal.app.workflows.recording import positions_from_raw_recording
 
     opts = raw_options(args)
     model = getattr(args, "model", None) or getattr(args, "base", None) or "diag6"
     g_local = gravity_from_args(args)
+    paths = [path, *(getattr(args, "more_data", None) or [])]
+    if len(paths) > 1 and getattr(args, "gyro", None) is not None:
+        raise InputError("--gyro is one second file: with several DATA files, each file holds its gyroscope's "
+                         "columns (named by its header, or by --gyro-columns)")
     with flag_names():
-        rec = opts.read(path)
-        more = getattr(args, "more_data", None)
-        if more:  # a file per pose or face: one recording, no rest across two files
+        recs = [opts.read(p) for p in paths]
+        gyros = None if gyro_of is None else [gyro_of(r, p) for r, p in zip(recs, paths)]
+        if len(paths) > 1:
             from optcal.core.recording.join import join_recordings
 
-            if gyro_of is not None:
-                raise InputError("--gyro judges one recording's rests: with several DATA files, give each file's "
-                                 "gyroscope columns in it (--gyro-columns)")
-            rec = join_recordings([rec, *(opts.read(p) for p in more)])
-        return positions_from_raw_recording(rec, opts, gyro=None if gyro_of is None else gyro_of(rec), model=model,
+            recs = [join_recordings(recs)]
+            gyros = None if gyros is None else [join_recordings(gyros)]
+        return positions_from_raw_recording(recs[0], opts, gyro=None if gyros is None else gyros[0], model=model,
                                             g_local=g_local)
 
 

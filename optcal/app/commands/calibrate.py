@@ -75,8 +75,8 @@ def _gyro_of(args):
         return None
     from optcal.core.gyro.recording import read_gyro
 
-    return lambda rec: read_gyro(args.data, rec, gyro=args.gyro, gyro_columns=args.gyro_columns, units="volts",
-                                 rate=args.rate, time_unit=args.time_unit, interpolate=True)
+    return lambda rec, path: read_gyro(path, rec, gyro=args.gyro, gyro_columns=args.gyro_columns, units="volts",
+                                       rate=args.rate, time_unit=args.time_unit, interpolate=True)
 
 
 def _default_positions(args):

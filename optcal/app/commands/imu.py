@@ -59,47 +59,22 @@ def add_arguments(p):
     add_data_options(p)
 
 
-def gyro_recording(args, acc_rec):
-    """The gyroscope's samples (a Recording whose N holds them), from ``args.gyro`` or ``args.data``'s columns
-    ``args.gyro_columns`` (:func:`optcal.core.gyro.recording.read_gyro`)."""
+def gyro_recording(args, acc_rec, path=None):
+    """The gyroscope's samples (a Recording whose N holds them), from ``args.gyro`` or the columns
+    ``args.gyro_columns`` of ``path`` (default ``args.data``) (:func:`optcal.core.gyro.recording.read_gyro`)."""
     from optcal.core.gyro.recording import read_gyro
 
-    return read_gyro(args.data, acc_rec, gyro=args.gyro, gyro_columns=args.gyro_columns, units=args.gyro_units,
-                     rate=args.rate, time_unit=args.time_unit, calibration=getattr(args, "units_of_calibration", False),
+    return read_gyro(args.data if path is None else path, acc_rec, gyro=args.gyro, gyro_columns=args.gyro_columns,
+                     units=args.gyro_units, rate=args.rate, time_unit=args.time_unit,
+                     calibration=getattr(args, "units_of_calibration", False),
                      interpolate=getattr(args, "interpolate_gyro", False))
-
-
-def _joined_positions(args, gyro_of):
-    """Several files of one IMU (``args.data`` and ``args.more_data``): each file's accelerometer and gyroscope read
-    as one file's are, both joined in turn (:func:`optcal.core.recording.join.join_recordings`: a missing sample
-    between two files, so no rest spans two and no motion across two is fitted), the rests found on the joined
-    recording as :func:`load_raw_positions` finds them. Returns the positions and the joined gyroscope."""
-    from optcal.app.commands._dataopts import flag_names, gravity_from_args, raw_options
-    from optcal.app.workflows.recording import positions_from_raw_recording
-    from optcal.core.recording.join import join_recordings
-
-    if args.gyro is not None:
-        raise InputError("--gyro is one second file: with several DATA files, each file holds its gyroscope's "
-                         "columns (named by its header, or by --gyro-columns)")
-    opts = raw_options(args)
-    with flag_names():
-        accs, gyros = [], []
-        for path in (args.data, *args.more_data):
-            args_data, args.data = args.data, path  # the gyroscope's reader reads the file being joined
-            try:
-                accs.append(opts.read(path))
-                gyros.append(gyro_of(accs[-1]))
-            finally:
-                args.data = args_data
-        rec, gyro = join_recordings(accs), join_recordings(gyros)
-        model = args.model or "diag6"
-        return positions_from_raw_recording(rec, opts, gyro=gyro, model=model, g_local=gravity_from_args(args)), gyro
 
 
 def run(args) -> int:
     import numpy as np  # here: building the command line imports no numpy (tests/test_startup.py)
 
     from optcal.app.imu import calibrate_imu, check_imu_options
+    from optcal.core.recording.join import join_recordings
 
     check_seed(args.seed)
     if args.gyro_units is None and args.gyro is None:
@@ -122,17 +97,16 @@ def run(args) -> int:
     # needs), judged on the gyroscope too
     read = {}
 
-    def gyro_of(acc):
-        read["gyro"] = gyro_recording(args, acc)
-        args.gyro_units = read["gyro"].reading["gyro_units"]
-        return read["gyro"]
+    def gyro_of(acc, path):
+        gyro = gyro_recording(args, acc, path)
+        args.gyro_units = gyro.reading["gyro_units"]
+        read.setdefault("gyros", []).append(gyro)
+        return gyro
 
     units_named = args.gyro_units is None
-    if args.more_data:
-        positions, read["gyro"] = _joined_positions(args, gyro_of)
-    else:
-        positions = load_raw_positions(args, args.data, gyro_of)
-    gyr = read["gyro"]
+    positions = load_raw_positions(args, args.data, gyro_of)
+    # several files: their gyroscopes joined as the loader joined them for the rests (the same arrays)
+    gyr = read["gyros"][0] if len(read["gyros"]) == 1 else join_recordings(read["gyros"])
     imu = calibrate_imu(positions, gyr, model=args.model if named else None, solver=args.solver,
                         options=parse_options(args.option), g_local=g_local, seed=args.seed, budget=args.budget,
                         gyro_units=args.gyro_units, gyro_scale=args.gyro_scale, gyro_bias=args.gyro_bias,

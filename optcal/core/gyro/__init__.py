@@ -6,7 +6,7 @@ onto the next's (Tedaldi, Pretto and Menegatti, ICRA 2014): :mod:`.model` (the s
 take), :mod:`.simulate` (recordings with known truth).
 """
 
-import importlib
+from optcal.core.lazy import lazy_names
 
 __all__ = ["GyroData", "GyroModel", "GyroPresets", "GyroProblem", "SimulatedIMU", "draw_truth", "get_gyro_model",
            "simulate_imu"]
@@ -17,13 +17,4 @@ _LAZY = {"GyroData": "data", "GyroModel": "model", "get_gyro_model": "model", "G
          "GyroProblem": "problem", "SimulatedIMU": "simulate", "draw_truth": "simulate", "simulate_imu": "simulate"}
 
 
-def __getattr__(name: str):
-    if name in _LAZY:
-        value = getattr(importlib.import_module(f"{__name__}.{_LAZY[name]}"), name)
-        globals()[name] = value
-        return value
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
-
-
-def __dir__() -> list[str]:
-    return sorted(set(globals()) | set(__all__))
+__getattr__, __dir__ = lazy_names(__name__, _LAZY, __all__)

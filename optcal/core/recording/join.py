@@ -18,9 +18,8 @@ RATE_TOLERANCE = 0.05  # the files' sample rates must agree within this fraction
 def join_recordings(recs: list[Recording]) -> Recording:
     """``recs`` joined: the samples of each after the previous one's last (the first's times as they are, each
     next one's shifted to start two steps after it: a file's clock may restart at 0), a missing sample (NaN)
-    between two files; the
-    temperature and the gyroscope's rates when every file has them. The files must agree in units, rate and
-    whether they hold a gyroscope. ``reading["joined_files"]`` says how many were joined."""
+    between two files; the temperature and the gyroscope's rates when every file has them. The files must agree
+    in units, rate and whether they hold a gyroscope. ``reading["joined_files"]`` says how many were joined."""
     if len(recs) == 1:
         return recs[0]
     first = recs[0]
@@ -35,31 +34,28 @@ def join_recordings(recs: list[Recording]) -> Recording:
             raise InputError(f"{first.path if first.W is not None else r.path} has a gyroscope and "
                              f"{r.path if first.W is not None else first.path} none: give all or none with one")
     step = 1.0 / first.rate if np.isfinite(first.rate) else 1.0
-
-    def joined(get, gap):
-        """The files' arrays ``get(r)`` in turn, ``gap`` (one row) between two of them."""
-        parts = []
-        for k, r in enumerate(recs):
-            parts.append(get(r, k))
-            if k < len(recs) - 1:
-                parts.append(gap(k))
-        return np.concatenate(parts)
-
-    starts, end = [], None
-    for r in recs:  # each file's clock from two of its steps after the previous file's last sample
-        starts.append(0.0 if end is None else end + 2 * step - float(r.t[0]))
-        end = float(r.t[-1]) + starts[-1]
-    t = joined(lambda r, k: np.asarray(r.t, float) + starts[k],
-               lambda k: np.array([float(recs[k].t[-1]) + starts[k] + step]))
-    N = joined(lambda r, k: np.asarray(r.N, float), lambda k: np.full((1, 3), np.nan))
-    sat = joined(lambda r, k: np.asarray(r.saturated, bool), lambda k: np.zeros(1, bool))
-    temp = (joined(lambda r, k: np.asarray(r.temp, float), lambda k: np.full(1, np.nan))
-            if all(r.temp is not None for r in recs) else None)
+    # each file's clock from two of its steps after the previous file's last sample, the gap's sample between
+    times = [np.asarray(first.t, float)]
+    for r in recs[1:]:
+        times.append(np.asarray(r.t, float) - float(r.t[0]) + times[-1][-1] + 2 * step)
+    t = _joined(times, [tk[-1:] + step for tk in times[:-1]])
+    N = _joined([r.N for r in recs], np.full((1, 3), np.nan))
+    sat = _joined([r.saturated for r in recs], np.zeros(1, bool))
+    temp = _joined([r.temp for r in recs], np.full(1, np.nan)) if all(r.temp is not None for r in recs) else None
     W = gsat = None
     if first.W is not None:
-        W = joined(lambda r, k: np.asarray(r.W, float), lambda k: np.full((1, 3), np.nan))
-        gsat = joined(lambda r, k: np.zeros(len(r), bool) if r.gyro_saturated is None else r.gyro_saturated,
-                      lambda k: np.zeros(1, bool))
+        W = _joined([r.W for r in recs], np.full((1, 3), np.nan))
+        gsat = _joined([np.zeros(len(r), bool) if r.gyro_saturated is None else r.gyro_saturated for r in recs],
+                       np.zeros(1, bool))
     path = f"{first.path} and {len(recs) - 1} more file(s)"
     return replace(first, t=t, N=N, temp=temp, saturated=sat, path=path, labels=None, W=W, gyro_saturated=gsat,
                    reading={**first.reading, "joined_files": len(recs)})
+
+
+def _joined(parts: list, gap) -> np.ndarray:
+    """``parts`` concatenated, ``gap`` (one row, or one row per join when a list) between two of them."""
+    gaps = gap if isinstance(gap, list) else [gap] * (len(parts) - 1)
+    out = [parts[0]]
+    for p, g in zip(parts[1:], gaps):
+        out += [g, p]
+    return np.concatenate([np.asarray(x) for x in out])

@@ -85,12 +85,12 @@ def recheck_poses(data, model, x, suspects, name=None):
         m = len(F)
         q = max(m // 4, 1)
         first, last = F[:q].mean(axis=0), F[-q:].mean(axis=0)
-        se = _drift_sd(noise_g, q, floor, K, rate)
+        se = _with_flicker(noise_g * np.sqrt(2.0 / q), floor, K)  # first and last quarters' difference
         c = np.concatenate([np.zeros((1, 3)), np.cumsum(F, axis=0)])
         lo = np.clip(np.arange(m) - w // 2, 0, max(m - w, 0))
         Fs = (c[lo + min(w, m)] - c[lo]) / min(w, m)
         ref = np.median(F[m // 4: m - m // 4], axis=0)
-        dev = np.max(np.abs(Fs - ref) / _depart_sd(noise_g, min(w, m), floor, K), axis=1)
+        dev = np.max(np.abs(Fs - ref) / _with_flicker(noise_g / np.sqrt(min(w, m)), floor, K), axis=1)
         still = dev <= DEPART_SIGMAS
         # the longest run of still samples: the pose without the motions at its ends
         starts, stops = runs(still).T
@@ -107,7 +107,7 @@ def recheck_poses(data, model, x, suspects, name=None):
             Fk = F[s0:s1]
             qk = max(len(Fk) // 4, 1)
             drift = np.abs(Fk[:qk].mean(axis=0) - Fk[-qk:].mean(axis=0))
-            if np.all(drift <= DRIFT_SIGMAS * _drift_sd(noise_g, qk, floor, K, rate)):
+            if np.all(drift <= DRIFT_SIGMAS * _with_flicker(noise_g * np.sqrt(2.0 / qk), floor, K)):
                 # a trim that moves the pose's mean by less than its own noise changes nothing the fit sees
                 if np.all(np.abs(Fk.mean(axis=0) - F.mean(axis=0)) < TRIM_SIGMAS * noise_g / np.sqrt(len(Fk))):
                     continue
@@ -124,27 +124,15 @@ def recheck_poses(data, model, x, suspects, name=None):
     new = replace(det, intervals=iv[keep], notes=list(det.notes))
     # the recording's noise model is kept: a pose's ends trimmed do not change it; the positions keep their numbers
     # (a dropped pose leaves a gap: position 9 stays the interval the report numbers 9)
-    out = positions_from_recording(rec, new, floor_like=data.extra.get("noise_floor"))
+    out = positions_from_recording(rec, new, floor_like=floor)
     return replace(out, position=np.asarray(data.position)[keep]), notes
 
 
-def _drift_sd(noise_g: np.ndarray, q: int, floor, K: np.ndarray, rate: float) -> np.ndarray:
-    """SD (3,) in g of the difference between the means of a pose's first and last ``q`` samples when it holds
-    still: √2 × the recording's Allan deviation at τ = q samples (the white noise ``noise_g`` of a sample, and the
-    flicker of the recording's noise floor, σ_A² = N²/τ + (0.664 B)², :mod:`optcal.core.recording.floor`; outputs
-    per g ``K``). White noise alone made a phone's 20-s pose whose force wandered 0.4 mg (its flicker B is 0.2
-    mg) a pose that "moved while held", and dropped it."""
-    white = noise_g * np.sqrt(2.0 / q)
-    B = getattr(floor, "bias_instability", None)
-    if B is None:
-        return white
-    return np.sqrt(white**2 + 2.0 * (FLICKER_FACTOR * np.asarray(B, float) / K) ** 2)
-
-
-def _depart_sd(noise_g: np.ndarray, w: int, floor, K: np.ndarray) -> np.ndarray:
-    """SD (3,) in g of a mean of ``w`` samples about the pose's median when it holds still: its white noise, and
-    the flicker of the recording's noise floor (as :func:`_drift_sd`)."""
-    white = noise_g / np.sqrt(w)
+def _with_flicker(white: np.ndarray, floor, K: np.ndarray) -> np.ndarray:
+    """SD (3,) in g of a difference of averages of a pose held still, whose white part is ``white``: with the
+    flicker of the recording's noise floor ``floor`` added, √2 × 0.664 B (σ_A² = N²/τ + (0.664 B)²,
+    :mod:`optcal.core.recording.floor`; outputs per g ``K``). White noise alone made a phone's 20-s pose whose
+    force wandered 0.4 mg (its flicker B is 0.2 mg) a pose that "moved while held", and dropped it."""
     B = getattr(floor, "bias_instability", None)
     if B is None:
         return white

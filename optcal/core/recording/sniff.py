@@ -23,7 +23,7 @@ from pathlib import Path
 
 import numpy as np
 
-from optcal.core.columns import ACC_STEMS, ALIAS_KEYS, ALIASES, GYRO_STEMS  # noqa: F401 - the names, re-exported
+from optcal.core.columns import ACC_STEMS, ALIAS_KEYS, ALIASES, GYRO, GYRO_STEMS  # noqa: F401 - re-exported
 from optcal.core.data import MANY_POSITIONS
 from optcal.core.errors import InputError, listing
 from optcal.core.tablefile import (  # noqa: F401 - the layout's names, re-exported for the recording path
@@ -46,7 +46,6 @@ log = logging.getLogger(__name__)
 _WARNED: set[str] = set()  # files whose damaged-checksum warning was given (one process, one warning per file)
 
 ROLES = ("t", "ax", "ay", "az", "gx", "gy", "gz", "temp")
-GYRO = ("gx", "gy", "gz")  # angular rate, in the file's units (rad/s, °/s or counts): optional, all three or none
 
 # prefixes under which a sensor's own outputs go (MicroStrain's scaledAccelX, scaledGyroX; rawAccX; imu_ax):
 # not a filter's or an estimate's (linearAccel, estLinearAccel: gravity taken out)
